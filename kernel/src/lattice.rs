@@ -1,0 +1,97 @@
+//! The global sample lattice of a ray: `t_k = t_entry + k·Δt` for integer `k`.
+//!
+//! Invariants: positions are never accumulated; `t_k` is one multiply and one add from the
+//! same inputs on every node. `last` is capped at [`MAX_SAMPLES`] so that `k` converts to
+//! `f32` exactly. Sample `k` stands for the segment `[t_k, min(t_{k+1}, t_exit)]`, so the
+//! segments tile the span exactly and compositing integrates the whole ray, no more.
+
+/// The most samples one ray takes: `k` must stay exactly representable in `f32` (2^24).
+pub const MAX_SAMPLES: u32 = 1 << 24;
+
+/// A ray's sample positions.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lattice {
+    /// `t` of sample 0 (the entry into the whole dataset's box, or the ray's start).
+    pub t_entry: f32,
+    /// `t` where the ray leaves the box (or reaches its end); `t_last ≤ t_exit` up to rounding.
+    pub t_exit: f32,
+    /// World distance between samples.
+    pub dt: f32,
+    /// Index of the last sample.
+    pub last: u32,
+}
+
+impl Lattice {
+    /// The lattice over `[t_entry, t_exit]` with step `dt > 0`. `None` for a non-finite or
+    /// empty span or a non-positive step.
+    pub fn new(t_entry: f32, t_exit: f32, dt: f32) -> Option<Lattice> {
+        if !(t_entry.is_finite()
+            && t_exit.is_finite()
+            && dt.is_finite()
+            && dt > 0.0
+            && t_exit >= t_entry)
+        {
+            return None;
+        }
+        let steps = libm::floorf((t_exit - t_entry) / dt);
+        // Saturating conversion, capped so `k as f32` is exact.
+        let last = (steps.max(0.0) as u32).min(MAX_SAMPLES);
+        Some(Lattice {
+            t_entry,
+            t_exit,
+            dt,
+            last,
+        })
+    }
+
+    /// `t` of sample `k`.
+    #[inline]
+    pub fn t(&self, k: u32) -> f32 {
+        self.t_entry + k as f32 * self.dt
+    }
+
+    /// World length of the segment sample `k` stands for (zero past the exit).
+    #[inline]
+    pub fn segment(&self, k: u32) -> f32 {
+        let end = if k >= self.last {
+            self.t_exit
+        } else {
+            self.t(k + 1).min(self.t_exit)
+        };
+        (end - self.t(k)).max(0.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn segments_tile_the_span() {
+        for (t0, t1, dt) in [
+            (0.0f32, 10.0f32, 0.5f32),
+            (1.25, 7.0, 0.2),
+            (3.0, 3.0, 0.125),
+            (0.1, 96.0, 0.125),
+        ] {
+            let l = Lattice::new(t0, t1, dt).unwrap();
+            let total: f64 = (0..=l.last).map(|k| f64::from(l.segment(k))).sum();
+            assert!(
+                (total - f64::from(t1 - t0)).abs() < 1e-4,
+                "{t0} {t1} {dt}: {total}"
+            );
+            assert!(l.t(l.last) <= t1 + 1e-4);
+        }
+    }
+
+    #[test]
+    fn degenerate_lattices_are_refused() {
+        assert!(Lattice::new(0.0, 1.0, 0.0).is_none());
+        assert!(Lattice::new(0.0, f32::NAN, 0.5).is_none());
+        assert!(Lattice::new(2.0, 1.0, 0.5).is_none());
+        assert_eq!(
+            Lattice::new(0.0, 1e30, 1e-3).map(|l| l.last),
+            Some(MAX_SAMPLES)
+        );
+    }
+}

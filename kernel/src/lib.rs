@@ -1,0 +1,39 @@
+//! The voxcube node kernel: everything one node of a hypercube multicomputer does to ray
+//! trace its slab of a regular volume, in fixed memory, with no allocation, I/O or clock.
+//!
+//! The kernel traces in *index space* (voxel `(i, j, k)` sits at `(i, j, k)`) with the ray
+//! parameter `t` measured in world units, so anisotropic spacing costs nothing per sample.
+//! Every sample of every ray sits on the global lattice `t_k = t_entry + k·Δt` of
+//! [`lattice`], and belongs to the slab that owns its plane ([`grid::Grid::owner_plane`]):
+//! this is what makes an image bit-identical for any partition of the volume.
+//!
+//! Map of the crate:
+//! - data: [`sample`], [`grid`], [`slab`], [`field`] (nearest and trilinear reads, gradients);
+//! - geometry: [`ray`] (box clipping), [`lattice`], [`camera`];
+//! - appearance: [`transfer`], [`surface`], [`shade`], [`view`] (one view's parameters and the
+//!   effects it calls for);
+//! - tracing: [`march`] (the explicit-state ray marcher that stops at slab boundaries),
+//!   [`tree`] (the one formula that combines a ray tree), [`trace`] (a whole pixel on one slab),
+//!   [`pixel`] (colour to RGBA8), [`counters`].
+#![no_std]
+#![forbid(unsafe_code)]
+#![deny(missing_docs)]
+
+pub mod camera;
+pub mod counters;
+pub mod field;
+pub mod grid;
+pub mod lattice;
+pub mod march;
+pub mod pixel;
+pub mod ray;
+pub mod sample;
+pub mod shade;
+pub mod slab;
+pub mod surface;
+pub mod trace;
+pub mod transfer;
+pub mod tree;
+pub mod view;
+
+pub use glam::Vec3;

@@ -1,0 +1,302 @@
+//! The ray marcher: an explicit-state iterator over a ray's lattice samples that lie in one
+//! slab. It stops at the first event a caller must act on: a surface hit, the ray leaving the
+//! slab (the caller forwards it), the ray leaving the volume, or early termination.
+//!
+//! Invariants: the state ([`RayState`]) is all a ray needs to continue on any node: lattice,
+//! next sample index `k`, the previous sample's value, accumulated colour and weight. A sample
+//! is processed only by the slab owning its plane; a step is never shortened. Surfaces found in
+//! one segment are reported nearest first (ties by surface order), each once: `done_here`
+//! remembers which the current segment has already reported, so a transparency continuation
+//! re-examines the segment and finds the next. Where a ray enters the volume already inside a
+//! surface, the cut face is the surface ("capping"): the outside of the volume counts as below
+//! every iso value, and the cut face is lit with the face's normal.
+
+use crate::counters::Counters;
+use crate::field;
+use crate::lattice::Lattice;
+use crate::ray::{Entry, Ray};
+use crate::sample::Sample;
+use crate::shade;
+use crate::slab::Slab;
+use crate::surface::{self, IsoSurface};
+use crate::transfer::corrected_opacity;
+use crate::tree;
+use crate::view::{Mode, View};
+use glam::Vec3;
+
+/// What a ray is for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RayKind {
+    /// From the eye through a pixel.
+    Primary,
+    /// Continuing a primary ray past a semi-transparent surface.
+    Transparency,
+    /// From a surface point toward a shadow-casting light.
+    Shadow,
+}
+
+/// All the state of a ray in flight.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RayState {
+    /// What the ray is for.
+    pub kind: RayKind,
+    /// The pixel it contributes to (row-major).
+    pub pixel: u32,
+    /// The ray.
+    pub ray: Ray,
+    /// Its samples.
+    pub lattice: Lattice,
+    /// How it entered the volume (for capping).
+    pub entry: Entry,
+    /// Next sample to process.
+    pub k: u32,
+    /// Field value of sample `k - 1`, valid when `primed`.
+    pub prev: f32,
+    /// Whether `prev` holds a sample of this ray.
+    pub primed: bool,
+    /// Surfaces (bit per index) already reported on the segment ending at sample `k`.
+    pub done_here: u16,
+    /// Transparency rays between the primary ray and this one.
+    pub depth: u8,
+    /// Light still reaching the eye from here: for primary and transparency rays the product
+    /// of `1 − opacity` of the surfaces in front; for shadow rays the visibility so far; when
+    /// compositing the transmittance.
+    pub weight: f32,
+    /// Colour accumulated front to back (compositing).
+    pub color: Vec3,
+}
+
+impl RayState {
+    /// A fresh ray starting at sample `k`.
+    pub fn new(
+        kind: RayKind,
+        pixel: u32,
+        ray: Ray,
+        lattice: Lattice,
+        entry: Entry,
+        k: u32,
+    ) -> RayState {
+        RayState {
+            kind,
+            pixel,
+            ray,
+            lattice,
+            entry,
+            k,
+            prev: 0.0,
+            primed: false,
+            done_here: 0,
+            depth: 0,
+            weight: 1.0,
+            color: Vec3::ZERO,
+        }
+    }
+}
+
+/// A surface crossing.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Index of the surface in the view.
+    pub surface: u8,
+    /// Ray parameter of the crossing.
+    pub t: f32,
+    /// Index-space position.
+    pub point: Vec3,
+    /// For a cut face where the ray entered the volume: its normal (world).
+    pub cap_normal: Option<Vec3>,
+}
+
+/// Why marching stopped.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Stop {
+    /// Crossed a surface (primary and transparency rays).
+    Hit(Hit),
+    /// The next sample belongs to `plane`, which this slab does not own.
+    Leave {
+        /// The owner plane of the next sample.
+        plane: u32,
+    },
+    /// No samples left: the ray has left the volume.
+    Exit,
+    /// Too little light left for anything behind to show.
+    Terminated,
+}
+
+/// Advance `ray` through the samples `slab` owns.
+pub fn march<T: Sample>(
+    view: &View,
+    slab: &Slab<'_, T>,
+    ray: &mut RayState,
+    counters: &mut Counters,
+) -> Stop {
+    let spec = view.spec();
+    let grid = slab.grid();
+    loop {
+        if ray.k > ray.lattice.last {
+            return Stop::Exit;
+        }
+        let t = ray.lattice.t(ray.k);
+        let p = ray.ray.at(t);
+        let plane = grid.owner_plane(p.x, spec.model);
+        if !slab.owns(plane) {
+            return Stop::Leave { plane };
+        }
+        counters.samples += 1;
+        let v = field::value(slab, spec.model, p, counters);
+        match &spec.mode {
+            Mode::Surfaces(surfaces) if ray.kind == RayKind::Shadow => {
+                if ray.primed {
+                    for s in surfaces
+                        .iter()
+                        .filter(|s| surface::crosses(ray.prev, v, s.iso))
+                    {
+                        ray.weight *= s.transparency;
+                    }
+                }
+                if !(ray.weight > spec.cutoff) {
+                    counters.early_terminations += 1;
+                    return Stop::Terminated;
+                }
+            }
+            Mode::Surfaces(surfaces) => {
+                if let Some(hit) = nearest_crossing(view, slab, surfaces, ray, t, p, v, counters) {
+                    ray.done_here |= 1 << hit.surface;
+                    counters.crossings += 1;
+                    return Stop::Hit(hit);
+                }
+            }
+            Mode::Composite(tf) => {
+                let (base, alpha) = tf.eval(v);
+                let alpha = corrected_opacity(alpha, ray.lattice.segment(ray.k) / view.cell_edge());
+                if alpha > 0.0 {
+                    let color = match &spec.shading {
+                        Some(_) => lit(
+                            view,
+                            slab,
+                            base,
+                            p,
+                            None,
+                            ray.ray.dir_world,
+                            counters,
+                            |_, _, _, _| 1.0,
+                        ),
+                        None => base,
+                    };
+                    ray.color += color * (ray.weight * alpha);
+                    ray.weight *= 1.0 - alpha;
+                    if !(ray.weight > spec.cutoff) {
+                        ray.k += 1;
+                        counters.early_terminations += 1;
+                        return Stop::Terminated;
+                    }
+                }
+            }
+        }
+        ray.prev = v;
+        ray.primed = true;
+        ray.done_here = 0;
+        ray.k += 1;
+    }
+}
+
+/// The nearest surface crossing not yet reported on the segment ending at sample `k` (value
+/// `v` at `p`, parameter `t`).
+#[allow(
+    clippy::too_many_arguments,
+    reason = "one call site; the arguments are the sample being examined"
+)]
+fn nearest_crossing<T: Sample>(
+    view: &View,
+    slab: &Slab<'_, T>,
+    surfaces: &[IsoSurface],
+    ray: &RayState,
+    t: f32,
+    p: Vec3,
+    v: f32,
+    counters: &mut Counters,
+) -> Option<Hit> {
+    let pending = |i: usize| ray.done_here & (1 << i) == 0;
+    if !ray.primed {
+        if ray.kind == RayKind::Shadow {
+            return None;
+        }
+        // The first sample: the outside of the volume is below every iso value, so a surface
+        // whose inside contains the sample is cut by the volume's boundary here.
+        let index =
+            (0..surfaces.len()).find(|&i| pending(i) && surface::inside(v, surfaces[i].iso))?;
+        let normal = ray.entry.outward_normal().unwrap_or(-ray.ray.dir_world);
+        return Some(Hit {
+            surface: index as u8,
+            t,
+            point: p,
+            cap_normal: Some(normal),
+        });
+    }
+    let t_prev = ray.lattice.t(ray.k - 1);
+    let model = view.spec().model;
+    let mut best: Option<(f32, usize)> = None;
+    for (i, s) in surfaces.iter().enumerate() {
+        if !pending(i) || !surface::crosses(ray.prev, v, s.iso) {
+            continue;
+        }
+        let f = surface::refine(s.iso, ray.prev, v, view.spec().refine_steps, |f| {
+            counters.refinements += 1;
+            field::value(slab, model, ray.ray.at(t_prev + f * (t - t_prev)), counters)
+        });
+        if best.is_none_or(|(bf, _)| f < bf) {
+            best = Some((f, i));
+        }
+    }
+    let (f, index) = best?;
+    let t_hit = t_prev + f * (t - t_prev);
+    Some(Hit {
+        surface: index as u8,
+        t: t_hit,
+        point: ray.ray.at(t_hit),
+        cap_normal: None,
+    })
+}
+
+/// The shaded colour of a point of colour `base` at index-space `p`, with `visibility(l)` the
+/// shadow-ray visibility of light `l`, in world direction `to_light` at distance `distance`
+/// given the counters (called only for lights that face the point and cast shadows). Uses the cap normal when given, else the gradient.
+#[allow(clippy::too_many_arguments, reason = "the shading inputs of one point")]
+pub fn lit<T: Sample>(
+    view: &View,
+    slab: &Slab<'_, T>,
+    base: Vec3,
+    p: Vec3,
+    cap_normal: Option<Vec3>,
+    view_dir: Vec3,
+    counters: &mut Counters,
+    mut visibility: impl FnMut(usize, Vec3, f32, &mut Counters) -> f32,
+) -> Vec3 {
+    let spec = view.spec();
+    let Some(shading) = &spec.shading else {
+        return base;
+    };
+    counters.shadings += 1;
+    let n = match cap_normal {
+        Some(n) => shade::face_viewer(n, view_dir),
+        None => {
+            let g = field::gradient(slab, spec.model, p, spec.gradient_distance, counters);
+            let (n, fallback) = shade::normal(g, view_dir);
+            counters.normal_fallbacks += u64::from(fallback);
+            n
+        }
+    };
+    let world = view.to_world(p);
+    let mut direct = [Vec3::ZERO; shade::MAX_LIGHTS];
+    let mut vis = [1.0f32; shade::MAX_LIGHTS];
+    for (l, light) in spec.lights.iter().enumerate() {
+        let Some((to_light, distance)) = light.toward(world) else {
+            continue;
+        };
+        direct[l] = shade::direct(shading, base, n, view_dir, to_light, light.color);
+        if light.shadows && direct[l] != Vec3::ZERO {
+            vis[l] = visibility(l, to_light, distance, counters);
+        }
+    }
+    let lights = spec.lights.len();
+    tree::surface_color(base * shading.ambient, &direct[..lights], &vis[..lights])
+}

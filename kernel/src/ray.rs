@@ -1,0 +1,273 @@
+//! Rays and their robust clipping against an axis-aligned box.
+//!
+//! A [`Ray`] lives in index space but is parameterised by world distance: `dir` is the world
+//! unit direction scaled by `1/spacing`. Clipping handles axis-parallel rays (a zero direction
+//! component never divides), rays lying on a face or an edge (the box is closed), grazing rays
+//! (an interval of zero length is a hit), and non-finite input (no hit, never NaN).
+
+use glam::Vec3;
+
+/// A ray: `origin + t·dir` in index space, `t` in world units along `dir_world`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    /// Start point, index space.
+    pub origin: Vec3,
+    /// Direction in index space: the world unit direction times `1/spacing`.
+    pub dir: Vec3,
+    /// Unit direction in world space (for shading).
+    pub dir_world: Vec3,
+}
+
+impl Ray {
+    /// The ray from a world-space origin along a world-space unit direction.
+    pub fn from_world(origin_world: Vec3, dir_world: Vec3, inv_spacing: Vec3) -> Ray {
+        Ray {
+            origin: origin_world * inv_spacing,
+            dir: dir_world * inv_spacing,
+            dir_world,
+        }
+    }
+
+    /// The index-space point at parameter `t`. Every node evaluates a sample's position with
+    /// this one expression, so every node gets the same bits.
+    #[inline]
+    pub fn at(&self, t: f32) -> Vec3 {
+        self.origin + self.dir * t
+    }
+}
+
+/// `1 + 2γ₃` with `γₙ = nε/(1 − nε)`, ε half of `f32::EPSILON`: the relative widening that
+/// covers the rounding of computing a slab bound.
+const FAR_WIDENING: f32 =
+    1.0 + 2.0 * (3.0 * (f32::EPSILON * 0.5)) / (1.0 - 3.0 * (f32::EPSILON * 0.5));
+
+/// Which part of the box a ray enters through.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Entry {
+    /// Through the face perpendicular to `axis`, on its low (`high == false`) or high side.
+    Face {
+        /// 0 = X, 1 = Y, 2 = Z.
+        axis: u8,
+        /// The high face of that axis.
+        high: bool,
+    },
+    /// The ray starts inside the box (at `t_min`, e.g. the eye is inside the volume).
+    Inside,
+}
+
+impl Entry {
+    /// The outward normal of the entry face in world space, or `None` for [`Entry::Inside`].
+    pub fn outward_normal(self) -> Option<Vec3> {
+        match self {
+            Entry::Face { axis, high } => {
+                let mut n = Vec3::ZERO;
+                n[usize::from(axis % 3)] = if high { 1.0 } else { -1.0 };
+                Some(n)
+            }
+            Entry::Inside => None,
+        }
+    }
+}
+
+/// The part of a ray inside a box.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Span {
+    /// Where the ray enters, `t_near ≥ t_min`.
+    pub t_near: f32,
+    /// Where it leaves, `t_far ≥ t_near`.
+    pub t_far: f32,
+    /// What it enters through.
+    pub entry: Entry,
+}
+
+/// Clip `ray` against the closed box `[lo, hi]` restricted to `t ∈ [t_min, t_max]`.
+pub fn clip(ray: &Ray, lo: Vec3, hi: Vec3, t_min: f32, t_max: f32) -> Option<Span> {
+    let mut t_near = t_min;
+    let mut t_far = t_max;
+    let mut entry = Entry::Inside;
+    for axis in 0..3 {
+        let (o, d) = (ray.origin[axis], ray.dir[axis]);
+        if !(o.is_finite() && d.is_finite()) {
+            return None;
+        }
+        if d == 0.0 {
+            // Parallel to this pair of faces: inside the closed slab or never.
+            if o < lo[axis] || o > hi[axis] {
+                return None;
+            }
+            continue;
+        }
+        let (t_lo, t_hi) = ((lo[axis] - o) / d, (hi[axis] - o) / d);
+        let (t0, t1, high) = if t_lo <= t_hi {
+            (t_lo, t_hi, false)
+        } else {
+            (t_hi, t_lo, true)
+        };
+        // Widen the far bound by the rounding error of the three operations behind it (pbrt's
+        // 1 + 2γ₃), so a ray through an edge or corner is not lost to one ulp.
+        let t1 = t1 * FAR_WIDENING;
+        if t0 > t_near {
+            t_near = t0;
+            entry = Entry::Face {
+                axis: axis as u8,
+                high,
+            };
+        }
+        if t1 < t_far {
+            t_far = t1;
+        }
+    }
+    (t_near <= t_far && t_near.is_finite() && t_far.is_finite()).then_some(Span {
+        t_near,
+        t_far,
+        entry,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ray(o: [f32; 3], d: [f32; 3]) -> Ray {
+        let d = Vec3::from_array(d).normalize();
+        Ray::from_world(Vec3::from_array(o), d, Vec3::ONE)
+    }
+
+    const LO: Vec3 = Vec3::ZERO;
+    const HI: Vec3 = Vec3::splat(4.0);
+
+    #[test]
+    fn axis_parallel_rays_clip_without_dividing_by_zero() {
+        let s = clip(
+            &ray([-1.0, 1.0, 1.0], [1.0, 0.0, 0.0]),
+            LO,
+            HI,
+            0.0,
+            f32::MAX,
+        )
+        .unwrap();
+        assert_eq!(s.t_near, 1.0);
+        assert!((s.t_far - 5.0).abs() < 1e-5);
+        assert_eq!(
+            s.entry,
+            Entry::Face {
+                axis: 0,
+                high: false
+            }
+        );
+        assert!(clip(
+            &ray([-1.0, 5.0, 1.0], [1.0, 0.0, 0.0]),
+            LO,
+            HI,
+            0.0,
+            f32::MAX
+        )
+        .is_none());
+    }
+
+    #[test]
+    fn rays_on_faces_and_edges_hit_the_closed_box() {
+        let s = clip(
+            &ray([-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]),
+            LO,
+            HI,
+            0.0,
+            f32::MAX,
+        )
+        .unwrap();
+        assert_eq!(s.t_near, 1.0);
+        let s = clip(
+            &ray([-1.0, 4.0, 4.0], [1.0, 0.0, 0.0]),
+            LO,
+            HI,
+            0.0,
+            f32::MAX,
+        )
+        .unwrap();
+        assert_eq!(s.t_near, 1.0);
+    }
+
+    #[test]
+    fn grazing_a_corner_is_a_zero_length_hit() {
+        // The line x − y = 4 touches the box only along its edge at (4, 0, z).
+        let s = clip(
+            &ray([6.0, 2.0, 2.0], [-1.0, -1.0, 0.0]),
+            LO,
+            HI,
+            0.0,
+            f32::MAX,
+        )
+        .unwrap();
+        assert!((s.t_far - s.t_near).abs() < 1e-5, "{s:?}");
+        assert!((s.t_near - 8.0f32.sqrt()).abs() < 1e-5);
+        // A hair to the side it misses.
+        assert!(clip(
+            &ray([6.1, 2.0, 2.0], [-1.0, -1.0, 0.0]),
+            LO,
+            HI,
+            0.0,
+            f32::MAX
+        )
+        .is_none());
+    }
+
+    #[test]
+    fn eye_inside_starts_at_t_min_and_high_faces_are_reported() {
+        let s = clip(
+            &ray([2.0, 2.0, 2.0], [0.0, 0.0, -1.0]),
+            LO,
+            HI,
+            0.0,
+            f32::MAX,
+        )
+        .unwrap();
+        assert_eq!((s.t_near, s.entry), (0.0, Entry::Inside));
+        assert!((s.t_far - 2.0).abs() < 1e-5);
+        let s = clip(
+            &ray([2.0, 2.0, 9.0], [0.0, 0.0, -1.0]),
+            LO,
+            HI,
+            0.0,
+            f32::MAX,
+        )
+        .unwrap();
+        assert_eq!(
+            s.entry,
+            Entry::Face {
+                axis: 2,
+                high: true
+            }
+        );
+        assert_eq!(s.entry.outward_normal(), Some(Vec3::Z));
+    }
+
+    #[test]
+    fn non_finite_rays_miss() {
+        let r = Ray {
+            origin: Vec3::NAN,
+            dir: Vec3::X,
+            dir_world: Vec3::X,
+        };
+        assert!(clip(&r, LO, HI, 0.0, f32::MAX).is_none());
+        let r = Ray {
+            origin: Vec3::ONE,
+            dir: Vec3::new(f32::INFINITY, 0.0, 0.0),
+            dir_world: Vec3::X,
+        };
+        assert!(clip(&r, LO, HI, 0.0, f32::MAX).is_none());
+    }
+
+    #[test]
+    fn a_point_box_is_hit_only_through_its_point() {
+        let s = clip(
+            &ray([-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]),
+            Vec3::ZERO,
+            Vec3::ZERO,
+            0.0,
+            f32::MAX,
+        );
+        let s = s.unwrap();
+        assert_eq!(s.t_near, 1.0);
+        assert!(s.t_far - 1.0 < 1e-6);
+    }
+}

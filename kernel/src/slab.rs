@@ -1,0 +1,187 @@
+//! A slab: the X planes `[x0, x1)` a node owns, plus up to `g` ghost planes on each side, read
+//! from caller-provided storage. The whole volume is the slab that owns every plane.
+//!
+//! Storage is plane-major: plane `x` is one contiguous block of `ny · nz` samples, Y fastest,
+//! so moving planes between nodes moves whole blocks. Invariants: `x0 < x1 ≤ nx`; the stored
+//! planes are `[max(0, x0 - g), min(nx, x1 + g))`; the storage holds exactly those planes.
+//! A read outside the stored planes returns 0 and is counted, never a panic: the bit-identity
+//! tests assert the count stays zero, which proves `g` wide enough.
+
+use crate::grid::Grid;
+use crate::sample::Sample;
+use core::fmt;
+use core::ops::Range;
+
+/// Why a slab cannot be built over the given storage.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SlabError {
+    /// The owned range is empty or runs past the grid.
+    BadRange {
+        /// First owned plane.
+        x0: u32,
+        /// One past the last owned plane.
+        x1: u32,
+        /// Planes in the grid.
+        nx: u32,
+    },
+    /// The storage does not hold exactly the stored planes.
+    StorageLength {
+        /// Samples needed.
+        expected: usize,
+        /// Samples given.
+        actual: usize,
+    },
+}
+
+impl fmt::Display for SlabError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            SlabError::BadRange { x0, x1, nx } => write!(
+                f,
+                "slab planes [{x0}, {x1}) are not a non-empty range inside the grid's {nx} planes"
+            ),
+            SlabError::StorageLength { expected, actual } => {
+                write!(
+                    f,
+                    "slab storage holds {actual} samples, the stored planes need {expected}"
+                )
+            }
+        }
+    }
+}
+
+impl core::error::Error for SlabError {}
+
+/// The planes `[x0 - g, x1 + g)` clamped to the grid: what a slab owning `[x0, x1)` stores.
+pub fn stored_planes(grid: &Grid, owned: Range<u32>, ghost: u32) -> Range<u32> {
+    let nx = grid.dims()[0];
+    owned.start.saturating_sub(ghost)..owned.end.saturating_add(ghost).min(nx)
+}
+
+/// A node's part of the volume.
+#[derive(Clone, Copy, Debug)]
+pub struct Slab<'a, T> {
+    grid: Grid,
+    owned_start: u32,
+    owned_end: u32,
+    stored_start: u32,
+    stored_end: u32,
+    data: &'a [T],
+}
+
+impl<'a, T: Sample> Slab<'a, T> {
+    /// A slab owning planes `owned`, with `ghost` planes each side, over `data` (plane-major,
+    /// exactly the stored planes of [`stored_planes`]).
+    pub fn new(
+        grid: Grid,
+        owned: Range<u32>,
+        ghost: u32,
+        data: &'a [T],
+    ) -> Result<Self, SlabError> {
+        let nx = grid.dims()[0];
+        if owned.start >= owned.end || owned.end > nx {
+            return Err(SlabError::BadRange {
+                x0: owned.start,
+                x1: owned.end,
+                nx,
+            });
+        }
+        let stored = stored_planes(&grid, owned.clone(), ghost);
+        let expected = (stored.end - stored.start) as usize * grid.plane_len();
+        if data.len() != expected {
+            return Err(SlabError::StorageLength {
+                expected,
+                actual: data.len(),
+            });
+        }
+        Ok(Slab {
+            grid,
+            owned_start: owned.start,
+            owned_end: owned.end,
+            stored_start: stored.start,
+            stored_end: stored.end,
+            data,
+        })
+    }
+
+    /// The slab that owns every plane: the whole volume, plane-major.
+    pub fn whole(grid: Grid, data: &'a [T]) -> Result<Self, SlabError> {
+        Slab::new(grid, 0..grid.dims()[0], 0, data)
+    }
+
+    /// The dataset's grid.
+    pub fn grid(&self) -> &Grid {
+        &self.grid
+    }
+
+    /// The planes this slab owns.
+    pub fn owned(&self) -> Range<u32> {
+        self.owned_start..self.owned_end
+    }
+
+    /// Does this slab own plane `x`?
+    #[inline]
+    pub fn owns(&self, x: u32) -> bool {
+        self.owned_start <= x && x < self.owned_end
+    }
+
+    /// The planes held in storage (owned plus ghosts).
+    pub fn stored(&self) -> Range<u32> {
+        self.stored_start..self.stored_end
+    }
+
+    /// The sample at grid node `(x, y, z)`, or `None` outside the stored planes or the grid.
+    #[inline]
+    pub fn get(&self, x: u32, y: u32, z: u32) -> Option<T> {
+        let [_, ny, nz] = self.grid.dims();
+        if x < self.stored_start || x >= self.stored_end || y >= ny || z >= nz {
+            return None;
+        }
+        let index = ((x - self.stored_start) as usize * nz as usize + z as usize) * ny as usize
+            + y as usize;
+        self.data.get(index).copied()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    #[test]
+    fn slab_reads_only_its_stored_planes() {
+        let grid = Grid::new([6, 2, 3], Vec3::ONE).unwrap();
+        let stored = stored_planes(&grid, 2..4, 1);
+        assert_eq!(stored, 1..5);
+        let data: [u8; 4 * 6] = core::array::from_fn(|i| i as u8);
+        let slab = Slab::new(grid, 2..4, 1, &data).unwrap();
+        assert_eq!(slab.get(1, 0, 0), Some(0));
+        assert_eq!(slab.get(1, 1, 0), Some(1));
+        assert_eq!(slab.get(1, 0, 1), Some(2));
+        assert_eq!(slab.get(2, 0, 0), Some(6));
+        assert_eq!(slab.get(0, 0, 0), None);
+        assert_eq!(slab.get(5, 0, 0), None);
+        assert_eq!(slab.get(2, 2, 0), None);
+        assert!(slab.owns(3) && !slab.owns(4) && !slab.owns(1));
+    }
+
+    #[test]
+    fn wrong_storage_or_range_is_refused() {
+        let grid = Grid::new([4, 1, 1], Vec3::ONE).unwrap();
+        assert!(matches!(
+            Slab::new(grid, 0..4, 0, &[0u8; 3]),
+            Err(SlabError::StorageLength {
+                expected: 4,
+                actual: 3
+            })
+        ));
+        assert!(matches!(
+            Slab::new(grid, 2..2, 0, &[0u8; 0]),
+            Err(SlabError::BadRange { .. })
+        ));
+        assert!(matches!(
+            Slab::new(grid, 3..5, 0, &[0u8; 2]),
+            Err(SlabError::BadRange { .. })
+        ));
+    }
+}

@@ -1,0 +1,122 @@
+//! A whole pixel traced on one node that holds the whole volume: the primary ray, its chain of
+//! transparency rays and every shadow ray, combined by [`crate::tree`].
+//!
+//! Invariants: no allocation (the chain of hits lives in a fixed stack of [`MAX_DEPTH`] + 1
+//! frames, which the view's depth limit never exceeds); the result is finite for every input.
+//! Given a slab that does not own every plane, a ray that would leave it is treated as having
+//! left the volume and counted in `slab_misses`: in-process tracing is for whole volumes, the
+//! worker of a cluster forwards such rays instead.
+
+use crate::counters::Counters;
+use crate::march::{lit, march, RayKind, Stop};
+use crate::sample::Sample;
+use crate::slab::Slab;
+use crate::tree;
+use crate::view::{Mode, View, MAX_DEPTH};
+use glam::Vec3;
+use heapless::Vec;
+
+/// The colour of pixel `pixel` (row-major) of `view`.
+pub fn trace_pixel<T: Sample>(
+    view: &View,
+    slab: &Slab<'_, T>,
+    pixel: u32,
+    counters: &mut Counters,
+) -> Vec3 {
+    let background = view.spec().background;
+    let Some(mut ray) = view.primary_ray(pixel) else {
+        return background;
+    };
+    counters.primary_rays += 1;
+    match &view.spec().mode {
+        Mode::Composite(_) => {
+            let stop = march(view, slab, &mut ray, counters);
+            note_leave(stop, counters);
+            ray.color + background * ray.weight
+        }
+        Mode::Surfaces(surfaces) => {
+            // (opacity, colour) of each surface hit, front to back.
+            let mut hits: Vec<(f32, Vec3), { MAX_DEPTH as usize + 1 }> = Vec::new();
+            loop {
+                let stop = march(view, slab, &mut ray, counters);
+                note_leave(stop, counters);
+                let Stop::Hit(hit) = stop else { break };
+                let Some(surface) = surfaces.get(usize::from(hit.surface)) else {
+                    break;
+                };
+                let pixel = ray.pixel;
+                let shadow = |_, dir, dist, counters: &mut Counters| {
+                    shadow_visibility(view, slab, pixel, hit.point, dir, dist, counters)
+                };
+                let color = lit(
+                    view,
+                    slab,
+                    surface.color,
+                    hit.point,
+                    hit.cap_normal,
+                    ray.ray.dir_world,
+                    counters,
+                    shadow,
+                );
+                let alpha = surface.opacity();
+                if hits.push((alpha, color)).is_err() {
+                    break;
+                }
+                match view.continuation(&ray, alpha) {
+                    Some(next) => {
+                        counters.transparency_rays += 1;
+                        ray = next;
+                    }
+                    None => {
+                        counters.early_terminations += u64::from(alpha < 1.0);
+                        break;
+                    }
+                }
+            }
+            let mut seen = background;
+            while let Some((alpha, color)) = hits.pop() {
+                seen = tree::through(alpha, color, seen);
+            }
+            seen
+        }
+    }
+}
+
+/// Transmittance of the shadow ray from `from` toward a light (1 when no sample lies between).
+pub fn shadow_visibility<T: Sample>(
+    view: &View,
+    slab: &Slab<'_, T>,
+    pixel: u32,
+    from: Vec3,
+    to_light: Vec3,
+    distance: f32,
+    counters: &mut Counters,
+) -> f32 {
+    let Some(mut ray) = view.shadow_ray(pixel, from, to_light, distance) else {
+        return 1.0;
+    };
+    debug_assert_eq!(ray.kind, RayKind::Shadow);
+    counters.shadow_rays += 1;
+    let stop = march(view, slab, &mut ray, counters);
+    note_leave(stop, counters);
+    ray.weight
+}
+
+fn note_leave(stop: Stop, counters: &mut Counters) {
+    if let Stop::Leave { .. } = stop {
+        counters.slab_misses += 1;
+    }
+}
+
+/// A view's image of a whole volume into `out` (RGBA8, row-major), one pixel after another.
+/// `out` shorter than the image is filled as far as it goes.
+pub fn render_into<T: Sample>(
+    view: &View,
+    slab: &Slab<'_, T>,
+    out: &mut [[u8; 4]],
+    counters: &mut Counters,
+) {
+    for (pixel, slot) in out.iter_mut().enumerate().take(view.pixel_count() as usize) {
+        *slot = crate::pixel::rgba8(trace_pixel(view, slab, pixel as u32, counters));
+    }
+}

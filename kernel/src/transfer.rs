@@ -1,0 +1,185 @@
+//! The piecewise-linear transfer function of compositing: data value to colour and opacity.
+//!
+//! Invariants: 1 to [`MAX_POINTS`] control points, values strictly increasing and finite,
+//! colours and opacities in `[0, 1]`. Below the first point the first applies, above the last
+//! the last. Opacity is defined for a path of one cell edge; [`corrected_opacity`] rescales
+//! it to any segment length so that compositing obeys Beer–Lambert.
+
+use core::fmt;
+use glam::Vec3;
+use heapless::Vec;
+
+/// Most control points a transfer function holds.
+pub const MAX_POINTS: usize = 16;
+
+/// One control point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ControlPoint {
+    /// Data value.
+    pub value: f32,
+    /// Colour, each channel in `[0, 1]`.
+    pub color: Vec3,
+    /// Opacity of one cell edge of material, in `[0, 1]`.
+    pub opacity: f32,
+}
+
+/// Why a transfer function cannot be built.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum TransferError {
+    /// No control points.
+    Empty,
+    /// More than [`MAX_POINTS`] points.
+    TooMany,
+    /// Point `index` does not have a value greater than the point before it, or is not finite.
+    NotIncreasing {
+        /// Index of the offending point.
+        index: usize,
+    },
+    /// Point `index` has a colour channel or opacity outside `[0, 1]`.
+    OutOfRange {
+        /// Index of the offending point.
+        index: usize,
+    },
+}
+
+impl fmt::Display for TransferError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            TransferError::Empty => write!(f, "a transfer function needs at least one point"),
+            TransferError::TooMany => {
+                write!(f, "a transfer function holds at most {MAX_POINTS} points")
+            }
+            TransferError::NotIncreasing { index } => {
+                write!(
+                    f,
+                    "point {index}: values must be finite and strictly increasing"
+                )
+            }
+            TransferError::OutOfRange { index } => {
+                write!(
+                    f,
+                    "point {index}: colour channels and opacity must lie in [0, 1]"
+                )
+            }
+        }
+    }
+}
+
+impl core::error::Error for TransferError {}
+
+/// A transfer function.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TransferFunction {
+    points: Vec<ControlPoint, MAX_POINTS>,
+}
+
+impl TransferFunction {
+    /// A transfer function from control points, checked.
+    pub fn new(points: &[ControlPoint]) -> Result<TransferFunction, TransferError> {
+        if points.is_empty() {
+            return Err(TransferError::Empty);
+        }
+        let points = Vec::from_slice(points).map_err(|()| TransferError::TooMany)?;
+        for (index, p) in points.iter().enumerate() {
+            if !p.value.is_finite() || (index > 0 && p.value <= points[index - 1].value) {
+                return Err(TransferError::NotIncreasing { index });
+            }
+            let in_unit = |v: f32| (0.0..=1.0).contains(&v);
+            if !(p.color.to_array().into_iter().all(in_unit) && in_unit(p.opacity)) {
+                return Err(TransferError::OutOfRange { index });
+            }
+        }
+        Ok(TransferFunction { points })
+    }
+
+    /// The control points.
+    pub fn points(&self) -> &[ControlPoint] {
+        &self.points
+    }
+
+    /// Colour and per-cell-edge opacity at data value `v`.
+    pub fn eval(&self, v: f32) -> (Vec3, f32) {
+        let pts = &self.points;
+        let (first, last) = match (pts.first(), pts.last()) {
+            (Some(f), Some(l)) => (f, l),
+            _ => return (Vec3::ZERO, 0.0),
+        };
+        if !(v > first.value) {
+            // Also catches NaN: it maps to the first point, never to NaN.
+            return (first.color, first.opacity);
+        }
+        if v >= last.value {
+            return (last.color, last.opacity);
+        }
+        let i = pts.partition_point(|p| p.value <= v);
+        let (a, b) = (&pts[i - 1], &pts[i]);
+        let f = (v - a.value) / (b.value - a.value);
+        (
+            a.color + (b.color - a.color) * f,
+            a.opacity + (b.opacity - a.opacity) * f,
+        )
+    }
+}
+
+/// Opacity of a segment `length_in_edges` cell edges long of material whose one-edge opacity
+/// is `alpha`: `1 - (1 - alpha)^length`, computed as `1 - exp(length · ln(1 - alpha))`.
+#[inline]
+pub fn corrected_opacity(alpha: f32, length_in_edges: f32) -> f32 {
+    if !(alpha > 0.0) || !(length_in_edges > 0.0) {
+        return 0.0;
+    }
+    if alpha >= 1.0 {
+        return 1.0;
+    }
+    1.0 - libm::expf(length_in_edges * libm::log1pf(-alpha))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cp(value: f32, c: f32, opacity: f32) -> ControlPoint {
+        ControlPoint {
+            value,
+            color: Vec3::splat(c),
+            opacity,
+        }
+    }
+
+    #[test]
+    fn evaluates_piecewise_linearly_and_clamps() {
+        let tf = TransferFunction::new(&[cp(10.0, 0.0, 0.0), cp(20.0, 1.0, 0.5)]).unwrap();
+        assert_eq!(tf.eval(0.0), (Vec3::ZERO, 0.0));
+        assert_eq!(tf.eval(15.0), (Vec3::splat(0.5), 0.25));
+        assert_eq!(tf.eval(99.0), (Vec3::ONE, 0.5));
+        assert_eq!(tf.eval(f32::NAN), (Vec3::ZERO, 0.0));
+    }
+
+    #[test]
+    fn bad_functions_are_refused() {
+        assert_eq!(TransferFunction::new(&[]), Err(TransferError::Empty));
+        assert_eq!(
+            TransferFunction::new(&[cp(1.0, 0.0, 0.0), cp(1.0, 0.0, 0.0)]),
+            Err(TransferError::NotIncreasing { index: 1 })
+        );
+        assert_eq!(
+            TransferFunction::new(&[cp(1.0, 2.0, 0.0)]),
+            Err(TransferError::OutOfRange { index: 0 })
+        );
+        assert_eq!(
+            TransferFunction::new(&[cp(0.0, 0.0, 0.0); 17]),
+            Err(TransferError::TooMany)
+        );
+    }
+
+    #[test]
+    fn opacity_correction_composes_like_beer_lambert() {
+        let a = corrected_opacity(0.3, 1.0);
+        assert!((a - 0.3).abs() < 1e-6);
+        let half = corrected_opacity(0.3, 0.5);
+        assert!(((1.0 - half) * (1.0 - half) - 0.7).abs() < 1e-6);
+        assert_eq!(corrected_opacity(1.0, 0.5), 1.0);
+        assert_eq!(corrected_opacity(1.0, 0.0), 0.0);
+        assert_eq!(corrected_opacity(f32::NAN, 1.0), 0.0);
+    }
+}

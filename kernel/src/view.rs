@@ -1,0 +1,328 @@
+//! One view: everything a node needs to trace an image of a dataset, checked once, and the
+//! effects it calls for. It also makes the rays every node must agree on (primary, shadow,
+//! transparency continuations), so their lattices come from one piece of arithmetic.
+//!
+//! Invariants (checked by [`View::new`]): image at least 1×1; Δt in `[1/64, 2]` cell edges;
+//! gradient distance in `[1/4, 3]` cells; surfaces mode has 1 to [`MAX_SURFACES`] surfaces
+//! with finite iso values, colours in `[0, 1]` and transparency in `[0, 1]`; cutoff in
+//! `[0, 1)`; depth at most [`MAX_DEPTH`]; refinement at most [`MAX_REFINE_STEPS`] steps.
+
+use crate::camera::Camera;
+use crate::grid::{Grid, Model};
+use crate::lattice::Lattice;
+use crate::march::{RayKind, RayState};
+use crate::ray::{clip, Ray};
+use crate::shade::{Light, Shading, MAX_LIGHTS};
+use crate::surface::{IsoSurface, MAX_SURFACES};
+use crate::transfer::TransferFunction;
+use core::fmt;
+use glam::Vec3;
+use heapless::Vec;
+
+/// Deepest chain of transparency rays behind one primary ray.
+pub const MAX_DEPTH: u8 = 15;
+/// Most field evaluations spent refining one crossing.
+pub const MAX_REFINE_STEPS: u8 = 16;
+/// The default cutoff: stop when what is behind could change the pixel by less than half an
+/// 8-bit level.
+pub const DEFAULT_CUTOFF: f32 = 1.0 / 512.0;
+
+/// What a view renders.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Mode {
+    /// Surface searching for these iso-surfaces.
+    Surfaces(Vec<IsoSurface, MAX_SURFACES>),
+    /// Compositing through this transfer function.
+    Composite(TransferFunction),
+}
+
+/// The parameters of a view, as a scene states them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ViewSpec {
+    /// Image width, pixels.
+    pub width: u32,
+    /// Image height, pixels.
+    pub height: u32,
+    /// The camera (world space).
+    pub camera: Camera,
+    /// Interpolation model.
+    pub model: Model,
+    /// Sample distance in cell edges (the smallest spacing).
+    pub dt: f32,
+    /// Central-difference distance for gradients, in cells.
+    pub gradient_distance: f32,
+    /// Surfaces or compositing.
+    pub mode: Mode,
+    /// Illumination, or `None` for unlit colour (no gradients, no lights, no shadow rays).
+    pub shading: Option<Shading>,
+    /// Lights, in order.
+    pub lights: Vec<Light, MAX_LIGHTS>,
+    /// Background colour, each channel in `[0, 1]`.
+    pub background: Vec3,
+    /// Transmittance below which a ray stops: compositing terminates, a transparency ray is
+    /// not spawned, a shadow ray counts as blocked at its accumulated value.
+    pub cutoff: f32,
+    /// Deepest chain of transparency rays.
+    pub max_depth: u8,
+    /// Field evaluations to refine each surface crossing.
+    pub refine_steps: u8,
+}
+
+/// Why a view is unusable; each names the scene key at fault.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ViewError {
+    /// `width` or `height` is zero.
+    ImageSize,
+    /// `dt` out of range.
+    Step(f32),
+    /// `gradient_distance` out of range.
+    GradientDistance(f32),
+    /// Surfaces mode without surfaces.
+    NoSurfaces,
+    /// `surfaces[index]` is malformed.
+    Surface {
+        /// Which surface.
+        index: usize,
+    },
+    /// A shadow light in compositing mode.
+    ShadowsInComposite {
+        /// Which light.
+        index: usize,
+    },
+    /// Background colour out of range.
+    Background,
+    /// `cutoff` out of range.
+    Cutoff(f32),
+    /// `max_depth` out of range.
+    Depth(u8),
+    /// `refine_steps` out of range.
+    Refine(u8),
+    /// A shading coefficient is negative or not finite.
+    Shading,
+}
+
+impl fmt::Display for ViewError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            ViewError::ImageSize => write!(f, "width and height must be at least 1 pixel"),
+            ViewError::Step(v) => write!(f, "dt is {v}; it must lie in [1/64, 2] cell edges"),
+            ViewError::GradientDistance(v) => {
+                write!(f, "gradient_distance is {v}; it must lie in [0.25, 3] cells")
+            }
+            ViewError::NoSurfaces => write!(f, "mode \"surfaces\" needs at least one [[...surfaces]] entry"),
+            ViewError::Surface { index } => write!(
+                f,
+                "surfaces[{index}]: iso must be finite, color channels and transparency in [0, 1]"
+            ),
+            ViewError::ShadowsInComposite { index } => write!(
+                f,
+                "lights[{index}].shadows: shadow rays are traced from surfaces; mode \"composite\" has none"
+            ),
+            ViewError::Background => write!(f, "background channels must lie in [0, 1]"),
+            ViewError::Cutoff(v) => write!(f, "cutoff is {v}; it must lie in [0, 1)"),
+            ViewError::Depth(v) => write!(f, "max_depth is {v}; it must be at most {MAX_DEPTH}"),
+            ViewError::Refine(v) => write!(f, "refine_steps is {v}; it must be at most {MAX_REFINE_STEPS}"),
+            ViewError::Shading => write!(f, "shading coefficients must be finite and >= 0"),
+        }
+    }
+}
+
+impl core::error::Error for ViewError {}
+
+/// The effects a view calls for: nothing is traced, computed or reserved for the others.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Effects {
+    /// Surface searching (otherwise compositing).
+    pub surfaces: bool,
+    /// Shading from gradients and lights.
+    pub shading: bool,
+    /// Lights that trace shadow rays (0 without shading or in compositing).
+    pub shadow_lights: u8,
+    /// Whether any surface is semi-transparent (transparency rays may be traced).
+    pub transparency: bool,
+}
+
+/// A checked view of a grid.
+#[derive(Clone, Debug, PartialEq)]
+pub struct View {
+    spec: ViewSpec,
+    dt_world: f32,
+    cell_edge: f32,
+    inv_spacing: Vec3,
+    spacing: Vec3,
+    box_lo: Vec3,
+    box_hi: Vec3,
+    effects: Effects,
+}
+
+impl View {
+    /// Check `spec` against `grid`.
+    pub fn new(spec: ViewSpec, grid: &Grid) -> Result<View, ViewError> {
+        if spec.width == 0 || spec.height == 0 {
+            return Err(ViewError::ImageSize);
+        }
+        if !(spec.dt >= 1.0 / 64.0 && spec.dt <= 2.0) {
+            return Err(ViewError::Step(spec.dt));
+        }
+        if !(spec.gradient_distance >= 0.25 && spec.gradient_distance <= 3.0) {
+            return Err(ViewError::GradientDistance(spec.gradient_distance));
+        }
+        let unit = |v: f32| (0.0..=1.0).contains(&v);
+        if !spec.background.to_array().into_iter().all(unit) {
+            return Err(ViewError::Background);
+        }
+        if !(spec.cutoff >= 0.0 && spec.cutoff < 1.0) {
+            return Err(ViewError::Cutoff(spec.cutoff));
+        }
+        if spec.max_depth > MAX_DEPTH {
+            return Err(ViewError::Depth(spec.max_depth));
+        }
+        if spec.refine_steps > MAX_REFINE_STEPS {
+            return Err(ViewError::Refine(spec.refine_steps));
+        }
+        if let Some(s) = &spec.shading {
+            let ok = |v: f32| v.is_finite() && v >= 0.0;
+            if !(ok(s.ambient) && ok(s.diffuse) && ok(s.specular) && ok(s.shininess)) {
+                return Err(ViewError::Shading);
+            }
+        }
+        let mut effects = Effects {
+            shading: spec.shading.is_some(),
+            ..Effects::default()
+        };
+        match &spec.mode {
+            Mode::Surfaces(surfaces) => {
+                if surfaces.is_empty() {
+                    return Err(ViewError::NoSurfaces);
+                }
+                for (index, s) in surfaces.iter().enumerate() {
+                    if !(s.iso.is_finite()
+                        && s.color.to_array().into_iter().all(unit)
+                        && unit(s.transparency))
+                    {
+                        return Err(ViewError::Surface { index });
+                    }
+                }
+                effects.surfaces = true;
+                effects.transparency =
+                    spec.max_depth > 0 && surfaces.iter().any(|s| s.transparency > 0.0);
+                if effects.shading {
+                    effects.shadow_lights = spec.lights.iter().filter(|l| l.shadows).count() as u8;
+                }
+            }
+            Mode::Composite(_) => {
+                if let Some(index) = spec.lights.iter().position(|l| l.shadows) {
+                    return Err(ViewError::ShadowsInComposite { index });
+                }
+            }
+        }
+        let cell_edge = grid.cell_edge();
+        let (box_lo, box_hi) = grid.index_box(spec.model);
+        Ok(View {
+            dt_world: spec.dt * cell_edge,
+            cell_edge,
+            inv_spacing: grid.inv_spacing(),
+            spacing: grid.spacing(),
+            box_lo,
+            box_hi,
+            effects,
+            spec,
+        })
+    }
+
+    /// The parameters.
+    pub fn spec(&self) -> &ViewSpec {
+        &self.spec
+    }
+
+    /// The effects this view calls for.
+    pub fn effects(&self) -> Effects {
+        self.effects
+    }
+
+    /// World distance between samples.
+    pub fn dt_world(&self) -> f32 {
+        self.dt_world
+    }
+
+    /// World length of one cell edge (opacity is defined per cell edge).
+    pub fn cell_edge(&self) -> f32 {
+        self.cell_edge
+    }
+
+    /// Index coordinates to world.
+    #[inline]
+    pub fn to_world(&self, p: Vec3) -> Vec3 {
+        p * self.spacing
+    }
+
+    /// Ghost planes each side a slab needs so that no read leaves its storage: one step back
+    /// to the previous sample (refinement), the gradient stencil around it, and the
+    /// interpolation's second plane. A step moves at most `dt` planes along X.
+    pub fn ghost_planes(&self) -> u32 {
+        libm::ceilf(self.spec.dt + self.spec.gradient_distance) as u32 + 1
+    }
+
+    /// Pixels in the image.
+    pub fn pixel_count(&self) -> u64 {
+        u64::from(self.spec.width) * u64::from(self.spec.height)
+    }
+
+    /// The primary ray of pixel `pixel` (row-major), or `None` when it misses the dataset.
+    pub fn primary_ray(&self, pixel: u32) -> Option<RayState> {
+        let (px, py) = (pixel % self.spec.width, pixel / self.spec.width);
+        let (origin, dir) = self
+            .spec
+            .camera
+            .primary(px, py, self.spec.width, self.spec.height);
+        let ray = Ray::from_world(origin, dir, self.inv_spacing);
+        let span = clip(&ray, self.box_lo, self.box_hi, 0.0, f32::MAX)?;
+        let lattice = Lattice::new(span.t_near, span.t_far, self.dt_world)?;
+        Some(RayState::new(
+            RayKind::Primary,
+            pixel,
+            ray,
+            lattice,
+            span.entry,
+            0,
+        ))
+    }
+
+    /// The shadow ray from index-space point `from` toward a light in world direction
+    /// `to_light` at world distance `distance`, or `None` when no lattice sample lies between
+    /// (then nothing can shadow the point). Its samples start one step from the point: the
+    /// surface being lit never shadows itself.
+    pub fn shadow_ray(
+        &self,
+        pixel: u32,
+        from: Vec3,
+        to_light: Vec3,
+        distance: f32,
+    ) -> Option<RayState> {
+        let ray = Ray {
+            origin: from,
+            dir: to_light * self.inv_spacing,
+            dir_world: to_light,
+        };
+        let span = clip(&ray, self.box_lo, self.box_hi, 0.0, distance.min(f32::MAX))?;
+        let lattice = Lattice::new(0.0, span.t_far, self.dt_world)?;
+        (lattice.last >= 1)
+            .then(|| RayState::new(RayKind::Shadow, pixel, ray, lattice, span.entry, 1))
+    }
+
+    /// The transparency ray that continues `ray` past the surface of opacity `alpha` it just
+    /// hit, or `None` when the view does not trace one there: an opaque surface, the depth
+    /// limit, or too little light left to show (the background is then seen instead).
+    pub fn continuation(&self, ray: &RayState, alpha: f32) -> Option<RayState> {
+        let weight = ray.weight * (1.0 - alpha);
+        if !(alpha < 1.0) || ray.depth >= self.spec.max_depth || !(weight > self.spec.cutoff) {
+            return None;
+        }
+        Some(RayState {
+            kind: RayKind::Transparency,
+            depth: ray.depth + 1,
+            weight,
+            ..*ray
+        })
+    }
+}
