@@ -1,1 +1,18 @@
+//! The voxcube host: reads the scene file (the paper's input file) and datasets, drives the
+//! node kernel, and writes images and reports. The `voxcube` binary is a thin shell over
+//! [`cli`].
+//!
+//! Modules: [`scene`] (the TOML scene format, checked), [`dataset`] and [`formats`] (volumes
+//! and their files), [`builtin`] (procedural volumes), [`render`] (one view on one node),
+//! [`output`] (PNG and checksums), [`report`] (summary and JSON), [`cli`].
+#![forbid(unsafe_code)]
+#![deny(missing_docs)]
 
+pub mod builtin;
+pub mod cli;
+pub mod dataset;
+pub mod formats;
+pub mod output;
+pub mod render;
+pub mod report;
+pub mod scene;

@@ -1,1 +1,5 @@
-fn main() {}
+//! The `voxcube` command.
+
+fn main() -> std::process::ExitCode {
+    voxcube::cli::main()
+}

@@ -37,3 +37,5 @@ pub mod tree;
 pub mod view;
 
 pub use glam::Vec3;
+/// The fixed-capacity containers the kernel's types are built from, for hosts that fill them.
+pub use heapless;

@@ -1,0 +1,137 @@
+//! A loaded dataset: its grid and samples, held plane-major (X slowest, then Z, then Y) so
+//! that any range of X planes — a slab — is one contiguous slice, with no copy.
+//!
+//! Invariants: `data` holds exactly `nx·ny·nz` samples; float samples are finite (loaders
+//! reject NaN and infinities, naming the first one's position).
+
+use std::fmt;
+use std::ops::Range;
+use voxcube_kernel::grid::Grid;
+use voxcube_kernel::sample::SampleKind;
+
+/// Samples of a dataset, plane-major.
+#[derive(Clone, Debug, PartialEq)]
+pub enum VolumeData {
+    /// Unsigned 8-bit.
+    U8(Vec<u8>),
+    /// Unsigned 16-bit.
+    U16(Vec<u16>),
+    /// 32-bit float (also holds signed integer files, converted exactly).
+    F32(Vec<f32>),
+}
+
+impl VolumeData {
+    /// The sample kind.
+    pub fn kind(&self) -> SampleKind {
+        match self {
+            VolumeData::U8(_) => SampleKind::U8,
+            VolumeData::U16(_) => SampleKind::U16,
+            VolumeData::F32(_) => SampleKind::F32,
+        }
+    }
+
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        match self {
+            VolumeData::U8(v) => v.len(),
+            VolumeData::U16(v) => v.len(),
+            VolumeData::F32(v) => v.len(),
+        }
+    }
+
+    /// Whether there are no samples.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// Minimum, maximum and mean of a dataset's values.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Stats {
+    /// Smallest value.
+    pub min: f64,
+    /// Largest value.
+    pub max: f64,
+    /// Mean value.
+    pub mean: f64,
+}
+
+impl fmt::Display for Stats {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "min {} max {} mean {:.2}", self.min, self.max, self.mean)
+    }
+}
+
+/// A dataset in memory.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Volume {
+    /// The grid.
+    pub grid: Grid,
+    /// The samples, plane-major.
+    pub data: VolumeData,
+}
+
+impl Volume {
+    /// Value statistics (exact sums in `f64`).
+    pub fn stats(&self) -> Stats {
+        fn of<T: Copy + Into<f64>>(v: &[T]) -> Stats {
+            let (mut min, mut max, mut sum) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
+            for &x in v {
+                let x: f64 = x.into();
+                min = min.min(x);
+                max = max.max(x);
+                sum += x;
+            }
+            Stats {
+                min,
+                max,
+                mean: sum / v.len().max(1) as f64,
+            }
+        }
+        match &self.data {
+            VolumeData::U8(v) => of(v),
+            VolumeData::U16(v) => of(v),
+            VolumeData::F32(v) => of(v),
+        }
+    }
+
+    /// The samples of X planes `planes`: one contiguous slice (what a slab stores).
+    pub fn planes(&self, planes: Range<u32>) -> VolumeData {
+        let n = self.grid.plane_len();
+        let r = planes.start as usize * n..planes.end as usize * n;
+        match &self.data {
+            VolumeData::U8(v) => VolumeData::U8(v[r].to_vec()),
+            VolumeData::U16(v) => VolumeData::U16(v[r].to_vec()),
+            VolumeData::F32(v) => VolumeData::F32(v[r].to_vec()),
+        }
+    }
+}
+
+/// Reorder samples from file order (X fastest, then Y, then Z) to plane-major.
+pub fn to_plane_major<T: Copy + Default>(file_order: &[T], dims: [u32; 3]) -> Vec<T> {
+    let [nx, ny, nz] = dims.map(|d| d as usize);
+    let mut out = vec![T::default(); file_order.len()];
+    for z in 0..nz {
+        for y in 0..ny {
+            let row = &file_order[(z * ny + y) * nx..][..nx];
+            for (x, &v) in row.iter().enumerate() {
+                out[(x * nz + z) * ny + y] = v;
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn plane_major_puts_each_x_plane_together() {
+        // 2×2×2, file order value = x + 2y + 4z.
+        let file: Vec<u8> = (0..8).collect();
+        let pm = to_plane_major(&file, [2, 2, 2]);
+        // Plane x = 0 holds (y, z) = (0,0), (1,0), (0,1), (1,1).
+        assert_eq!(pm, vec![0, 2, 4, 6, 1, 3, 5, 7]);
+    }
+}

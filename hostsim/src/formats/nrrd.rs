@@ -1,0 +1,290 @@
+//! NRRD volumes (teem's format): attached `.nrrd` (header, blank line, data) and detached
+//! `.nhdr` (header naming a `data file`), raw or gzip encoding, 3-D scalar data.
+//!
+//! Read: `type`, `dimension` (must be 3), `sizes`, `encoding`, `endian`, `spacings` or
+//! `space directions`, `data file`, `byte skip`, `line skip`. Other fields are ignored, as
+//! the format allows; a field voxcube cannot honour (another encoding, a list of data files)
+//! is an error that names it.
+
+use super::{check_size, decode, read, Endian, FileType, LoadError, LoadErrorKind};
+use crate::dataset::Volume;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use voxcube_kernel::Vec3;
+
+fn header_err(msg: impl Into<String>) -> LoadErrorKind {
+    LoadErrorKind::Header(msg.into())
+}
+
+/// The fields of a NRRD header voxcube uses.
+#[derive(Clone, Debug, Default, PartialEq)]
+struct Header {
+    ty: Option<FileType>,
+    dimension: Option<u32>,
+    sizes: Option<[u32; 3]>,
+    gzip: Option<bool>,
+    endian: Option<Endian>,
+    spacing: Option<Vec3>,
+    data_file: Option<String>,
+    byte_skip: i64,
+    line_skip: u64,
+}
+
+fn parse_type(v: &str) -> Result<FileType, LoadErrorKind> {
+    Ok(match v {
+        "uchar" | "unsigned char" | "uint8" | "uint8_t" => FileType::U8,
+        "signed char" | "int8" | "int8_t" => FileType::I8,
+        "ushort" | "unsigned short" | "unsigned short int" | "uint16" | "uint16_t" => FileType::U16,
+        "short" | "short int" | "signed short" | "signed short int" | "int16" | "int16_t" => {
+            FileType::I16
+        }
+        "float" => FileType::F32,
+        other => {
+            return Err(header_err(format!(
+                "type \"{other}\" is not supported (uint8, int8, uint16, int16, float)"
+            )))
+        }
+    })
+}
+
+fn parse_three<T: std::str::FromStr>(field: &str, v: &str) -> Result<[T; 3], LoadErrorKind> {
+    let parts: Vec<&str> = v.split_whitespace().collect();
+    let bad = || header_err(format!("{field}: expected three numbers, found \"{v}\""));
+    if parts.len() != 3 {
+        return Err(bad());
+    }
+    let mut out = Vec::with_capacity(3);
+    for p in parts {
+        out.push(p.parse::<T>().map_err(|_| bad())?);
+    }
+    out.try_into().map_err(|_| bad())
+}
+
+fn parse_space_directions(v: &str) -> Result<Vec3, LoadErrorKind> {
+    let bad = || {
+        header_err(format!(
+            "space directions: expected three vectors \"(x,y,z)\", found \"{v}\""
+        ))
+    };
+    let mut norms = Vec::new();
+    for part in v.split(')').map(str::trim).filter(|p| !p.is_empty()) {
+        let inner = part.strip_prefix('(').ok_or_else(bad)?;
+        let comps: Result<Vec<f64>, _> =
+            inner.split(',').map(|c| c.trim().parse::<f64>()).collect();
+        let comps = comps.map_err(|_| bad())?;
+        norms.push(comps.iter().map(|c| c * c).sum::<f64>().sqrt() as f32);
+    }
+    match norms[..] {
+        [x, y, z] => Ok(Vec3::new(x, y, z)),
+        _ => Err(bad()),
+    }
+}
+
+/// Parse header lines; returns the header and the byte offset just past it (the blank line).
+fn parse_header(bytes: &[u8]) -> Result<(Header, usize), LoadErrorKind> {
+    let mut h = Header::default();
+    let mut pos = 0usize;
+    let mut first = true;
+    while pos < bytes.len() {
+        let end = bytes[pos..]
+            .iter()
+            .position(|&b| b == b'\n')
+            .map_or(bytes.len(), |i| pos + i);
+        let line =
+            std::str::from_utf8(&bytes[pos..end]).map_err(|_| header_err("header is not text"))?;
+        let line = line.trim_end_matches('\r');
+        pos = (end + 1).min(bytes.len());
+        if first {
+            if !line.starts_with("NRRD000") {
+                return Err(header_err(format!(
+                    "not a NRRD file: first line is \"{}\", expected \"NRRD000x\"",
+                    line.chars().take(40).collect::<String>()
+                )));
+            }
+            first = false;
+            continue;
+        }
+        if line.is_empty() {
+            break;
+        }
+        if line.starts_with('#') || line.contains(":=") {
+            continue;
+        }
+        let Some((key, value)) = line.split_once(':') else {
+            return Err(header_err(format!(
+                "header line \"{line}\" is not \"field: value\""
+            )));
+        };
+        let value = value.trim();
+        match key.trim() {
+            "type" => h.ty = Some(parse_type(value)?),
+            "dimension" => {
+                h.dimension =
+                    Some(value.parse().map_err(|_| {
+                        header_err(format!("dimension: \"{value}\" is not a number"))
+                    })?)
+            }
+            "sizes" => h.sizes = Some(parse_three("sizes", value)?),
+            "encoding" => {
+                h.gzip = Some(match value {
+                    "raw" => false,
+                    "gzip" | "gz" => true,
+                    other => {
+                        return Err(header_err(format!(
+                            "encoding \"{other}\" is not supported (raw, gzip)"
+                        )))
+                    }
+                })
+            }
+            "endian" => {
+                h.endian = Some(match value {
+                    "little" => Endian::Little,
+                    "big" => Endian::Big,
+                    other => {
+                        return Err(header_err(format!(
+                            "endian \"{other}\" is not little or big"
+                        )))
+                    }
+                })
+            }
+            "spacings" => h.spacing = Some(Vec3::from_array(parse_three("spacings", value)?)),
+            "space directions" => h.spacing = Some(parse_space_directions(value)?),
+            "data file" | "datafile" => {
+                if value.starts_with("LIST") || value.split_whitespace().count() > 1 {
+                    return Err(header_err(
+                        "data file: lists of data files are not supported",
+                    ));
+                }
+                h.data_file = Some(value.to_string());
+            }
+            "byte skip" | "byteskip" => {
+                h.byte_skip = value
+                    .parse()
+                    .map_err(|_| header_err(format!("byte skip: \"{value}\" is not a number")))?
+            }
+            "line skip" | "lineskip" => {
+                h.line_skip = value
+                    .parse()
+                    .map_err(|_| header_err(format!("line skip: \"{value}\" is not a number")))?
+            }
+            _ => {}
+        }
+    }
+    if first {
+        return Err(header_err("empty file: expected a NRRD header"));
+    }
+    Ok((h, pos))
+}
+
+/// Load a NRRD volume (`.nrrd` or `.nhdr`). `spacing` overrides the header's.
+pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
+    let bytes = read(path)?;
+    let (h, data_start) = parse_header(&bytes).map_err(|k| LoadError::new(path, k))?;
+    let at = |k| LoadError::new(path, k);
+    let ty =
+        h.ty.ok_or_else(|| at(header_err("missing field \"type\"")))?;
+    match h.dimension {
+        Some(3) => {}
+        Some(d) => {
+            return Err(at(header_err(format!(
+                "dimension is {d}; voxcube reads 3-D scalar volumes"
+            ))))
+        }
+        None => return Err(at(header_err("missing field \"dimension\""))),
+    }
+    let dims = h
+        .sizes
+        .ok_or_else(|| at(header_err("missing field \"sizes\"")))?;
+    let gzip = h
+        .gzip
+        .ok_or_else(|| at(header_err("missing field \"encoding\"")))?;
+    let endian = match (h.endian, ty.bytes()) {
+        (Some(e), _) => e,
+        (None, 1) => Endian::Little,
+        (None, _) => {
+            return Err(at(header_err(
+                "missing field \"endian\" (needed for multi-byte types)",
+            )))
+        }
+    };
+    let spacing = spacing.or(h.spacing).unwrap_or(Vec3::ONE);
+    let (data_path, payload): (PathBuf, Vec<u8>) = match &h.data_file {
+        Some(name) => {
+            let file = path.parent().unwrap_or(Path::new(".")).join(name);
+            let bytes = read(&file)?;
+            (file, bytes)
+        }
+        None => (path.to_path_buf(), bytes[data_start..].to_vec()),
+    };
+    let data_err = |k| LoadError::new(&data_path, k);
+    let mut payload = payload;
+    for _ in 0..h.line_skip {
+        let Some(i) = payload.iter().position(|&b| b == b'\n') else {
+            return Err(data_err(header_err(
+                "line skip runs past the end of the data",
+            )));
+        };
+        payload.drain(..=i);
+    }
+    if gzip {
+        let mut out = Vec::new();
+        flate2::read::MultiGzDecoder::new(&payload[..])
+            .read_to_end(&mut out)
+            .map_err(|e| data_err(header_err(format!("gzip data is corrupt: {e}"))))?;
+        payload = out;
+    }
+    let count = dims
+        .iter()
+        .try_fold(1u64, |a, &d| a.checked_mul(u64::from(d)))
+        .unwrap_or(u64::MAX);
+    if let Some(axis) = dims.iter().position(|&d| d == 0) {
+        return Err(data_err(
+            voxcube_kernel::grid::GridError::ZeroDimension { axis }.into(),
+        ));
+    }
+    let skip = match h.byte_skip {
+        -1 => (payload.len() as u64).saturating_sub(count.saturating_mul(ty.bytes() as u64)),
+        s if s >= 0 => s as u64,
+        s => {
+            return Err(data_err(header_err(format!(
+                "byte skip {s}: only -1 or a count of bytes is meaningful"
+            ))))
+        }
+    };
+    check_size(&payload, skip, count, ty).map_err(data_err)?;
+    decode(&payload[skip as usize..], dims, spacing, ty, endian).map_err(data_err)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn header_fields_parse() {
+        let text = b"NRRD0004\n# c\ntype: unsigned short\ndimension: 3\nsizes: 2 3 4\nencoding: raw\nendian: big\nspace directions: (2,0,0) (0,3,0) (0,0,4)\nkey:=value\n\nDATA";
+        let (h, at) = parse_header(text).unwrap();
+        assert_eq!(h.ty, Some(FileType::U16));
+        assert_eq!(h.sizes, Some([2, 3, 4]));
+        assert_eq!(h.endian, Some(Endian::Big));
+        assert_eq!(h.spacing, Some(Vec3::new(2.0, 3.0, 4.0)));
+        assert_eq!(&text[at..], b"DATA");
+    }
+
+    #[test]
+    fn bad_headers_name_the_field() {
+        let e = parse_header(b"NRRD0004\ntype: double\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("type \"double\" is not supported"), "{e}");
+        let e = parse_header(b"NRRD0004\nencoding: hex\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("encoding \"hex\""), "{e}");
+        let e = parse_header(b"P6 garbage\n").unwrap_err().to_string();
+        assert!(e.contains("not a NRRD file"), "{e}");
+        let e = parse_header(b"NRRD0004\nsizes: 1 2\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("sizes: expected three numbers"), "{e}");
+    }
+}

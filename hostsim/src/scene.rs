@@ -1,0 +1,965 @@
+//! The scene file (the paper's "input file"), TOML: datasets, each with one or more views.
+//!
+//! Parsing is strict: an unknown key, a wrong type or a value out of range is an error that
+//! names the file and the key (`datasets[0].views[1].dt`). Relative dataset paths are resolved
+//! against the scene file's folder. A scene is checked whole — every dataset loaded and every
+//! view built — before anything is rendered, so a bad scene writes nothing.
+
+use crate::builtin;
+use crate::dataset::Volume;
+use crate::formats::{self, raw::RawLayout, Endian, FileType, LoadError};
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+use voxcube_kernel::camera::{Camera, Projection};
+use voxcube_kernel::grid::{Grid, Model};
+use voxcube_kernel::shade::{Light, Shading, MAX_LIGHTS};
+use voxcube_kernel::surface::{IsoSurface, MAX_SURFACES};
+use voxcube_kernel::transfer::{ControlPoint, TransferFunction};
+use voxcube_kernel::view::{Mode, View, ViewSpec, DEFAULT_CUTOFF};
+use voxcube_kernel::Vec3;
+
+/// The built-in default scene: the paper's view of the procedural molecule.
+pub const DEFAULT_SCENE: &str = include_str!("default_scene.toml");
+
+/// A scene that cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    /// The file could not be read.
+    #[error("{file}: cannot read: {source}")]
+    Read {
+        /// The scene file.
+        file: String,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// Not valid TOML, or a key or type the schema does not have.
+    #[error("{file}: {message}")]
+    Parse {
+        /// The scene file.
+        file: String,
+        /// The parser's message (line, column, key).
+        message: String,
+    },
+    /// A value out of range or inconsistent with another.
+    #[error("{file}: {key}: {message}")]
+    Invalid {
+        /// The scene file.
+        file: String,
+        /// Path of the key at fault.
+        key: String,
+        /// What is expected.
+        message: String,
+    },
+    /// A dataset could not be loaded.
+    #[error("{file}: {key}: {source}")]
+    Dataset {
+        /// The scene file.
+        file: String,
+        /// The dataset's key path.
+        key: String,
+        /// The loader's error (it names the data file).
+        source: LoadError,
+    },
+}
+
+// ---------------------------------------------------------------- the TOML schema
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneToml {
+    datasets: Vec<DatasetToml>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "lowercase")]
+enum FormatToml {
+    Raw,
+    Nrrd,
+    Den,
+}
+
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "lowercase")]
+enum TypeToml {
+    U8,
+    U16,
+    I8,
+    I16,
+    F32,
+}
+
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "lowercase")]
+enum EndianToml {
+    Little,
+    Big,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DatasetToml {
+    name: String,
+    builtin: Option<String>,
+    path: Option<PathBuf>,
+    format: Option<FormatToml>,
+    dims: Option<[u32; 3]>,
+    #[serde(rename = "type")]
+    ty: Option<TypeToml>,
+    endian: Option<EndianToml>,
+    header_bytes: Option<u64>,
+    spacing: Option<[f32; 3]>,
+    views: Vec<ViewToml>,
+}
+
+#[derive(Debug, Clone, Copy, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+enum ModelToml {
+    Voxel,
+    #[default]
+    Cell,
+}
+
+#[derive(Debug, Clone, Copy, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+enum ModeToml {
+    #[default]
+    Surfaces,
+    Composite,
+}
+
+fn d_width() -> u32 {
+    350
+}
+fn d_height() -> u32 {
+    250
+}
+fn d_dt() -> f32 {
+    0.5
+}
+fn d_one() -> f32 {
+    1.0
+}
+fn d_true() -> bool {
+    true
+}
+fn d_cutoff() -> f32 {
+    DEFAULT_CUTOFF
+}
+fn d_depth() -> u8 {
+    8
+}
+fn d_refine() -> u8 {
+    2
+}
+fn d_count() -> u32 {
+    1
+}
+fn d_white() -> [f32; 3] {
+    [1.0; 3]
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ViewToml {
+    name: Option<String>,
+    #[serde(default = "d_width")]
+    width: u32,
+    #[serde(default = "d_height")]
+    height: u32,
+    #[serde(default)]
+    model: ModelToml,
+    #[serde(default = "d_dt")]
+    dt: f32,
+    #[serde(default = "d_one")]
+    gradient_distance: f32,
+    #[serde(default)]
+    mode: ModeToml,
+    #[serde(default = "d_true")]
+    shading: bool,
+    #[serde(default)]
+    lighting: LightingToml,
+    #[serde(default)]
+    background: [f32; 3],
+    #[serde(default = "d_cutoff")]
+    cutoff: f32,
+    #[serde(default = "d_depth")]
+    max_depth: u8,
+    #[serde(default = "d_refine")]
+    refine_steps: u8,
+    #[serde(default = "d_count")]
+    nodes: u32,
+    #[serde(default = "d_count")]
+    clusters: u32,
+    #[serde(default)]
+    camera: CameraToml,
+    #[serde(default)]
+    surfaces: Vec<SurfaceToml>,
+    #[serde(default)]
+    transfer: Vec<PointToml>,
+    lights: Option<Vec<LightToml>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LightingToml {
+    ambient: f32,
+    diffuse: f32,
+    specular: f32,
+    shininess: f32,
+}
+
+impl Default for LightingToml {
+    fn default() -> Self {
+        let s = Shading::default();
+        LightingToml {
+            ambient: s.ambient,
+            diffuse: s.diffuse,
+            specular: s.specular,
+            shininess: s.shininess,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+enum ProjectionToml {
+    #[default]
+    Orthographic,
+    Perspective,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CameraToml {
+    #[serde(default)]
+    projection: ProjectionToml,
+    azimuth: Option<f32>,
+    elevation: Option<f32>,
+    distance: Option<f32>,
+    eye: Option<[f32; 3]>,
+    look_at: Option<[f32; 3]>,
+    up: Option<[f32; 3]>,
+    width: Option<f32>,
+    fit: Option<f32>,
+    fov: Option<f32>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SurfaceToml {
+    iso: f32,
+    #[serde(default = "d_white")]
+    color: [f32; 3],
+    #[serde(default)]
+    transparency: f32,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PointToml {
+    value: f32,
+    color: [f32; 3],
+    opacity: f32,
+}
+
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+enum LightTypeToml {
+    Directional,
+    Point,
+}
+
+#[derive(Debug, Clone, Copy, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+enum FrameToml {
+    #[default]
+    World,
+    Camera,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LightToml {
+    #[serde(rename = "type")]
+    ty: LightTypeToml,
+    direction: Option<[f32; 3]>,
+    position: Option<[f32; 3]>,
+    #[serde(default = "d_white")]
+    color: [f32; 3],
+    #[serde(default = "d_one")]
+    intensity: f32,
+    #[serde(default)]
+    shadows: bool,
+    #[serde(default)]
+    frame: FrameToml,
+}
+
+// ---------------------------------------------------------------- the checked scene
+
+/// Where a dataset's samples come from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Source {
+    /// A built-in volume by name.
+    Builtin(String),
+    /// A raw file.
+    Raw(PathBuf, RawLayout),
+    /// A NRRD file (`.nrrd` or `.nhdr`).
+    Nrrd(PathBuf, Option<Vec3>),
+    /// A Levoy `.den` file.
+    Den(PathBuf, Option<Vec3>),
+}
+
+/// A checked scene, datasets not yet loaded.
+#[derive(Debug)]
+pub struct Scene {
+    /// The scene file's name, for messages.
+    pub file: String,
+    datasets: Vec<(DatasetToml, Source)>,
+}
+
+/// One view, ready to render.
+#[derive(Debug)]
+pub struct ViewJob {
+    /// View name (unique within its dataset).
+    pub name: String,
+    /// The kernel view.
+    pub view: View,
+    /// Requested nodes (recorded; this build renders on one node).
+    pub nodes: u32,
+    /// Requested clusters (recorded).
+    pub clusters: u32,
+}
+
+/// A dataset loaded, with its views built.
+#[derive(Debug)]
+pub struct DatasetJob {
+    /// Dataset name.
+    pub name: String,
+    /// Where it came from, for reports.
+    pub source: String,
+    /// The samples.
+    pub volume: Volume,
+    /// Its views.
+    pub views: Vec<ViewJob>,
+}
+
+fn valid_name(s: &str) -> bool {
+    !s.is_empty()
+        && s.len() <= 64
+        && s.chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
+        && !s.starts_with('.')
+}
+
+impl Scene {
+    /// Read and check a scene file.
+    pub fn from_file(path: &Path) -> Result<Scene, SceneError> {
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Read {
+            file: file.clone(),
+            source,
+        })?;
+        let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        Scene::parse(&text, &file, &base)
+    }
+
+    /// The built-in default scene.
+    pub fn default_scene() -> Result<Scene, SceneError> {
+        Scene::parse(DEFAULT_SCENE, "<built-in default scene>", Path::new("."))
+    }
+
+    /// Check scene text; relative paths resolve against `base`.
+    pub fn parse(text: &str, file: &str, base: &Path) -> Result<Scene, SceneError> {
+        let toml: SceneToml = toml::from_str(text).map_err(|e| SceneError::Parse {
+            file: file.to_string(),
+            message: e.to_string().trim_end().to_string(),
+        })?;
+        let invalid = |key: String, message: String| SceneError::Invalid {
+            file: file.to_string(),
+            key,
+            message,
+        };
+        if toml.datasets.is_empty() {
+            return Err(invalid(
+                "datasets".into(),
+                "at least one [[datasets]] entry is needed".into(),
+            ));
+        }
+        let mut datasets = Vec::new();
+        for (i, d) in toml.datasets.into_iter().enumerate() {
+            let key = format!("datasets[{i}]");
+            if !valid_name(&d.name) {
+                return Err(invalid(format!("{key}.name"), format!("\"{}\" must be 1-64 letters, digits, '-', '_' or '.', not starting with '.'", d.name)));
+            }
+            if datasets
+                .iter()
+                .any(|(o, _): &(DatasetToml, Source)| o.name == d.name)
+            {
+                return Err(invalid(
+                    format!("{key}.name"),
+                    format!(
+                        "\"{}\" names two datasets; names must be unique (they name the images)",
+                        d.name
+                    ),
+                ));
+            }
+            let source = source_of(&d, base).map_err(|(k, m)| invalid(format!("{key}.{k}"), m))?;
+            if d.views.is_empty() {
+                return Err(invalid(
+                    format!("{key}.views"),
+                    "each dataset needs at least one [[datasets.views]] entry".into(),
+                ));
+            }
+            let mut names: Vec<String> = Vec::new();
+            for (j, v) in d.views.iter().enumerate() {
+                let name = view_name(v, j);
+                if !valid_name(&name) {
+                    return Err(invalid(
+                        format!("{key}.views[{j}].name"),
+                        format!("\"{name}\" must be 1-64 letters, digits, '-', '_' or '.'"),
+                    ));
+                }
+                if names.contains(&name) {
+                    return Err(invalid(
+                        format!("{key}.views[{j}].name"),
+                        format!("\"{name}\" names two views of this dataset"),
+                    ));
+                }
+                names.push(name);
+            }
+            datasets.push((d, source));
+        }
+        Ok(Scene {
+            file: file.to_string(),
+            datasets,
+        })
+    }
+
+    /// Load every dataset and build every view; nothing is rendered yet.
+    pub fn load(self) -> Result<Vec<DatasetJob>, SceneError> {
+        let file = self.file;
+        let mut jobs = Vec::new();
+        for (i, (d, source)) in self.datasets.into_iter().enumerate() {
+            let key = format!("datasets[{i}]");
+            let volume = load_source(&source).map_err(|e| match e {
+                SourceError::Load(source) => SceneError::Dataset {
+                    file: file.clone(),
+                    key: key.clone(),
+                    source,
+                },
+                SourceError::Builtin(m) => SceneError::Invalid {
+                    file: file.clone(),
+                    key: format!("{key}.builtin"),
+                    message: m,
+                },
+            })?;
+            let mut views = Vec::new();
+            for (j, v) in d.views.iter().enumerate() {
+                let vkey = format!("{key}.views[{j}]");
+                let view =
+                    build_view(v, &volume.grid).map_err(|(k, message)| SceneError::Invalid {
+                        file: file.clone(),
+                        key: if k.is_empty() {
+                            vkey.clone()
+                        } else {
+                            format!("{vkey}.{k}")
+                        },
+                        message,
+                    })?;
+                views.push(ViewJob {
+                    name: view_name(v, j),
+                    view,
+                    nodes: v.nodes,
+                    clusters: v.clusters,
+                });
+            }
+            jobs.push(DatasetJob {
+                name: d.name.clone(),
+                source: describe(&source),
+                volume,
+                views,
+            });
+        }
+        Ok(jobs)
+    }
+}
+
+fn view_name(v: &ViewToml, index: usize) -> String {
+    v.name.clone().unwrap_or_else(|| format!("view{index}"))
+}
+
+fn describe(source: &Source) -> String {
+    match source {
+        Source::Builtin(n) => format!("builtin:{n}"),
+        Source::Raw(p, _) | Source::Nrrd(p, _) | Source::Den(p, _) => p.display().to_string(),
+    }
+}
+
+/// Work out where a dataset comes from; errors are `(key, message)`.
+fn source_of(d: &DatasetToml, base: &Path) -> Result<Source, (String, String)> {
+    let spacing = d.spacing.map(Vec3::from_array);
+    if let Some(s) = spacing {
+        if !(s.is_finite() && s.min_element() > 0.0) {
+            return Err((
+                "spacing".into(),
+                format!(
+                    "{:?} must be three finite numbers > 0",
+                    d.spacing.unwrap_or_default()
+                ),
+            ));
+        }
+    }
+    let raw_only = [
+        ("dims", d.dims.is_some()),
+        ("type", d.ty.is_some()),
+        ("endian", d.endian.is_some()),
+        ("header_bytes", d.header_bytes.is_some()),
+    ];
+    match (&d.builtin, &d.path) {
+        (Some(_), Some(_)) => Err((
+            "builtin".into(),
+            "give either builtin or path, not both".into(),
+        )),
+        (None, None) => Err((
+            "path".into(),
+            format!(
+                "a dataset needs a path or a builtin ({})",
+                builtin::NAMES.join(", ")
+            ),
+        )),
+        (Some(name), None) => {
+            if let Some((k, _)) = raw_only.iter().find(|(_, set)| *set) {
+                return Err((
+                    (*k).into(),
+                    "applies to raw files, not built-in volumes".into(),
+                ));
+            }
+            if d.format.is_some() || d.spacing.is_some() {
+                return Err((
+                    "builtin".into(),
+                    "built-in volumes take no format or spacing".into(),
+                ));
+            }
+            if !builtin::NAMES.contains(&name.as_str()) {
+                return Err((
+                    "builtin".into(),
+                    format!(
+                        "unknown built-in \"{name}\"; expected one of {}",
+                        builtin::NAMES.join(", ")
+                    ),
+                ));
+            }
+            Ok(Source::Builtin(name.clone()))
+        }
+        (None, Some(p)) => {
+            let path = base.join(p);
+            let ext = p
+                .extension()
+                .and_then(|e| e.to_str())
+                .unwrap_or("")
+                .to_ascii_lowercase();
+            let format = match (&d.format, ext.as_str()) {
+                (Some(f), _) => f,
+                (None, "nrrd" | "nhdr") => &FormatToml::Nrrd,
+                (None, "den") => &FormatToml::Den,
+                (None, _) => &FormatToml::Raw,
+            };
+            match format {
+                FormatToml::Raw => {
+                    let dims = d.dims.ok_or((
+                        "dims".to_string(),
+                        "a raw dataset needs dims = [nx, ny, nz]".to_string(),
+                    ))?;
+                    let ty = d.ty.ok_or((
+                        "type".to_string(),
+                        "a raw dataset needs type (u8, u16, i8, i16, f32)".to_string(),
+                    ))?;
+                    let ty = match ty {
+                        TypeToml::U8 => FileType::U8,
+                        TypeToml::U16 => FileType::U16,
+                        TypeToml::I8 => FileType::I8,
+                        TypeToml::I16 => FileType::I16,
+                        TypeToml::F32 => FileType::F32,
+                    };
+                    let endian =
+                        match d.endian {
+                            Some(EndianToml::Big) => Endian::Big,
+                            Some(EndianToml::Little) => Endian::Little,
+                            None if ty.bytes() == 1 => Endian::Little,
+                            None => return Err((
+                                "endian".into(),
+                                "a raw dataset of multi-byte samples needs endian (little or big)"
+                                    .into(),
+                            )),
+                        };
+                    if let Some(axis) = dims.iter().position(|&n| n == 0) {
+                        return Err((
+                            "dims".into(),
+                            format!("dims[{axis}] is 0; every dimension must be at least 1"),
+                        ));
+                    }
+                    let layout = RawLayout {
+                        dims,
+                        ty,
+                        endian,
+                        header_bytes: d.header_bytes.unwrap_or(0),
+                        spacing: spacing.unwrap_or(Vec3::ONE),
+                    };
+                    Ok(Source::Raw(path, layout))
+                }
+                other => {
+                    if let Some((k, _)) = raw_only.iter().find(|(_, set)| *set) {
+                        return Err((
+                            (*k).into(),
+                            "applies to raw files; this file's header gives it".into(),
+                        ));
+                    }
+                    Ok(match other {
+                        FormatToml::Nrrd => Source::Nrrd(path, spacing),
+                        _ => Source::Den(path, spacing),
+                    })
+                }
+            }
+        }
+    }
+}
+
+enum SourceError {
+    Load(LoadError),
+    Builtin(String),
+}
+
+fn load_source(source: &Source) -> Result<Volume, SourceError> {
+    match source {
+        Source::Builtin(name) => builtin::volume(name)
+            .ok_or_else(|| SourceError::Builtin(format!("unknown built-in \"{name}\""))),
+        Source::Raw(p, layout) => formats::raw::load(p, layout).map_err(SourceError::Load),
+        Source::Nrrd(p, s) => formats::nrrd::load(p, *s).map_err(SourceError::Load),
+        Source::Den(p, s) => formats::den::load(p, *s).map_err(SourceError::Load),
+    }
+}
+
+fn finite3(key: &str, v: [f32; 3]) -> Result<Vec3, (String, String)> {
+    let v3 = Vec3::from_array(v);
+    if v3.is_finite() {
+        Ok(v3)
+    } else {
+        Err((key.into(), format!("{v:?} must be finite")))
+    }
+}
+
+fn unit_color(key: &str, v: [f32; 3]) -> Result<Vec3, (String, String)> {
+    if v.iter().all(|c| (0.0..=1.0).contains(c)) {
+        Ok(Vec3::from_array(v))
+    } else {
+        Err((
+            key.into(),
+            format!("{v:?}: each channel must lie in [0, 1]"),
+        ))
+    }
+}
+
+fn build_camera(
+    c: &CameraToml,
+    grid: &Grid,
+    model: Model,
+    aspect: f32,
+) -> Result<Camera, (String, String)> {
+    let (lo, hi) = grid.world_box(model);
+    let centre = (lo + hi) * 0.5;
+    let radius = ((hi - lo).length() * 0.5).max(f32::MIN_POSITIVE);
+    let orbit = c.azimuth.is_some() || c.elevation.is_some() || c.distance.is_some();
+    if orbit && c.eye.is_some() {
+        return Err((
+            "camera.eye".into(),
+            "give either eye (with look_at, up) or azimuth/elevation/distance, not both".into(),
+        ));
+    }
+    let perspective = c.projection == ProjectionToml::Perspective;
+    if perspective && (c.width.is_some() || c.fit.is_some()) {
+        return Err((
+            "camera.width".into(),
+            "width and fit apply to orthographic cameras; a perspective camera takes fov".into(),
+        ));
+    }
+    if !perspective && c.fov.is_some() {
+        return Err((
+            "camera.fov".into(),
+            "fov applies to perspective cameras; an orthographic camera takes width or fit".into(),
+        ));
+    }
+    if c.width.is_some() && c.fit.is_some() {
+        return Err((
+            "camera.fit".into(),
+            "give either width or fit, not both".into(),
+        ));
+    }
+    let up = finite3("camera.up", c.up.unwrap_or([0.0, 1.0, 0.0]))?;
+    let target = finite3("camera.look_at", c.look_at.unwrap_or(centre.to_array()))?;
+    let eye = match c.eye {
+        Some(e) => finite3("camera.eye", e)?,
+        None => {
+            let az = c.azimuth.unwrap_or(45.0).to_radians();
+            let el = c.elevation.unwrap_or(0.0);
+            if !(-90.0..=90.0).contains(&el) {
+                return Err((
+                    "camera.elevation".into(),
+                    format!("{el} must lie in [-90, 90] degrees"),
+                ));
+            }
+            let el = el.to_radians();
+            let distance = c.distance.unwrap_or(if perspective { 3.0 } else { 2.0 });
+            if !(distance.is_finite() && distance > 0.0) {
+                return Err((
+                    "camera.distance".into(),
+                    format!("{distance} must be > 0 (in bounding-sphere radii)"),
+                ));
+            }
+            let toward_eye = Vec3::new(
+                libm::sinf(az) * libm::cosf(el),
+                libm::sinf(el),
+                libm::cosf(az) * libm::cosf(el),
+            );
+            target + toward_eye * (distance * radius)
+        }
+    };
+    let projection = if perspective {
+        let fov = c.fov.unwrap_or(30.0);
+        if !(fov > 0.0 && fov < 180.0) {
+            return Err((
+                "camera.fov".into(),
+                format!("{fov} must lie in (0, 180) degrees"),
+            ));
+        }
+        Projection::Perspective {
+            fov_y: fov.to_radians(),
+        }
+    } else {
+        Projection::Orthographic { width: 1.0 }
+    };
+    let cam = Camera::look_at(eye, target, up, projection)
+        .map_err(|e| ("camera".to_string(), e.to_string()))?;
+    if perspective {
+        return Ok(cam);
+    }
+    let width = match (c.width, c.fit) {
+        (Some(w), _) => {
+            if !(w.is_finite() && w > 0.0) {
+                return Err((
+                    "camera.width".into(),
+                    format!("{w} must be > 0 (world units)"),
+                ));
+            }
+            w
+        }
+        (None, fit) => {
+            let fit = fit.unwrap_or(0.86);
+            if !(fit > 0.0 && fit <= 10.0) {
+                return Err((
+                    "camera.fit".into(),
+                    format!("{fit} must lie in (0, 10]: the share of the image the volume fills"),
+                ));
+            }
+            // The width at which the box's projection fills `fit` of the image in its tighter
+            // direction. 0.86 reproduces the paper's 301×194 of 350×250 for SOD.
+            let (right, up) = cam.image_axes();
+            let (mut w, mut h) = (0.0f32, 0.0f32);
+            for corner in 0..8 {
+                let p = Vec3::new(
+                    if corner & 1 == 0 { lo.x } else { hi.x },
+                    if corner & 2 == 0 { lo.y } else { hi.y },
+                    if corner & 4 == 0 { lo.z } else { hi.z },
+                ) - centre;
+                w = w.max(2.0 * p.dot(right).abs());
+                h = h.max(2.0 * p.dot(up).abs());
+            }
+            (w.max(h * aspect) / fit).max(f32::MIN_POSITIVE)
+        }
+    };
+    Camera::look_at(eye, target, up, Projection::Orthographic { width })
+        .map_err(|e| ("camera".to_string(), e.to_string()))
+}
+
+fn build_view(v: &ViewToml, grid: &Grid) -> Result<View, (String, String)> {
+    if v.width == 0 || v.height == 0 || v.width > 16384 || v.height > 16384 {
+        return Err((
+            "width".into(),
+            format!(
+                "{}x{} must be between 1x1 and 16384x16384 pixels",
+                v.width, v.height
+            ),
+        ));
+    }
+    for (key, n) in [("nodes", v.nodes), ("clusters", v.clusters)] {
+        if !n.is_power_of_two() || n > 1024 {
+            return Err((
+                key.into(),
+                format!("{n} must be a power of two from 1 to 1024"),
+            ));
+        }
+    }
+    if v.clusters > v.nodes {
+        return Err((
+            "clusters".into(),
+            format!(
+                "{} clusters cannot be made of {} nodes",
+                v.clusters, v.nodes
+            ),
+        ));
+    }
+    let model = match v.model {
+        ModelToml::Cell => Model::Cell,
+        ModelToml::Voxel => Model::Voxel,
+    };
+    let camera = build_camera(&v.camera, grid, model, v.width as f32 / v.height as f32)?;
+    let mode = match v.mode {
+        ModeToml::Surfaces => {
+            if !v.transfer.is_empty() {
+                return Err((
+                    "transfer".into(),
+                    "a transfer function applies to mode = \"composite\"".into(),
+                ));
+            }
+            if v.surfaces.len() > MAX_SURFACES {
+                return Err((
+                    "surfaces".into(),
+                    format!("{} surfaces; at most {MAX_SURFACES}", v.surfaces.len()),
+                ));
+            }
+            let mut surfaces = voxcube_kernel::heapless::Vec::new();
+            for (i, s) in v.surfaces.iter().enumerate() {
+                let color = unit_color(&format!("surfaces[{i}].color"), s.color)?;
+                if !(0.0..=1.0).contains(&s.transparency) {
+                    return Err((
+                        format!("surfaces[{i}].transparency"),
+                        format!("{} must lie in [0, 1] (0 is opaque)", s.transparency),
+                    ));
+                }
+                if !s.iso.is_finite() {
+                    return Err((format!("surfaces[{i}].iso"), "must be finite".into()));
+                }
+                // Capacity checked above.
+                let _ = surfaces.push(IsoSurface {
+                    iso: s.iso,
+                    color,
+                    transparency: s.transparency,
+                });
+            }
+            Mode::Surfaces(surfaces)
+        }
+        ModeToml::Composite => {
+            if !v.surfaces.is_empty() {
+                return Err((
+                    "surfaces".into(),
+                    "iso-surfaces apply to mode = \"surfaces\"".into(),
+                ));
+            }
+            let points: Vec<ControlPoint> = v
+                .transfer
+                .iter()
+                .map(|p| ControlPoint {
+                    value: p.value,
+                    color: Vec3::from_array(p.color),
+                    opacity: p.opacity,
+                })
+                .collect();
+            Mode::Composite(
+                TransferFunction::new(&points)
+                    .map_err(|e| ("transfer".to_string(), e.to_string()))?,
+            )
+        }
+    };
+    let shading = v.shading.then_some(Shading {
+        ambient: v.lighting.ambient,
+        diffuse: v.lighting.diffuse,
+        specular: v.lighting.specular,
+        shininess: v.lighting.shininess,
+    });
+    let (right, up) = camera.image_axes();
+    let forward = camera.forward();
+    let to_world = |frame: FrameToml, d: Vec3| match frame {
+        FrameToml::World => d,
+        FrameToml::Camera => right * d.x + up * d.y + forward * d.z,
+    };
+    let mut lights = voxcube_kernel::heapless::Vec::<Light, MAX_LIGHTS>::new();
+    match &v.lights {
+        None => {
+            // One light from the viewer's upper left, so a scene that names none is still lit.
+            let dir = forward - up * 0.5 + right * 0.4;
+            let _ = lights.push(
+                Light::directional(dir, Vec3::ONE, false)
+                    .map_err(|e| ("lights".to_string(), e.to_string()))?,
+            );
+        }
+        Some(ls) => {
+            if ls.len() > MAX_LIGHTS {
+                return Err((
+                    "lights".into(),
+                    format!("{} lights; at most {MAX_LIGHTS}", ls.len()),
+                ));
+            }
+            for (i, l) in ls.iter().enumerate() {
+                let key = format!("lights[{i}]");
+                if !(l.intensity.is_finite() && l.intensity >= 0.0) {
+                    return Err((
+                        format!("{key}.intensity"),
+                        format!("{} must be finite and >= 0", l.intensity),
+                    ));
+                }
+                let color = finite3(&format!("{key}.color"), l.color)? * l.intensity;
+                let light = match l.ty {
+                    LightTypeToml::Directional => {
+                        if l.position.is_some() {
+                            return Err((
+                                format!("{key}.position"),
+                                "a directional light has a direction, not a position".into(),
+                            ));
+                        }
+                        let d = l.direction.ok_or((format!("{key}.direction"), "a directional light needs direction = [x, y, z] (the way light travels)".to_string()))?;
+                        Light::directional(
+                            to_world(l.frame, finite3(&format!("{key}.direction"), d)?),
+                            color,
+                            l.shadows,
+                        )
+                    }
+                    LightTypeToml::Point => {
+                        if l.direction.is_some() {
+                            return Err((
+                                format!("{key}.direction"),
+                                "a point light has a position, not a direction".into(),
+                            ));
+                        }
+                        let p = l.position.ok_or((
+                            format!("{key}.position"),
+                            "a point light needs position = [x, y, z]".to_string(),
+                        ))?;
+                        let p = finite3(&format!("{key}.position"), p)?;
+                        let p = match l.frame {
+                            FrameToml::World => p,
+                            FrameToml::Camera => camera.eye() + to_world(FrameToml::Camera, p),
+                        };
+                        Light::point(p, color, l.shadows)
+                    }
+                };
+                let light = light.map_err(|e| (key.clone(), e.to_string()))?;
+                let _ = lights.push(light);
+            }
+        }
+    }
+    let spec = ViewSpec {
+        width: v.width,
+        height: v.height,
+        camera,
+        model,
+        dt: v.dt,
+        gradient_distance: v.gradient_distance,
+        mode,
+        shading,
+        lights,
+        background: unit_color("background", v.background)?,
+        cutoff: v.cutoff,
+        max_depth: v.max_depth,
+        refine_steps: v.refine_steps,
+    };
+    View::new(spec, grid).map_err(|e| (String::new(), e.to_string()))
+}
