@@ -8,7 +8,7 @@
 //! Invariant: every volume is the same bits on every machine: a fixed seed, integer-exact
 //! arithmetic where possible, and libm (not the platform's maths library) for the rest.
 
-use crate::dataset::{Volume, VolumeData};
+use crate::dataset::{plane_major_from_fn, Volume, VolumeData};
 use voxcube_kernel::grid::Grid;
 use voxcube_kernel::Vec3;
 
@@ -64,56 +64,62 @@ struct Atom {
 /// The procedural electron-density map.
 pub fn molecule() -> Volume {
     const DIMS: [u32; 3] = [97, 97, 116];
-    let mut rng = SplitMix(0x5_0D_1992);
-    let centre = DIMS.map(|d| f64::from(d - 1) / 2.0);
-    // Half-axes of the ellipsoid the chain folds inside.
-    let reach = [38.0, 38.0, 48.0];
+    let mut rng = SplitMix(0x050D_1992);
+    let mid = DIMS.map(|d| f64::from(d - 1) / 2.0);
     let mut atoms = Vec::new();
-    let mut pos = [centre[0] - 20.0, centre[1], centre[2] - 30.0];
-    let mut dir = [1.0, 0.0, 0.0];
-    for residue in 0..420 {
-        // Persistent direction plus a random turn, pulled back inside the ellipsoid.
-        let r = rng.unit_vector();
-        let mut pull = [0.0; 3];
-        let mut outside = 0.0;
-        for a in 0..3 {
-            let u = (pos[a] - centre[a]) / reach[a];
-            outside += u * u;
-            pull[a] = -u;
-        }
-        let k = if outside > 1.0 { 0.9 } else { 0.02 };
-        let mut d = [0.0; 3];
-        for a in 0..3 {
-            d[a] = 0.65 * dir[a] + 0.55 * r[a] + k * pull[a];
-        }
-        let n = libm::sqrt(d.iter().map(|c| c * c).sum::<f64>());
-        dir = d.map(|c| c / n);
-        for a in 0..3 {
-            pos[a] += 3.8 * dir[a];
-        }
-        atoms.push(Atom {
-            at: pos,
-            peak: 110.0,
-            sigma: 1.05,
-        });
-        // Side-chain atoms off the backbone.
-        let side = 1 + residue % 3;
-        let mut s = pos;
-        for _ in 0..side {
-            let o = rng.unit_vector();
+    // SOD is a dimer: two chains, each folded inside its own ellipsoid, side by side along Z.
+    for (subunit, dz) in [(0usize, -24.0f64), (1, 24.0)] {
+        let centre = [mid[0], mid[1], mid[2] + dz];
+        let reach = [36.0, 36.0, 26.0];
+        let mut pos = [
+            centre[0] - 20.0,
+            centre[1] + 10.0 * subunit as f64,
+            centre[2],
+        ];
+        let mut dir = [1.0, 0.0, 0.0];
+        for residue in 0..400 {
+            // Persistent direction plus a random turn, pulled back inside the ellipsoid.
+            let r = rng.unit_vector();
+            let mut pull = [0.0; 3];
+            let mut outside = 0.0;
             for a in 0..3 {
-                s[a] += 1.5 * o[a];
+                let u = (pos[a] - centre[a]) / reach[a];
+                outside += u * u;
+                pull[a] = -u;
+            }
+            let k = if outside > 1.0 { 0.9 } else { 0.02 };
+            let mut d = [0.0; 3];
+            for a in 0..3 {
+                d[a] = 0.65 * dir[a] + 0.55 * r[a] + k * pull[a];
+            }
+            let n = libm::sqrt(d.iter().map(|c| c * c).sum::<f64>());
+            dir = d.map(|c| c / n);
+            for a in 0..3 {
+                pos[a] += 3.8 * dir[a];
             }
             atoms.push(Atom {
-                at: s,
-                peak: 80.0,
-                sigma: 0.95,
+                at: pos,
+                peak: 105.0,
+                sigma: 1.3,
             });
+            // Side-chain atoms off the backbone.
+            let mut s = pos;
+            for _ in 0..2 + residue % 3 {
+                let o = rng.unit_vector();
+                for a in 0..3 {
+                    s[a] += 1.5 * o[a];
+                }
+                atoms.push(Atom {
+                    at: s,
+                    peak: 75.0,
+                    sigma: 1.15,
+                });
+            }
         }
     }
     // Two heavy-metal peaks (SOD's copper and zinc) near the middle of the chain.
-    for i in [110usize, 230] {
-        let a = &atoms[i * 2];
+    for i in [500usize, 2300] {
+        let a = &atoms[i];
         atoms.push(Atom {
             at: [a.at[0] + 2.0, a.at[1] - 1.5, a.at[2] + 1.0],
             peak: 900.0,
@@ -158,43 +164,24 @@ pub fn marschner_lobb() -> Volume {
     let (fm, alpha) = (6.0f64, 0.25f64);
     let pi = core::f64::consts::PI;
     let c = |i: u32| -1.0 + 2.0 * f64::from(i) / f64::from(N - 1);
-    let mut file_order = Vec::with_capacity((N * N * N) as usize);
-    for z in 0..N {
-        for y in 0..N {
-            for x in 0..N {
-                let (x, y, z) = (c(x), c(y), c(z));
-                let r = libm::sqrt(x * x + y * y);
-                let rho = libm::cos(2.0 * pi * fm * libm::cos(pi * r / 2.0));
-                let v =
-                    (1.0 - libm::sin(pi * z / 2.0) + alpha * (1.0 + rho)) / (2.0 * (1.0 + alpha));
-                file_order.push(v as f32);
-            }
-        }
-    }
     let dims = [N; 3];
-    volume_from(
-        dims,
-        VolumeData::F32(crate::dataset::to_plane_major(&file_order, dims)),
-    )
+    let data = plane_major_from_fn(dims, |x, y, z| {
+        let (x, y, z) = (c(x), c(y), c(z));
+        let r = libm::sqrt(x * x + y * y);
+        let rho = libm::cos(2.0 * pi * fm * libm::cos(pi * r / 2.0));
+        ((1.0 - libm::sin(pi * z / 2.0) + alpha * (1.0 + rho)) / (2.0 * (1.0 + alpha))) as f32
+    });
+    volume_from(dims, VolumeData::F32(data))
 }
 
 /// Signed distance (cells) to a sphere of `radius` centred in an `n³` grid, positive inside.
 pub fn sphere(n: u32, radius: f64) -> Volume {
     let c = f64::from(n - 1) / 2.0;
-    let mut file_order = Vec::with_capacity((n * n * n) as usize);
-    for z in 0..n {
-        for y in 0..n {
-            for x in 0..n {
-                let d = [x, y, z].map(|g| f64::from(g) - c);
-                file_order.push((radius - libm::sqrt(d.iter().map(|v| v * v).sum())) as f32);
-            }
-        }
-    }
-    let dims = [n; 3];
-    volume_from(
-        dims,
-        VolumeData::F32(crate::dataset::to_plane_major(&file_order, dims)),
-    )
+    let data = plane_major_from_fn([n; 3], |x, y, z| {
+        let d = [x, y, z].map(|g| f64::from(g) - c);
+        (radius - libm::sqrt(d.iter().map(|v| v * v).sum())) as f32
+    });
+    volume_from([n; 3], VolumeData::F32(data))
 }
 
 fn volume_from(dims: [u32; 3], data: VolumeData) -> Volume {
@@ -214,7 +201,8 @@ mod tests {
         assert_eq!(m.grid.dims(), [97, 97, 116]);
         let s = m.stats();
         assert_eq!((s.min, s.max), (0.0, 255.0));
-        assert!(s.mean > 2.0 && s.mean < 20.0, "{s}");
+        // SOD itself: min 0, max 255, mean 7.46.
+        assert!(s.mean > 4.0 && s.mean < 12.0, "{s}");
         assert_eq!(marschner_lobb().grid.dims(), [41; 3]);
         let sp = sphere(8, 2.0).stats();
         assert!(sp.max > 1.0 && sp.min < -3.0);

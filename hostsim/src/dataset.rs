@@ -107,6 +107,20 @@ impl Volume {
     }
 }
 
+/// Samples `f(x, y, z)` for every node of a `dims` grid, plane-major.
+pub fn plane_major_from_fn<T>(dims: [u32; 3], mut f: impl FnMut(u32, u32, u32) -> T) -> Vec<T> {
+    let [nx, ny, nz] = dims;
+    let mut out = Vec::with_capacity(nx as usize * ny as usize * nz as usize);
+    for x in 0..nx {
+        for z in 0..nz {
+            for y in 0..ny {
+                out.push(f(x, y, z));
+            }
+        }
+    }
+    out
+}
+
 /// Reorder samples from file order (X fastest, then Y, then Z) to plane-major.
 pub fn to_plane_major<T: Copy + Default>(file_order: &[T], dims: [u32; 3]) -> Vec<T> {
     let [nx, ny, nz] = dims.map(|d| d as usize);
@@ -133,5 +147,9 @@ mod tests {
         let pm = to_plane_major(&file, [2, 2, 2]);
         // Plane x = 0 holds (y, z) = (0,0), (1,0), (0,1), (1,1).
         assert_eq!(pm, vec![0, 2, 4, 6, 1, 3, 5, 7]);
+        assert_eq!(
+            plane_major_from_fn([2, 2, 2], |x, y, z| (x + 2 * y + 4 * z) as u8),
+            pm
+        );
     }
 }

@@ -1,1 +1,138 @@
+//! Helpers shared by voxcube's integration tests: small volumes built from functions, views
+//! built without a scene file, and whole-image traces that keep the unquantised colours.
 
+use voxcube::dataset::{plane_major_from_fn, Volume, VolumeData};
+use voxcube_kernel::camera::{Camera, Projection};
+use voxcube_kernel::counters::Counters;
+use voxcube_kernel::grid::{Grid, Model};
+use voxcube_kernel::heapless;
+use voxcube_kernel::sample::Sample;
+use voxcube_kernel::shade::{Light, Shading};
+use voxcube_kernel::slab::Slab;
+use voxcube_kernel::surface::IsoSurface;
+use voxcube_kernel::trace::trace_pixel;
+use voxcube_kernel::transfer::{ControlPoint, TransferFunction};
+use voxcube_kernel::view::{Mode, View, ViewSpec};
+use voxcube_kernel::Vec3;
+
+/// The shared data folder beside the repository (`../shared/data`).
+pub fn shared_data() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data")
+}
+
+/// A u8 volume with `f(x, y, z)` at each node.
+pub fn volume_u8(dims: [u32; 3], spacing: Vec3, f: impl Fn(u32, u32, u32) -> u8) -> Volume {
+    Volume {
+        grid: Grid::new(dims, spacing).expect("test grid"),
+        data: VolumeData::U8(plane_major_from_fn(dims, f)),
+    }
+}
+
+/// An f32 volume with `f(x, y, z)` at each node.
+pub fn volume_f32(dims: [u32; 3], spacing: Vec3, f: impl Fn(u32, u32, u32) -> f32) -> Volume {
+    Volume {
+        grid: Grid::new(dims, spacing).expect("test grid"),
+        data: VolumeData::F32(plane_major_from_fn(dims, f)),
+    }
+}
+
+/// Opaque (or not) iso-surfaces.
+pub fn surfaces(list: &[(f32, f32)]) -> Mode {
+    let mut v = heapless::Vec::new();
+    for &(iso, transparency) in list {
+        v.push(IsoSurface {
+            iso,
+            color: Vec3::new(0.9, 0.8, 0.6),
+            transparency,
+        })
+        .expect("few surfaces");
+    }
+    Mode::Surfaces(v)
+}
+
+/// A one-colour transfer function: white with `opacity` per cell edge everywhere.
+pub fn constant_transfer(opacity: f32) -> Mode {
+    Mode::Composite(
+        TransferFunction::new(&[ControlPoint {
+            value: 0.0,
+            color: Vec3::ONE,
+            opacity,
+        }])
+        .expect("valid transfer function"),
+    )
+}
+
+/// A view spec with the defaults tests start from: unlit, black background, no lights.
+pub fn spec(
+    camera: Camera,
+    width: u32,
+    height: u32,
+    model: Model,
+    dt: f32,
+    mode: Mode,
+) -> ViewSpec {
+    ViewSpec {
+        width,
+        height,
+        camera,
+        model,
+        dt,
+        gradient_distance: 1.0,
+        mode,
+        shading: None,
+        lights: heapless::Vec::new(),
+        background: Vec3::ZERO,
+        cutoff: 0.0,
+        max_depth: 8,
+        refine_steps: 2,
+    }
+}
+
+/// The same spec, shaded with these lights.
+pub fn lit(mut s: ViewSpec, lights: &[Light]) -> ViewSpec {
+    s.shading = Some(Shading::default());
+    for l in lights {
+        s.lights.push(*l).expect("few lights");
+    }
+    s
+}
+
+/// An orthographic camera.
+pub fn ortho(eye: Vec3, target: Vec3, up: Vec3, width: f32) -> Camera {
+    Camera::look_at(eye, target, up, Projection::Orthographic { width }).expect("valid camera")
+}
+
+/// A perspective camera.
+pub fn perspective(eye: Vec3, target: Vec3, up: Vec3, fov_degrees: f32) -> Camera {
+    Camera::look_at(
+        eye,
+        target,
+        up,
+        Projection::Perspective {
+            fov_y: fov_degrees.to_radians(),
+        },
+    )
+    .expect("valid camera")
+}
+
+/// Every pixel's unquantised colour, and the counters.
+pub fn trace_all(volume: &Volume, view: &View) -> (Vec<Vec3>, Counters) {
+    fn go<T: Sample>(grid: Grid, data: &[T], view: &View) -> (Vec<Vec3>, Counters) {
+        let slab = Slab::whole(grid, data).expect("whole slab");
+        let mut c = Counters::default();
+        let colors = (0..view.pixel_count() as u32)
+            .map(|p| trace_pixel(view, &slab, p, &mut c))
+            .collect();
+        (colors, c)
+    }
+    match &volume.data {
+        VolumeData::U8(d) => go(volume.grid, d, view),
+        VolumeData::U16(d) => go(volume.grid, d, view),
+        VolumeData::F32(d) => go(volume.grid, d, view),
+    }
+}
+
+/// Build a view, panicking with the reason if the spec is invalid (tests build valid ones).
+pub fn view(spec: ViewSpec, volume: &Volume) -> View {
+    View::new(spec, &volume.grid).expect("valid view")
+}

@@ -45,14 +45,14 @@ pub fn parse(bytes: &[u8], spacing: Vec3) -> Result<Volume, LoadErrorKind> {
     };
     // Fields 25..28 are map_len; 19..22 map_min; 22..25 map_max.
     let mut dims = [0u32; 3];
-    for axis in 0..3 {
+    for (axis, dim) in dims.iter_mut().enumerate() {
         let (min, max, len) = (short(19 + axis), short(22 + axis), short(25 + axis));
         if len <= 0 || i32::from(max) - i32::from(min) + 1 != i32::from(len) {
             return Err(err(format!(
                 "map_len[{axis}] is {len} but map_min..map_max is {min}..{max}: header is inconsistent"
             )));
         }
-        dims[axis] = len as u32;
+        *dim = len as u32;
     }
     let l = &bytes[58..62];
     let map_length = match endian {

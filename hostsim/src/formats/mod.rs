@@ -161,7 +161,7 @@ pub fn decode(
     endian: Endian,
 ) -> Result<Volume, LoadErrorKind> {
     let grid = Grid::new(dims, spacing)?;
-    let count = dims.iter().map(|&d| d as u64).product::<u64>();
+    let count = dims.iter().map(|&d| u64::from(d)).product::<u64>();
     if samples.len() as u64 != count * ty.bytes() as u64 {
         return Err(LoadErrorKind::Truncated {
             expected: count * ty.bytes() as u64,

@@ -21,7 +21,7 @@ fn header_err(msg: impl Into<String>) -> LoadErrorKind {
 struct Header {
     ty: Option<FileType>,
     dimension: Option<u32>,
-    sizes: Option<[u32; 3]>,
+    sizes: Option<String>,
     gzip: Option<bool>,
     endian: Option<Endian>,
     spacing: Option<Vec3>,
@@ -124,7 +124,8 @@ fn parse_header(bytes: &[u8]) -> Result<(Header, usize), LoadErrorKind> {
                         header_err(format!("dimension: \"{value}\" is not a number"))
                     })?)
             }
-            "sizes" => h.sizes = Some(parse_three("sizes", value)?),
+            // Checked once `dimension` is known, so a 2-D file is told it is 2-D.
+            "sizes" => h.sizes = Some(value.to_string()),
             "encoding" => {
                 h.gzip = Some(match value {
                     "raw" => false,
@@ -192,9 +193,10 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
         }
         None => return Err(at(header_err("missing field \"dimension\""))),
     }
-    let dims = h
+    let sizes = h
         .sizes
         .ok_or_else(|| at(header_err("missing field \"sizes\"")))?;
+    let dims: [u32; 3] = parse_three("sizes", &sizes).map_err(at)?;
     let gzip = h
         .gzip
         .ok_or_else(|| at(header_err("missing field \"encoding\"")))?;
@@ -264,7 +266,7 @@ mod tests {
         let text = b"NRRD0004\n# c\ntype: unsigned short\ndimension: 3\nsizes: 2 3 4\nencoding: raw\nendian: big\nspace directions: (2,0,0) (0,3,0) (0,0,4)\nkey:=value\n\nDATA";
         let (h, at) = parse_header(text).unwrap();
         assert_eq!(h.ty, Some(FileType::U16));
-        assert_eq!(h.sizes, Some([2, 3, 4]));
+        assert_eq!(h.sizes.as_deref(), Some("2 3 4"));
         assert_eq!(h.endian, Some(Endian::Big));
         assert_eq!(h.spacing, Some(Vec3::new(2.0, 3.0, 4.0)));
         assert_eq!(&text[at..], b"DATA");
@@ -282,9 +284,7 @@ mod tests {
         assert!(e.contains("encoding \"hex\""), "{e}");
         let e = parse_header(b"P6 garbage\n").unwrap_err().to_string();
         assert!(e.contains("not a NRRD file"), "{e}");
-        let e = parse_header(b"NRRD0004\nsizes: 1 2\n")
-            .unwrap_err()
-            .to_string();
+        let e = parse_three::<u32>("sizes", "1 2").unwrap_err().to_string();
         assert!(e.contains("sizes: expected three numbers"), "{e}");
     }
 }
