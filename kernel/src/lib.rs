@@ -10,7 +10,7 @@
 //! Map of the crate:
 //! - data: [`sample`], [`grid`], [`slab`], [`field`] (nearest and trilinear reads, gradients);
 //! - geometry: [`ray`] (box clipping), [`lattice`], [`camera`];
-//! - appearance: [`transfer`], [`surface`], [`shade`], [`view`] (one view's parameters and the
+//! - appearance: [`transfer`], [`surface`], [`shade`], [`lighting`], [`view`] (one view's parameters and the
 //!   effects it calls for);
 //! - tracing: [`march`] (the explicit-state ray marcher that stops at slab boundaries),
 //!   [`tree`] (the one formula that combines a ray tree), [`trace`] (a whole pixel on one slab),
@@ -28,6 +28,7 @@ pub mod counters;
 pub mod field;
 pub mod grid;
 pub mod lattice;
+pub mod lighting;
 pub mod march;
 pub mod pixel;
 pub mod ray;

@@ -14,13 +14,13 @@
 use crate::counters::Counters;
 use crate::field;
 use crate::lattice::Lattice;
+use crate::lighting::lighting;
 use crate::ray::{Entry, Ray};
 use crate::sample::Sample;
-use crate::shade;
+use crate::shade::MAX_LIGHTS;
 use crate::slab::Slab;
 use crate::surface::{self, IsoSurface};
 use crate::transfer::corrected_opacity;
-use crate::tree;
 use crate::view::{Mode, View};
 use glam::Vec3;
 
@@ -169,19 +169,9 @@ pub fn march<T: Sample>(
                 let (base, alpha) = tf.eval(v);
                 let alpha = corrected_opacity(alpha, ray.lattice.segment(ray.k) / view.cell_edge());
                 if alpha > 0.0 {
-                    let color = match &spec.shading {
-                        Some(_) => lit(
-                            view,
-                            slab,
-                            base,
-                            p,
-                            None,
-                            ray.ray.dir_world,
-                            counters,
-                            |_, _, _, _| 1.0,
-                        ),
-                        None => base,
-                    };
+                    // Compositing casts no shadows: every light is fully visible.
+                    let light = lighting(view, slab, base, p, None, ray.ray.dir_world, counters);
+                    let color = light.color(&[1.0; MAX_LIGHTS]);
                     ray.color += color * (ray.weight * alpha);
                     ray.weight *= 1.0 - alpha;
                     if !(ray.weight > spec.cutoff) {
@@ -232,7 +222,7 @@ fn nearest_crossing<T: Sample>(
             cap_normal: Some(normal),
         });
     }
-    let t_prev = ray.lattice.t(ray.k - 1);
+    let t_prev = ray.lattice.t(ray.k.saturating_sub(1));
     let model = view.spec().model;
     let mut best: Option<(f32, usize)> = None;
     for (i, s) in surfaces.iter().enumerate() {
@@ -255,48 +245,4 @@ fn nearest_crossing<T: Sample>(
         point: ray.ray.at(t_hit),
         cap_normal: None,
     })
-}
-
-/// The shaded colour of a point of colour `base` at index-space `p`, with `visibility(l)` the
-/// shadow-ray visibility of light `l`, in world direction `to_light` at distance `distance`
-/// given the counters (called only for lights that face the point and cast shadows). Uses the cap normal when given, else the gradient.
-#[allow(clippy::too_many_arguments, reason = "the shading inputs of one point")]
-pub fn lit<T: Sample>(
-    view: &View,
-    slab: &Slab<'_, T>,
-    base: Vec3,
-    p: Vec3,
-    cap_normal: Option<Vec3>,
-    view_dir: Vec3,
-    counters: &mut Counters,
-    mut visibility: impl FnMut(usize, Vec3, f32, &mut Counters) -> f32,
-) -> Vec3 {
-    let spec = view.spec();
-    let Some(shading) = &spec.shading else {
-        return base;
-    };
-    counters.shadings += 1;
-    let n = match cap_normal {
-        Some(n) => shade::face_viewer(n, view_dir),
-        None => {
-            let g = field::gradient(slab, spec.model, p, spec.gradient_distance, counters);
-            let (n, fallback) = shade::normal(g, view_dir);
-            counters.normal_fallbacks += u64::from(fallback);
-            n
-        }
-    };
-    let world = view.to_world(p);
-    let mut direct = [Vec3::ZERO; shade::MAX_LIGHTS];
-    let mut vis = [1.0f32; shade::MAX_LIGHTS];
-    for (l, light) in spec.lights.iter().enumerate() {
-        let Some((to_light, distance)) = light.toward(world) else {
-            continue;
-        };
-        direct[l] = shade::direct(shading, base, n, view_dir, to_light, light.color);
-        if light.shadows && direct[l] != Vec3::ZERO {
-            vis[l] = visibility(l, to_light, distance, counters);
-        }
-    }
-    let lights = spec.lights.len();
-    tree::surface_color(base * shading.ambient, &direct[..lights], &vis[..lights])
 }

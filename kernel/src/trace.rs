@@ -8,8 +8,10 @@
 //! worker of a cluster forwards such rays instead.
 
 use crate::counters::Counters;
-use crate::march::{lit, march, RayKind, Stop};
+use crate::lighting::lighting;
+use crate::march::{march, RayKind, Stop};
 use crate::sample::Sample;
+use crate::shade::MAX_LIGHTS;
 use crate::slab::Slab;
 use crate::tree;
 use crate::view::{Mode, View, MAX_DEPTH};
@@ -44,20 +46,26 @@ pub fn trace_pixel<T: Sample>(
                 let Some(surface) = surfaces.get(usize::from(hit.surface)) else {
                     break;
                 };
-                let pixel = ray.pixel;
-                let shadow = |_, dir, dist, counters: &mut Counters| {
-                    shadow_visibility(view, slab, pixel, hit.point, dir, dist, counters)
-                };
-                let color = lit(
+                let dir = ray.ray.dir_world;
+                let light = lighting(
                     view,
                     slab,
                     surface.color,
                     hit.point,
                     hit.cap_normal,
-                    ray.ray.dir_world,
+                    dir,
                     counters,
-                    shadow,
                 );
+                let mut visibility = [1.0f32; MAX_LIGHTS];
+                for (l, v) in visibility.iter_mut().enumerate() {
+                    if light.shadow_mask & (1 << l) != 0 {
+                        let (to_light, distance) = light.to_light[l];
+                        *v = shadow_visibility(
+                            view, slab, ray.pixel, hit.point, to_light, distance, counters,
+                        );
+                    }
+                }
+                let color = light.color(&visibility);
                 let alpha = surface.opacity();
                 if hits.push((alpha, color)).is_err() {
                     break;
