@@ -9,6 +9,7 @@
 //! arithmetic where possible, and libm (not the platform's maths library) for the rest.
 
 use crate::dataset::{plane_major_from_fn, Volume, VolumeData};
+use crate::rng::SplitMix;
 use voxcube_kernel::grid::Grid;
 use voxcube_kernel::Vec3;
 
@@ -25,31 +26,14 @@ pub fn volume(name: &str) -> Option<Volume> {
     }
 }
 
-/// SplitMix64: a tiny, well-known generator, so the volume never depends on a crate version.
-struct SplitMix(u64);
-
-impl SplitMix {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in `[-1, 1)`.
-    fn signed(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 52) as f64 - 1.0
-    }
-
-    fn unit_vector(&mut self) -> [f64; 3] {
-        loop {
-            let v = [self.signed(), self.signed(), self.signed()];
-            let n2 = v.iter().map(|c| c * c).sum::<f64>();
-            if n2 > 1e-4 && n2 <= 1.0 {
-                let n = libm::sqrt(n2);
-                return v.map(|c| c / n);
-            }
+/// Random unit vectors for the molecule's chain.
+fn unit_vector(rng: &mut SplitMix) -> [f64; 3] {
+    loop {
+        let v = [rng.signed(), rng.signed(), rng.signed()];
+        let n2 = v.iter().map(|c| c * c).sum::<f64>();
+        if n2 > 1e-4 && n2 <= 1.0 {
+            let n = libm::sqrt(n2);
+            return v.map(|c| c / n);
         }
     }
 }
@@ -79,7 +63,7 @@ pub fn molecule() -> Volume {
         let mut dir = [1.0, 0.0, 0.0];
         for residue in 0..400 {
             // Persistent direction plus a random turn, pulled back inside the ellipsoid.
-            let r = rng.unit_vector();
+            let r = unit_vector(&mut rng);
             let mut pull = [0.0; 3];
             let mut outside = 0.0;
             for a in 0..3 {
@@ -105,7 +89,7 @@ pub fn molecule() -> Volume {
             // Side-chain atoms off the backbone.
             let mut s = pos;
             for _ in 0..2 + residue % 3 {
-                let o = rng.unit_vector();
+                let o = unit_vector(&mut rng);
                 for a in 0..3 {
                     s[a] += 1.5 * o[a];
                 }

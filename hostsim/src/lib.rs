@@ -11,8 +11,10 @@
 pub mod builtin;
 pub mod cli;
 pub mod dataset;
+pub mod fabric;
 pub mod formats;
 pub mod output;
 pub mod render;
 pub mod report;
+pub mod rng;
 pub mod scene;

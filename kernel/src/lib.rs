@@ -30,16 +30,23 @@ pub mod grid;
 pub mod lattice;
 pub mod lighting;
 pub mod march;
+pub mod msg;
+pub mod partition;
 pub mod pixel;
+pub mod port;
 pub mod ray;
+pub mod record;
 pub mod sample;
 pub mod shade;
 pub mod slab;
+pub mod stats;
 pub mod surface;
+pub mod topology;
 pub mod trace;
 pub mod transfer;
 pub mod tree;
 pub mod view;
+pub mod worker;
 
 pub use glam::Vec3;
 /// The fixed-capacity containers the kernel's types are built from, for hosts that fill them.

@@ -1,0 +1,80 @@
+//! Fabrics: what carries kernel messages between nodes and to the host. `sim` is the
+//! deterministic single-threaded reference; others (threads, MPI) follow.
+
+pub mod sim;
+
+use std::ops::Range;
+use std::time::Duration;
+use voxcube_kernel::counters::Counters;
+use voxcube_kernel::stats::NodeStats;
+
+/// One node of a distributed run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NodeReport {
+    /// Its cluster.
+    pub cluster: u16,
+    /// Its ring position.
+    pub position: u16,
+    /// The X planes it owned.
+    pub planes: Range<u32>,
+    /// The X planes it stored (with ghosts).
+    pub stored: Range<u32>,
+    /// What it did and sent.
+    pub stats: NodeStats,
+}
+
+/// The result of a distributed render.
+#[derive(Clone, Debug)]
+pub struct Distributed {
+    /// RGBA8 pixels, row-major.
+    pub pixels: Vec<[u8; 4]>,
+    /// Per node, in node-id order.
+    pub nodes: Vec<NodeReport>,
+    /// Messages delivered, by kind (see `voxcube_kernel::stats::KIND_NAMES`).
+    pub messages: [u64; 8],
+    /// Bytes delivered.
+    pub bytes: u64,
+    /// Scheduler events (deliveries and node steps).
+    pub events: u64,
+    /// Wall-clock time.
+    pub wall: Duration,
+}
+
+impl Distributed {
+    /// Work counters summed over nodes.
+    pub fn counters(&self) -> Counters {
+        let mut c = Counters::default();
+        for n in &self.nodes {
+            c.add(&n.stats.counters);
+        }
+        c
+    }
+
+    /// Rays that crossed each slab boundary of each cluster: `[cluster][boundary j]` counts
+    /// rays between ring positions `j` and `j + 1`, either way.
+    pub fn boundary_crossings(&self) -> Vec<Vec<u64>> {
+        let clusters = self
+            .nodes
+            .iter()
+            .map(|n| usize::from(n.cluster) + 1)
+            .max()
+            .unwrap_or(0);
+        let size = self
+            .nodes
+            .iter()
+            .map(|n| usize::from(n.position) + 1)
+            .max()
+            .unwrap_or(0);
+        let mut out = vec![vec![0u64; size.saturating_sub(1)]; clusters];
+        for n in &self.nodes {
+            let (c, j) = (usize::from(n.cluster), usize::from(n.position));
+            if let Some(b) = out[c].get_mut(j) {
+                *b += n.stats.forwarded_next;
+            }
+            if j > 0 {
+                out[c][j - 1] += n.stats.forwarded_prev;
+            }
+        }
+        out
+    }
+}

@@ -1,0 +1,841 @@
+//! Messages between nodes and the host, and their fixed-size little-endian encoding.
+//!
+//! Each kind has one encoded length ([`MsgKind::encoded_len`]), at most [`MAX_MSG_LEN`]
+//! bytes: a tag byte, then the fields in order. Decoding any byte string returns a message or
+//! a [`DecodeError`], never panics: lengths, tags and enumerations are checked, counts are
+//! bounded, and float fields may hold any bits (the tracer is robust to NaN).
+
+use crate::counters::Counters;
+use crate::lattice::{Lattice, MAX_SAMPLES};
+use crate::march::{RayKind, RayState};
+use crate::ray::{Entry, Ray};
+use crate::shade::MAX_LIGHTS;
+use crate::stats::NodeStats;
+use core::fmt;
+use glam::Vec3;
+
+/// Pixels one pixel-set message carries.
+pub const PIXELS_PER_SET: usize = 32;
+/// Sample bytes one slab-planes message carries.
+pub const PLANE_CHUNK: usize = 256;
+/// `Reply::light` of a ray that is not a shadow ray.
+pub const NO_LIGHT: u8 = u8::MAX;
+/// `Reply::home` of a primary ray not yet adopted by a node (centralized generation).
+pub const NO_HOME: u16 = u16::MAX;
+
+/// Where a ray's result goes: the pixel record `slot` on node `home`, part `hit` (and `light`
+/// for a shadow ray).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Reply {
+    /// The node holding the pixel record.
+    pub home: u16,
+    /// The record's slot there.
+    pub slot: u16,
+    /// For primary and transparency rays the index of the next hit; for shadow rays the hit
+    /// they light.
+    pub hit: u8,
+    /// For shadow rays the light; otherwise [`NO_LIGHT`].
+    pub light: u8,
+}
+
+/// A ray in flight between nodes, with all its state.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Travel {
+    /// The ray.
+    pub ray: RayState,
+    /// Where its result goes.
+    pub reply: Reply,
+}
+
+/// A surface hit's contribution, going to the pixel's home.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HitRecord {
+    /// The pixel record and hit index.
+    pub reply: Reply,
+    /// The pixel (a check against the record).
+    pub pixel: u32,
+    /// The surface's opacity.
+    pub alpha: f32,
+    /// Ambient term (or unlit colour).
+    pub ambient: Vec3,
+    /// Each light's direct term.
+    pub direct: [Vec3; MAX_LIGHTS],
+    /// Lights whose shadow rays will report a visibility.
+    pub shadow_mask: u8,
+    /// Lights that contribute.
+    pub lights: u8,
+    /// Whether a transparency ray continues past this hit.
+    pub continues: bool,
+}
+
+/// What a finished ray reports.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Outcome {
+    /// A primary or transparency ray left the volume: the pixel's chain has `hits` hits.
+    ChainEnd {
+        /// Hits in the chain.
+        hits: u8,
+    },
+    /// A shadow ray's visibility.
+    Shadow {
+        /// Transmittance toward the light.
+        visibility: f32,
+    },
+    /// A composited primary ray's final colour.
+    Color(Vec3),
+}
+
+/// A secondary ray's (or a composited ray's) result, going to the pixel's home.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Resolved {
+    /// The pixel record and part.
+    pub reply: Reply,
+    /// The pixel (a check against the record).
+    pub pixel: u32,
+    /// The result.
+    pub outcome: Outcome,
+}
+
+/// Finished pixels for the host.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PixelSet {
+    /// How many of `pixels` are used.
+    pub count: u8,
+    /// Pixel index and RGBA8 value.
+    pub pixels: [(u32, [u8; 4]); PIXELS_PER_SET],
+}
+
+impl Default for PixelSet {
+    fn default() -> PixelSet {
+        PixelSet {
+            count: 0,
+            pixels: [(0, [0; 4]); PIXELS_PER_SET],
+        }
+    }
+}
+
+impl PixelSet {
+    /// The used entries.
+    pub fn entries(&self) -> &[(u32, [u8; 4])] {
+        &self.pixels[..usize::from(self.count).min(PIXELS_PER_SET)]
+    }
+
+    /// Add a pixel; hands it back when full.
+    pub fn push(&mut self, pixel: u32, rgba: [u8; 4]) -> Result<(), (u32, [u8; 4])> {
+        let i = usize::from(self.count);
+        match self.pixels.get_mut(i) {
+            Some(slot) => {
+                *slot = (pixel, rgba);
+                self.count += 1;
+                Ok(())
+            }
+            None => Err((pixel, rgba)),
+        }
+    }
+
+    /// Whether no more pixels fit.
+    pub fn is_full(&self) -> bool {
+        usize::from(self.count) >= PIXELS_PER_SET
+    }
+}
+
+/// A run of sample bytes of one X plane (load balancing moves planes between neighbours).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PlaneChunk {
+    /// The plane.
+    pub plane: u32,
+    /// Byte offset of this chunk in the plane.
+    pub offset: u32,
+    /// Bytes used in `bytes`.
+    pub len: u16,
+    /// Sample bytes.
+    pub bytes: [u8; PLANE_CHUNK],
+}
+
+/// A message.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Msg {
+    /// A ray forwarded to the node owning its next sample.
+    Ray(Travel),
+    /// A hit's contribution, going home.
+    Hit(HitRecord),
+    /// A resolved descriptor, going home.
+    Resolved(Resolved),
+    /// Acknowledges `count` messages received from `from` (flow control).
+    Ack {
+        /// The acknowledging node.
+        from: u16,
+        /// Messages acknowledged.
+        count: u16,
+    },
+    /// The termination token of a cluster.
+    Token {
+        /// The cluster.
+        cluster: u16,
+    },
+    /// Finished pixels, to the host.
+    Pixels(PixelSet),
+    /// A worker's statistics, to the host.
+    Stats(NodeStats),
+    /// Slab plane data, between neighbours.
+    Planes(PlaneChunk),
+}
+
+/// The kinds of message.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MsgKind {
+    /// [`Msg::Ray`].
+    Ray = 0,
+    /// [`Msg::Hit`].
+    Hit = 1,
+    /// [`Msg::Resolved`].
+    Resolved = 2,
+    /// [`Msg::Ack`].
+    Ack = 3,
+    /// [`Msg::Token`].
+    Token = 4,
+    /// [`Msg::Pixels`].
+    Pixels = 5,
+    /// [`Msg::Stats`].
+    Stats = 6,
+    /// [`Msg::Planes`].
+    Planes = 7,
+}
+
+const RAY_LEN: usize = 1 + 4 + 36 + 16 + 1 + 4 + 4 + 1 + 2 + 1 + 4 + 12 + 6;
+const HIT_LEN: usize = 6 + 4 + 4 + 12 + 12 * MAX_LIGHTS + 1 + 1 + 1;
+const RESOLVED_LEN: usize = 6 + 4 + 1 + 12;
+const PIXELS_LEN: usize = 1 + 8 * PIXELS_PER_SET;
+const STATS_LEN: usize = 2 + 8 * 13 + 8 * 4 + 8 * 8 + 8;
+const PLANES_LEN: usize = 4 + 4 + 2 + PLANE_CHUNK;
+
+/// The longest encoded message.
+pub const MAX_MSG_LEN: usize = 1 + max(
+    max(max(RAY_LEN, HIT_LEN), max(PIXELS_LEN, STATS_LEN)),
+    PLANES_LEN,
+);
+
+const fn max(a: usize, b: usize) -> usize {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
+impl MsgKind {
+    /// Bytes a message of this kind encodes to, tag included.
+    pub const fn encoded_len(self) -> usize {
+        1 + match self {
+            MsgKind::Ray => RAY_LEN,
+            MsgKind::Hit => HIT_LEN,
+            MsgKind::Resolved => RESOLVED_LEN,
+            MsgKind::Ack => 4,
+            MsgKind::Token => 2,
+            MsgKind::Pixels => PIXELS_LEN,
+            MsgKind::Stats => STATS_LEN,
+            MsgKind::Planes => PLANES_LEN,
+        }
+    }
+
+    fn from_tag(tag: u8) -> Option<MsgKind> {
+        Some(match tag {
+            0 => MsgKind::Ray,
+            1 => MsgKind::Hit,
+            2 => MsgKind::Resolved,
+            3 => MsgKind::Ack,
+            4 => MsgKind::Token,
+            5 => MsgKind::Pixels,
+            6 => MsgKind::Stats,
+            7 => MsgKind::Planes,
+            _ => return None,
+        })
+    }
+}
+
+/// Why bytes are not a message.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DecodeError {
+    /// No bytes.
+    Empty,
+    /// The tag names no kind.
+    UnknownKind(u8),
+    /// The length is not the kind's.
+    Length {
+        /// The kind.
+        kind: MsgKind,
+        /// Its length.
+        expected: usize,
+        /// Bytes given.
+        actual: usize,
+    },
+    /// A field holds a value outside its range.
+    Field {
+        /// The kind.
+        kind: MsgKind,
+        /// The field.
+        field: &'static str,
+    },
+}
+
+impl fmt::Display for DecodeError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            DecodeError::Empty => write!(f, "empty message"),
+            DecodeError::UnknownKind(t) => write!(f, "unknown message kind {t}"),
+            DecodeError::Length {
+                kind,
+                expected,
+                actual,
+            } => {
+                write!(f, "{kind:?} message of {actual} bytes; it has {expected}")
+            }
+            DecodeError::Field { kind, field } => {
+                write!(f, "{kind:?} message: field {field} out of range")
+            }
+        }
+    }
+}
+
+impl core::error::Error for DecodeError {}
+
+struct Writer<'a> {
+    buf: &'a mut [u8; MAX_MSG_LEN],
+    at: usize,
+}
+
+impl Writer<'_> {
+    fn bytes(&mut self, b: &[u8]) {
+        // Lengths are constants within MAX_MSG_LEN; `get_mut` keeps even a mistake panic-free.
+        if let Some(dst) = self.buf.get_mut(self.at..self.at + b.len()) {
+            dst.copy_from_slice(b);
+        }
+        self.at += b.len();
+    }
+    fn u8(&mut self, v: u8) {
+        self.bytes(&[v]);
+    }
+    fn u16(&mut self, v: u16) {
+        self.bytes(&v.to_le_bytes());
+    }
+    fn u32(&mut self, v: u32) {
+        self.bytes(&v.to_le_bytes());
+    }
+    fn u64(&mut self, v: u64) {
+        self.bytes(&v.to_le_bytes());
+    }
+    fn f32(&mut self, v: f32) {
+        self.bytes(&v.to_le_bytes());
+    }
+    fn vec3(&mut self, v: Vec3) {
+        self.f32(v.x);
+        self.f32(v.y);
+        self.f32(v.z);
+    }
+    fn reply(&mut self, r: &Reply) {
+        self.u16(r.home);
+        self.u16(r.slot);
+        self.u8(r.hit);
+        self.u8(r.light);
+    }
+}
+
+struct Reader<'a> {
+    buf: &'a [u8],
+    at: usize,
+    kind: MsgKind,
+}
+
+impl Reader<'_> {
+    fn take<const N: usize>(&mut self) -> Result<[u8; N], DecodeError> {
+        let slice = self
+            .buf
+            .get(self.at..self.at + N)
+            .ok_or(DecodeError::Field {
+                kind: self.kind,
+                field: "length",
+            })?;
+        self.at += N;
+        let mut out = [0u8; N];
+        out.copy_from_slice(slice);
+        Ok(out)
+    }
+    fn u8(&mut self) -> Result<u8, DecodeError> {
+        Ok(self.take::<1>()?[0])
+    }
+    fn u16(&mut self) -> Result<u16, DecodeError> {
+        Ok(u16::from_le_bytes(self.take()?))
+    }
+    fn u32(&mut self) -> Result<u32, DecodeError> {
+        Ok(u32::from_le_bytes(self.take()?))
+    }
+    fn u64(&mut self) -> Result<u64, DecodeError> {
+        Ok(u64::from_le_bytes(self.take()?))
+    }
+    fn f32(&mut self) -> Result<f32, DecodeError> {
+        Ok(f32::from_le_bytes(self.take()?))
+    }
+    fn vec3(&mut self) -> Result<Vec3, DecodeError> {
+        Ok(Vec3::new(self.f32()?, self.f32()?, self.f32()?))
+    }
+    fn bool(&mut self, field: &'static str) -> Result<bool, DecodeError> {
+        match self.u8()? {
+            0 => Ok(false),
+            1 => Ok(true),
+            _ => Err(self.bad(field)),
+        }
+    }
+    fn reply(&mut self) -> Result<Reply, DecodeError> {
+        Ok(Reply {
+            home: self.u16()?,
+            slot: self.u16()?,
+            hit: self.u8()?,
+            light: self.u8()?,
+        })
+    }
+    fn bad(&self, field: &'static str) -> DecodeError {
+        DecodeError::Field {
+            kind: self.kind,
+            field,
+        }
+    }
+}
+
+fn entry_code(e: Entry) -> u8 {
+    match e {
+        Entry::Face { axis, high } => (axis % 3) * 2 + u8::from(high),
+        Entry::Inside => 6,
+    }
+}
+
+fn counters_fields(c: &Counters) -> [u64; 13] {
+    [
+        c.primary_rays,
+        c.transparency_rays,
+        c.shadow_rays,
+        c.samples,
+        c.interpolations,
+        c.lookups,
+        c.refinements,
+        c.gradients,
+        c.shadings,
+        c.crossings,
+        c.early_terminations,
+        c.normal_fallbacks,
+        c.slab_misses,
+    ]
+}
+
+fn counters_from(f: [u64; 13]) -> Counters {
+    Counters {
+        primary_rays: f[0],
+        transparency_rays: f[1],
+        shadow_rays: f[2],
+        samples: f[3],
+        interpolations: f[4],
+        lookups: f[5],
+        refinements: f[6],
+        gradients: f[7],
+        shadings: f[8],
+        crossings: f[9],
+        early_terminations: f[10],
+        normal_fallbacks: f[11],
+        slab_misses: f[12],
+    }
+}
+
+impl Msg {
+    /// The message's kind.
+    pub fn kind(&self) -> MsgKind {
+        match self {
+            Msg::Ray(_) => MsgKind::Ray,
+            Msg::Hit(_) => MsgKind::Hit,
+            Msg::Resolved(_) => MsgKind::Resolved,
+            Msg::Ack { .. } => MsgKind::Ack,
+            Msg::Token { .. } => MsgKind::Token,
+            Msg::Pixels(_) => MsgKind::Pixels,
+            Msg::Stats(_) => MsgKind::Stats,
+            Msg::Planes(_) => MsgKind::Planes,
+        }
+    }
+
+    /// Encode into `buf`; returns the length (always `self.kind().encoded_len()`).
+    pub fn encode(&self, buf: &mut [u8; MAX_MSG_LEN]) -> usize {
+        let mut w = Writer { buf, at: 0 };
+        w.u8(self.kind() as u8);
+        match self {
+            Msg::Ray(t) => {
+                let r = &t.ray;
+                w.u8(r.kind as u8);
+                w.u32(r.pixel);
+                w.vec3(r.ray.origin);
+                w.vec3(r.ray.dir);
+                w.vec3(r.ray.dir_world);
+                w.f32(r.lattice.t_entry);
+                w.f32(r.lattice.t_exit);
+                w.f32(r.lattice.dt);
+                w.u32(r.lattice.last);
+                w.u8(entry_code(r.entry));
+                w.u32(r.k);
+                w.f32(r.prev);
+                w.u8(u8::from(r.primed));
+                w.u16(r.done_here);
+                w.u8(r.depth);
+                w.f32(r.weight);
+                w.vec3(r.color);
+                w.reply(&t.reply);
+            }
+            Msg::Hit(h) => {
+                w.reply(&h.reply);
+                w.u32(h.pixel);
+                w.f32(h.alpha);
+                w.vec3(h.ambient);
+                for d in h.direct {
+                    w.vec3(d);
+                }
+                w.u8(h.shadow_mask);
+                w.u8(h.lights);
+                w.u8(u8::from(h.continues));
+            }
+            Msg::Resolved(r) => {
+                w.reply(&r.reply);
+                w.u32(r.pixel);
+                match r.outcome {
+                    Outcome::ChainEnd { hits } => {
+                        w.u8(0);
+                        w.u8(hits);
+                        w.bytes(&[0; 11]);
+                    }
+                    Outcome::Shadow { visibility } => {
+                        w.u8(1);
+                        w.f32(visibility);
+                        w.bytes(&[0; 8]);
+                    }
+                    Outcome::Color(c) => {
+                        w.u8(2);
+                        w.vec3(c);
+                    }
+                }
+            }
+            Msg::Ack { from, count } => {
+                w.u16(*from);
+                w.u16(*count);
+            }
+            Msg::Token { cluster } => w.u16(*cluster),
+            Msg::Pixels(p) => {
+                w.u8(p.count);
+                for (pixel, rgba) in p.pixels {
+                    w.u32(pixel);
+                    w.bytes(&rgba);
+                }
+            }
+            Msg::Stats(s) => {
+                w.u16(s.node);
+                for v in counters_fields(&s.counters) {
+                    w.u64(v);
+                }
+                for v in [
+                    s.forwarded_next,
+                    s.forwarded_prev,
+                    s.forwarded_far,
+                    s.returned,
+                ] {
+                    w.u64(v);
+                }
+                for v in s.sent {
+                    w.u64(v);
+                }
+                w.u64(s.protocol_errors);
+            }
+            Msg::Planes(p) => {
+                w.u32(p.plane);
+                w.u32(p.offset);
+                w.u16(p.len);
+                w.bytes(&p.bytes);
+            }
+        }
+        w.at
+    }
+
+    /// Decode one message.
+    pub fn decode(bytes: &[u8]) -> Result<Msg, DecodeError> {
+        let tag = *bytes.first().ok_or(DecodeError::Empty)?;
+        let kind = MsgKind::from_tag(tag).ok_or(DecodeError::UnknownKind(tag))?;
+        if bytes.len() != kind.encoded_len() {
+            return Err(DecodeError::Length {
+                kind,
+                expected: kind.encoded_len(),
+                actual: bytes.len(),
+            });
+        }
+        let mut r = Reader {
+            buf: bytes,
+            at: 1,
+            kind,
+        };
+        Ok(match kind {
+            MsgKind::Ray => {
+                let ray_kind = match r.u8()? {
+                    0 => RayKind::Primary,
+                    1 => RayKind::Transparency,
+                    2 => RayKind::Shadow,
+                    _ => return Err(r.bad("kind")),
+                };
+                let pixel = r.u32()?;
+                let ray = Ray {
+                    origin: r.vec3()?,
+                    dir: r.vec3()?,
+                    dir_world: r.vec3()?,
+                };
+                let lattice = Lattice {
+                    t_entry: r.f32()?,
+                    t_exit: r.f32()?,
+                    dt: r.f32()?,
+                    last: r.u32()?,
+                };
+                if lattice.last > MAX_SAMPLES {
+                    return Err(r.bad("last"));
+                }
+                let entry = match r.u8()? {
+                    6 => Entry::Inside,
+                    c @ 0..=5 => Entry::Face {
+                        axis: c / 2,
+                        high: c % 2 == 1,
+                    },
+                    _ => return Err(r.bad("entry")),
+                };
+                let k = r.u32()?;
+                let prev = r.f32()?;
+                let primed = r.bool("primed")?;
+                let done_here = r.u16()?;
+                let depth = r.u8()?;
+                let weight = r.f32()?;
+                let color = r.vec3()?;
+                let reply = r.reply()?;
+                let ray = RayState {
+                    kind: ray_kind,
+                    pixel,
+                    ray,
+                    lattice,
+                    entry,
+                    k,
+                    prev,
+                    primed,
+                    done_here,
+                    depth,
+                    weight,
+                    color,
+                };
+                Msg::Ray(Travel { ray, reply })
+            }
+            MsgKind::Hit => {
+                let reply = r.reply()?;
+                let pixel = r.u32()?;
+                let alpha = r.f32()?;
+                let ambient = r.vec3()?;
+                let mut direct = [Vec3::ZERO; MAX_LIGHTS];
+                for d in &mut direct {
+                    *d = r.vec3()?;
+                }
+                let shadow_mask = r.u8()?;
+                let lights = r.u8()?;
+                if usize::from(lights) > MAX_LIGHTS || u32::from(shadow_mask) >= 1 << MAX_LIGHTS {
+                    return Err(r.bad("lights"));
+                }
+                let continues = r.bool("continues")?;
+                Msg::Hit(HitRecord {
+                    reply,
+                    pixel,
+                    alpha,
+                    ambient,
+                    direct,
+                    shadow_mask,
+                    lights,
+                    continues,
+                })
+            }
+            MsgKind::Resolved => {
+                let reply = r.reply()?;
+                let pixel = r.u32()?;
+                let outcome = match r.u8()? {
+                    0 => Outcome::ChainEnd { hits: r.u8()? },
+                    1 => Outcome::Shadow {
+                        visibility: r.f32()?,
+                    },
+                    2 => Outcome::Color(r.vec3()?),
+                    _ => return Err(r.bad("outcome")),
+                };
+                Msg::Resolved(Resolved {
+                    reply,
+                    pixel,
+                    outcome,
+                })
+            }
+            MsgKind::Ack => Msg::Ack {
+                from: r.u16()?,
+                count: r.u16()?,
+            },
+            MsgKind::Token => Msg::Token { cluster: r.u16()? },
+            MsgKind::Pixels => {
+                let count = r.u8()?;
+                if usize::from(count) > PIXELS_PER_SET {
+                    return Err(r.bad("count"));
+                }
+                let mut set = PixelSet {
+                    count,
+                    ..PixelSet::default()
+                };
+                for slot in &mut set.pixels {
+                    *slot = (r.u32()?, r.take::<4>()?);
+                }
+                Msg::Pixels(set)
+            }
+            MsgKind::Stats => {
+                let node = r.u16()?;
+                let mut f = [0u64; 13];
+                for v in &mut f {
+                    *v = r.u64()?;
+                }
+                let (forwarded_next, forwarded_prev, forwarded_far, returned) =
+                    (r.u64()?, r.u64()?, r.u64()?, r.u64()?);
+                let mut sent = [0u64; 8];
+                for v in &mut sent {
+                    *v = r.u64()?;
+                }
+                let protocol_errors = r.u64()?;
+                Msg::Stats(NodeStats {
+                    node,
+                    counters: counters_from(f),
+                    forwarded_next,
+                    forwarded_prev,
+                    forwarded_far,
+                    returned,
+                    sent,
+                    protocol_errors,
+                })
+            }
+            MsgKind::Planes => {
+                let plane = r.u32()?;
+                let offset = r.u32()?;
+                let len = r.u16()?;
+                if usize::from(len) > PLANE_CHUNK {
+                    return Err(r.bad("len"));
+                }
+                Msg::Planes(PlaneChunk {
+                    plane,
+                    offset,
+                    len,
+                    bytes: r.take()?,
+                })
+            }
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn roundtrip(m: Msg) {
+        let mut buf = [0u8; MAX_MSG_LEN];
+        let n = m.encode(&mut buf);
+        assert_eq!(n, m.kind().encoded_len());
+        assert_eq!(Msg::decode(&buf[..n]), Ok(m));
+        assert!(Msg::decode(&buf[..n - 1]).is_err());
+    }
+
+    #[test]
+    fn every_kind_round_trips() {
+        let ray = RayState {
+            kind: RayKind::Shadow,
+            pixel: 7,
+            ray: Ray {
+                origin: Vec3::ONE,
+                dir: Vec3::X,
+                dir_world: Vec3::Y,
+            },
+            lattice: Lattice {
+                t_entry: 1.0,
+                t_exit: 9.0,
+                dt: 0.5,
+                last: 16,
+            },
+            entry: Entry::Face {
+                axis: 2,
+                high: true,
+            },
+            k: 3,
+            prev: 4.5,
+            primed: true,
+            done_here: 5,
+            depth: 2,
+            weight: 0.25,
+            color: Vec3::new(0.1, 0.2, 0.3),
+        };
+        let reply = Reply {
+            home: 3,
+            slot: 9,
+            hit: 1,
+            light: 2,
+        };
+        roundtrip(Msg::Ray(Travel { ray, reply }));
+        roundtrip(Msg::Hit(HitRecord {
+            reply,
+            pixel: 1,
+            alpha: 0.5,
+            ambient: Vec3::ONE,
+            direct: [Vec3::X; MAX_LIGHTS],
+            shadow_mask: 3,
+            lights: 2,
+            continues: true,
+        }));
+        for outcome in [
+            Outcome::ChainEnd { hits: 4 },
+            Outcome::Shadow { visibility: 0.5 },
+            Outcome::Color(Vec3::ONE),
+        ] {
+            roundtrip(Msg::Resolved(Resolved {
+                reply,
+                pixel: 2,
+                outcome,
+            }));
+        }
+        roundtrip(Msg::Ack { from: 4, count: 2 });
+        roundtrip(Msg::Token { cluster: 1 });
+        let mut set = PixelSet::default();
+        set.push(5, [1, 2, 3, 4]).unwrap();
+        roundtrip(Msg::Pixels(set));
+        roundtrip(Msg::Stats(NodeStats {
+            node: 2,
+            forwarded_next: 9,
+            sent: [1; 8],
+            ..NodeStats::default()
+        }));
+        roundtrip(Msg::Planes(PlaneChunk {
+            plane: 3,
+            offset: 256,
+            len: 10,
+            bytes: [7; PLANE_CHUNK],
+        }));
+    }
+
+    #[test]
+    fn malformed_bytes_are_errors() {
+        assert_eq!(Msg::decode(&[]), Err(DecodeError::Empty));
+        assert_eq!(Msg::decode(&[99]), Err(DecodeError::UnknownKind(99)));
+        assert!(matches!(
+            Msg::decode(&[4, 0]),
+            Err(DecodeError::Length { .. })
+        ));
+        let mut bad = [0u8; 1 + PIXELS_LEN];
+        bad[0] = MsgKind::Pixels as u8;
+        bad[1] = 33;
+        assert_eq!(
+            Msg::decode(&bad),
+            Err(DecodeError::Field {
+                kind: MsgKind::Pixels,
+                field: "count"
+            })
+        );
+    }
+}

@@ -1,0 +1,266 @@
+//! Pixel records: the primary-ray descriptors a worker keeps for the pixels whose primary rays
+//! it generated (their *home*), while the parts of their ray trees are traced anywhere.
+//!
+//! A record collects each hit's lighting (a [`HitRecord`]), each shadow ray's visibility, and
+//! the chain's length, in whatever order they arrive, then combines them with the one formula
+//! of [`crate::tree`]: from the deepest hit outward, `through(alpha, color, behind)`, the
+//! background behind the deepest. Invariants: a part arrives once (a second copy is refused);
+//! a record is complete only when the chain's length is known and every hit up to it and
+//! every shadow visibility those hits asked for have arrived; a complete record never changes.
+
+use crate::msg::{HitRecord, Outcome};
+use crate::shade::MAX_LIGHTS;
+use crate::tree;
+use crate::view::MAX_DEPTH;
+use core::fmt;
+use glam::Vec3;
+
+/// Most hits in one pixel's chain.
+pub const MAX_HITS: usize = MAX_DEPTH as usize + 1;
+
+/// A part that does not fit the record.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RecordError {
+    /// Hit index or light out of range.
+    OutOfRange,
+    /// The part was already received.
+    Duplicate,
+    /// A part for a different pixel, or of the other mode.
+    Mismatch,
+}
+
+impl fmt::Display for RecordError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            RecordError::OutOfRange => "part index out of range",
+            RecordError::Duplicate => "part received twice",
+            RecordError::Mismatch => "part belongs to another pixel or mode",
+        })
+    }
+}
+
+impl core::error::Error for RecordError {}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct HitPart {
+    present: bool,
+    alpha: f32,
+    ambient: Vec3,
+    direct: [Vec3; MAX_LIGHTS],
+    lights: u8,
+    shadow_mask: u8,
+    visibility: [f32; MAX_LIGHTS],
+    seen: u8,
+}
+
+/// One pixel's descriptor.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PixelRecord {
+    pixel: u32,
+    hits: [HitPart; MAX_HITS],
+    chain: Option<u8>,
+    color: Option<Vec3>,
+}
+
+impl PixelRecord {
+    /// An empty record for `pixel`.
+    pub fn new(pixel: u32) -> PixelRecord {
+        PixelRecord {
+            pixel,
+            hits: [HitPart::default(); MAX_HITS],
+            chain: None,
+            color: None,
+        }
+    }
+
+    /// The pixel.
+    pub fn pixel(&self) -> u32 {
+        self.pixel
+    }
+
+    /// Take in a hit's lighting.
+    pub fn add_hit(&mut self, index: u8, h: &HitRecord) -> Result<(), RecordError> {
+        if h.pixel != self.pixel || self.color.is_some() {
+            return Err(RecordError::Mismatch);
+        }
+        let part = self
+            .hits
+            .get_mut(usize::from(index))
+            .ok_or(RecordError::OutOfRange)?;
+        if part.present {
+            return Err(RecordError::Duplicate);
+        }
+        if usize::from(h.lights) > MAX_LIGHTS {
+            return Err(RecordError::OutOfRange);
+        }
+        part.present = true;
+        part.alpha = h.alpha;
+        part.ambient = h.ambient;
+        part.direct = h.direct;
+        part.lights = h.lights;
+        part.shadow_mask = h.shadow_mask;
+        if !h.continues {
+            self.set_chain(index.saturating_add(1))?;
+        }
+        Ok(())
+    }
+
+    fn set_chain(&mut self, hits: u8) -> Result<(), RecordError> {
+        if usize::from(hits) > MAX_HITS {
+            return Err(RecordError::OutOfRange);
+        }
+        match self.chain {
+            Some(_) => Err(RecordError::Duplicate),
+            None => {
+                self.chain = Some(hits);
+                Ok(())
+            }
+        }
+    }
+
+    /// Take in a ray's result for this pixel (`hit`, `light` from its reply).
+    pub fn add_outcome(
+        &mut self,
+        pixel: u32,
+        hit: u8,
+        light: u8,
+        outcome: Outcome,
+    ) -> Result<(), RecordError> {
+        if pixel != self.pixel {
+            return Err(RecordError::Mismatch);
+        }
+        match outcome {
+            Outcome::ChainEnd { hits } => self.set_chain(hits),
+            Outcome::Color(c) => {
+                if self.color.is_some()
+                    || self.chain.is_some()
+                    || self.hits.iter().any(|h| h.present)
+                {
+                    return Err(RecordError::Duplicate);
+                }
+                self.color = Some(c);
+                Ok(())
+            }
+            Outcome::Shadow { visibility } => {
+                let part = self
+                    .hits
+                    .get_mut(usize::from(hit))
+                    .ok_or(RecordError::OutOfRange)?;
+                let slot = part
+                    .visibility
+                    .get_mut(usize::from(light))
+                    .ok_or(RecordError::OutOfRange)?;
+                let bit = 1u8 << light;
+                if part.seen & bit != 0 {
+                    return Err(RecordError::Duplicate);
+                }
+                part.seen |= bit;
+                *slot = visibility;
+                Ok(())
+            }
+        }
+    }
+
+    /// The pixel's colour, once every part has arrived.
+    pub fn color(&self, background: Vec3) -> Option<Vec3> {
+        if let Some(c) = self.color {
+            return Some(c);
+        }
+        let n = usize::from(self.chain?);
+        let hits = self.hits.get(..n)?;
+        if !hits
+            .iter()
+            .all(|h| h.present && h.seen & h.shadow_mask == h.shadow_mask)
+        {
+            return None;
+        }
+        let mut seen = background;
+        for h in hits.iter().rev() {
+            let mut visibility = [1.0f32; MAX_LIGHTS];
+            for (l, v) in visibility.iter_mut().enumerate() {
+                if h.shadow_mask & (1 << l) != 0 {
+                    *v = h.visibility[l];
+                }
+            }
+            let lights = usize::from(h.lights).min(MAX_LIGHTS);
+            let color = tree::surface_color(h.ambient, &h.direct[..lights], &visibility[..lights]);
+            seen = tree::through(h.alpha, color, seen);
+        }
+        Some(seen)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::msg::Reply;
+
+    fn hit(pixel: u32, alpha: f32, mask: u8, continues: bool) -> HitRecord {
+        HitRecord {
+            reply: Reply {
+                home: 0,
+                slot: 0,
+                hit: 0,
+                light: 0,
+            },
+            pixel,
+            alpha,
+            ambient: Vec3::splat(0.1),
+            direct: [Vec3::splat(0.5), Vec3::ZERO, Vec3::ZERO, Vec3::ZERO],
+            shadow_mask: mask,
+            lights: 1,
+            continues,
+        }
+    }
+
+    #[test]
+    fn parts_in_any_order_give_the_same_colour() {
+        let bg = Vec3::new(0.0, 0.0, 1.0);
+        let mut a = PixelRecord::new(3);
+        a.add_hit(0, &hit(3, 0.5, 1, true)).unwrap();
+        assert_eq!(a.color(bg), None);
+        a.add_outcome(3, 0, 0, Outcome::Shadow { visibility: 0.25 })
+            .unwrap();
+        a.add_hit(1, &hit(3, 1.0, 0, false)).unwrap();
+        let mut b = PixelRecord::new(3);
+        b.add_hit(1, &hit(3, 1.0, 0, false)).unwrap();
+        b.add_outcome(3, 0, 0, Outcome::Shadow { visibility: 0.25 })
+            .unwrap();
+        assert_eq!(b.color(bg), None, "hit 0 is missing");
+        b.add_hit(0, &hit(3, 0.5, 1, true)).unwrap();
+        assert_eq!(a.color(bg), b.color(bg));
+        let front = 0.1 + 0.25 * 0.5;
+        let back = 0.1 + 0.5;
+        let expect = Vec3::splat(front) * 0.5 + Vec3::splat(back) * 0.5;
+        assert!((a.color(bg).unwrap() - expect).length() < 1e-6);
+    }
+
+    #[test]
+    fn duplicates_and_strangers_are_refused() {
+        let mut r = PixelRecord::new(1);
+        r.add_hit(0, &hit(1, 0.5, 0, true)).unwrap();
+        assert_eq!(
+            r.add_hit(0, &hit(1, 0.5, 0, true)),
+            Err(RecordError::Duplicate)
+        );
+        assert_eq!(
+            r.add_hit(0, &hit(2, 0.5, 0, true)),
+            Err(RecordError::Mismatch)
+        );
+        assert_eq!(
+            r.add_hit(99, &hit(1, 0.5, 0, true)),
+            Err(RecordError::OutOfRange)
+        );
+        assert_eq!(
+            r.add_outcome(1, 0, 9, Outcome::Shadow { visibility: 1.0 }),
+            Err(RecordError::OutOfRange)
+        );
+        r.add_outcome(1, 0, 0, Outcome::ChainEnd { hits: 1 })
+            .unwrap();
+        assert_eq!(
+            r.add_outcome(1, 0, 0, Outcome::ChainEnd { hits: 1 }),
+            Err(RecordError::Duplicate)
+        );
+        assert_eq!(r.color(Vec3::ZERO).map(|c| c.is_finite()), Some(true));
+    }
+}

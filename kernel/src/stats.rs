@@ -1,0 +1,32 @@
+//! What a worker reports about itself: its work counters and its traffic.
+//!
+//! Invariant: traffic counts messages this worker handed to its port (local deliveries to its
+//! own pixel records are not messages and are not counted).
+
+use crate::counters::Counters;
+
+/// Message kinds, in the order of [`NodeStats::sent`].
+pub const KIND_NAMES: [&str; 8] = [
+    "ray", "hit", "resolved", "ack", "token", "pixels", "stats", "planes",
+];
+
+/// A worker's statistics.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct NodeStats {
+    /// The node.
+    pub node: u16,
+    /// Work done.
+    pub counters: Counters,
+    /// Rays forwarded to the next ring position (toward higher X).
+    pub forwarded_next: u64,
+    /// Rays forwarded to the previous ring position (toward lower X).
+    pub forwarded_prev: u64,
+    /// Rays forwarded past a neighbour (a step longer than the next slab).
+    pub forwarded_far: u64,
+    /// Hit records and resolved descriptors sent home to another node.
+    pub returned: u64,
+    /// Messages sent, by kind (see [`KIND_NAMES`]).
+    pub sent: [u64; 8],
+    /// Messages that made no sense here (unknown pixel record, duplicate part): must be 0.
+    pub protocol_errors: u64,
+}
