@@ -3,11 +3,12 @@
 //! scene loaded and checked.
 
 use crate::output::{write_atomic, write_png};
-use crate::render::render;
+use crate::render::{render_on, Fabric, Machine};
 use crate::report::{summary, Report, ViewReport};
-use crate::scene::{Scene, DEFAULT_SCENE};
+use crate::scene::{Scene, ViewJob, DEFAULT_SCENE};
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
+use voxcube_kernel::worker::Generation;
 
 /// voxcube: parallel volume ray tracing after Montani, Perego & Scopigno (1992).
 #[derive(Debug, Parser)]
@@ -34,9 +35,84 @@ pub enum Command {
         /// Print nothing but errors.
         #[arg(short, long)]
         quiet: bool,
+        /// Nodes (a power of two), overriding every view's `nodes`.
+        #[arg(long)]
+        nodes: Option<u32>,
+        /// Clusters (a power of two, at most the nodes), overriding every view's `clusters`.
+        #[arg(long)]
+        clusters: Option<u32>,
+        /// What carries the work: direct (one node, in process) or sim (the deterministic
+        /// simulator). Default: direct on one node, sim on more.
+        #[arg(long, value_enum)]
+        fabric: Option<FabricArg>,
+        /// Scheduler seed of the sim fabric: the same seed gives the same run.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Who generates primary rays: every worker for its slab (the paper's choice), or ring
+        /// position 0 for its whole cluster.
+        #[arg(long, value_enum, default_value_t = GenerationArg::Distributed)]
+        generation: GenerationArg,
     },
     /// Print the built-in default scene: a complete, commented example of the format.
     Scene,
+}
+
+/// `--fabric` values.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum FabricArg {
+    /// One node, in process.
+    Direct,
+    /// The deterministic simulator.
+    Sim,
+}
+
+/// `--generation` values.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum GenerationArg {
+    /// Each worker generates the primary rays that start in its slab.
+    Distributed,
+    /// Ring position 0 generates all and sends them.
+    Centralized,
+}
+
+/// The machine for one view: the scene's nodes and clusters unless overridden.
+fn machine(
+    view: &ViewJob,
+    nodes: Option<u32>,
+    clusters: Option<u32>,
+    fabric: Option<FabricArg>,
+    seed: u64,
+    generation: GenerationArg,
+) -> Result<Machine, String> {
+    let n = nodes.unwrap_or(view.nodes);
+    let m = clusters.unwrap_or(if nodes.is_some() { 1 } else { view.clusters });
+    if !n.is_power_of_two() || n > 1024 {
+        return Err(format!(
+            "--nodes {n}: a hypercube has a power of two of nodes, 1 to 1024"
+        ));
+    }
+    if !m.is_power_of_two() || m > n {
+        return Err(format!(
+            "--clusters {m}: a power of two, at most the {n} nodes"
+        ));
+    }
+    let fabric = match fabric {
+        Some(FabricArg::Direct) => Fabric::Direct,
+        Some(FabricArg::Sim) => Fabric::Sim,
+        None if n == 1 => Fabric::Direct,
+        None => Fabric::Sim,
+    };
+    let generation = match generation {
+        GenerationArg::Distributed => Generation::Distributed,
+        GenerationArg::Centralized => Generation::Centralized,
+    };
+    Ok(Machine {
+        fabric,
+        nodes: n,
+        clusters: m,
+        seed,
+        generation,
+    })
 }
 
 /// Run the command line; the process exit code.
@@ -63,6 +139,11 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             out,
             report,
             quiet,
+            nodes,
+            clusters,
+            fabric,
+            seed,
+            generation,
         } => {
             let (scene, name) = match &scene {
                 Some(path) => (Scene::from_file(path)?, path.display().to_string()),
@@ -73,24 +154,30 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             };
             // Everything is loaded and checked before the first image is written.
             let jobs = scene.load()?;
+            let mut plan = Vec::new();
+            for job in &jobs {
+                for v in &job.views {
+                    let m = machine(v, nodes, clusters, fabric, seed, generation)
+                        .map_err(|e| format!("{}/{}: {e}", job.name, v.name))?;
+                    plan.push((job, v, m));
+                }
+            }
             std::fs::create_dir_all(&out)
                 .map_err(|e| format!("{}: cannot create folder: {e}", out.display()))?;
             let mut views = Vec::new();
-            for job in &jobs {
-                for v in &job.views {
-                    let rendered = render(&job.volume, &v.view)?;
-                    let image = out.join(format!("{}-{}.png", job.name, v.name));
-                    write_png(&image, rendered.width, rendered.height, &rendered.bytes())?;
-                    views.push(ViewReport::new(
-                        &job.name,
-                        &v.name,
-                        image.display().to_string(),
-                        &v.view,
-                        v.nodes,
-                        v.clusters,
-                        &rendered,
-                    ));
-                }
+            for (job, v, machine) in plan {
+                let rendered = render_on(&job.volume, &v.view, &machine)
+                    .map_err(|e| format!("{}/{}: {e}", job.name, v.name))?;
+                let image = out.join(format!("{}-{}.png", job.name, v.name));
+                write_png(&image, rendered.width, rendered.height, &rendered.bytes())?;
+                views.push(ViewReport::new(
+                    &job.name,
+                    &v.name,
+                    image.display().to_string(),
+                    &v.view,
+                    &machine,
+                    &rendered,
+                ));
             }
             if !quiet {
                 print!("{}", summary(&views));

@@ -1,8 +1,10 @@
 //! What a render reports: a per-view summary table for people and the same as JSON for tools.
 
-use crate::render::Rendered;
+use crate::render::{Machine, Rendered};
 use serde::Serialize;
+use std::collections::BTreeMap;
 use voxcube_kernel::counters::Counters;
+use voxcube_kernel::stats::KIND_NAMES;
 use voxcube_kernel::view::View;
 
 /// Rays by type.
@@ -41,6 +43,33 @@ pub struct Operations {
     pub slab_misses: u64,
 }
 
+impl From<&Counters> for Operations {
+    fn from(c: &Counters) -> Operations {
+        Operations {
+            samples: c.samples,
+            interpolations: c.interpolations,
+            lookups: c.lookups,
+            refinements: c.refinements,
+            gradients: c.gradients,
+            shadings: c.shadings,
+            crossings: c.crossings,
+            early_terminations: c.early_terminations,
+            normal_fallbacks: c.normal_fallbacks,
+            slab_misses: c.slab_misses,
+        }
+    }
+}
+
+impl From<&Counters> for Rays {
+    fn from(c: &Counters) -> Rays {
+        Rays {
+            primary: c.primary_rays,
+            transparency: c.transparency_rays,
+            shadow: c.shadow_rays,
+        }
+    }
+}
+
 /// The effects the view called for.
 #[derive(Clone, Copy, Debug, Serialize, PartialEq, Eq)]
 pub struct EffectsReport {
@@ -52,6 +81,50 @@ pub struct EffectsReport {
     pub shadow_lights: u8,
     /// Semi-transparent surfaces present.
     pub transparency: bool,
+}
+
+/// One node of a distributed run.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct NodeEntry {
+    /// Node id.
+    pub node: u16,
+    /// Cluster.
+    pub cluster: u16,
+    /// Ring position.
+    pub position: u16,
+    /// Owned X planes `[first, end)`.
+    pub planes: [u32; 2],
+    /// Stored X planes, ghosts included.
+    pub stored: [u32; 2],
+    /// Rays forwarded to the next, previous, and a farther ring position.
+    pub forwarded: [u64; 3],
+    /// Hit records and resolved descriptors sent home.
+    pub returned: u64,
+    /// Messages sent, by kind.
+    pub sent: BTreeMap<&'static str, u64>,
+    /// Rays by type (primary rays counted at their home).
+    pub rays: Rays,
+    /// Work done here.
+    pub operations: Operations,
+}
+
+/// What a distributed run moved.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct TrafficReport {
+    /// Rays forwarded from slab to slab.
+    pub rays_forwarded: u64,
+    /// Hit records and resolved descriptors that returned to their pixel's home node.
+    pub descriptors_returned: u64,
+    /// Messages delivered, by kind.
+    pub messages: BTreeMap<&'static str, u64>,
+    /// Bytes delivered.
+    pub bytes: u64,
+    /// Scheduler events.
+    pub events: u64,
+    /// Per cluster, rays that crossed each slab boundary (between ring positions j and j+1).
+    pub boundary_crossings: Vec<Vec<u64>>,
+    /// Per node.
+    pub nodes: Vec<NodeEntry>,
 }
 
 /// One view's report.
@@ -67,69 +140,102 @@ pub struct ViewReport {
     pub width: u32,
     /// Height, pixels.
     pub height: u32,
-    /// Nodes requested by the scene.
+    /// The fabric.
+    pub fabric: &'static str,
+    /// Nodes.
     pub nodes: u32,
-    /// Clusters requested by the scene.
+    /// Clusters.
     pub clusters: u32,
+    /// Scheduler seed (sim only).
+    pub seed: Option<u64>,
     /// What the view called for.
     pub effects: EffectsReport,
     /// Rays by type.
     pub rays: Rays,
     /// Work done.
     pub operations: Operations,
+    /// Traffic of a distributed run.
+    pub traffic: Option<TrafficReport>,
     /// Pixels whose colour was not finite before quantisation (always 0).
     pub nan_pixels: u64,
-    /// Wall time of the trace, milliseconds.
+    /// Wall time of the render, milliseconds.
     pub wall_ms: f64,
     /// SHA-256 of the RGBA8 pixel buffer.
     pub pixels_sha256: String,
 }
 
+fn kinds(counts: &[u64; 8]) -> BTreeMap<&'static str, u64> {
+    KIND_NAMES
+        .iter()
+        .zip(counts)
+        .filter(|(_, &n)| n > 0)
+        .map(|(&k, &n)| (k, n))
+        .collect()
+}
+
 impl ViewReport {
-    /// The report of `rendered`, a render of `view`.
+    /// The report of `rendered`, a render of `view` on `machine`.
     pub fn new(
         dataset: &str,
         name: &str,
         image: String,
         view: &View,
-        nodes: u32,
-        clusters: u32,
+        machine: &Machine,
         rendered: &Rendered,
     ) -> ViewReport {
-        let c: Counters = rendered.counters;
+        let c = &rendered.counters;
         let e = view.effects();
+        let traffic = rendered.distributed.as_ref().map(|d| {
+            let nodes: Vec<NodeEntry> = d
+                .nodes
+                .iter()
+                .map(|n| NodeEntry {
+                    node: n.stats.node,
+                    cluster: n.cluster,
+                    position: n.position,
+                    planes: [n.planes.start, n.planes.end],
+                    stored: [n.stored.start, n.stored.end],
+                    forwarded: [
+                        n.stats.forwarded_next,
+                        n.stats.forwarded_prev,
+                        n.stats.forwarded_far,
+                    ],
+                    returned: n.stats.returned,
+                    sent: kinds(&n.stats.sent),
+                    rays: Rays::from(&n.stats.counters),
+                    operations: Operations::from(&n.stats.counters),
+                })
+                .collect();
+            TrafficReport {
+                rays_forwarded: nodes.iter().map(|n| n.forwarded.iter().sum::<u64>()).sum(),
+                descriptors_returned: nodes.iter().map(|n| n.returned).sum(),
+                messages: kinds(&d.messages),
+                bytes: d.bytes,
+                events: d.events,
+                boundary_crossings: d.boundary_crossings(),
+                nodes,
+            }
+        });
         ViewReport {
             dataset: dataset.to_string(),
             view: name.to_string(),
             image,
             width: rendered.width,
             height: rendered.height,
-            nodes,
-            clusters,
+            fabric: machine.fabric.name(),
+            nodes: machine.nodes,
+            clusters: machine.clusters,
+            seed: rendered.distributed.as_ref().map(|_| machine.seed),
             effects: EffectsReport {
                 mode: if e.surfaces { "surfaces" } else { "composite" },
                 shading: e.shading,
                 shadow_lights: e.shadow_lights,
                 transparency: e.transparency,
             },
-            rays: Rays {
-                primary: c.primary_rays,
-                transparency: c.transparency_rays,
-                shadow: c.shadow_rays,
-            },
-            operations: Operations {
-                samples: c.samples,
-                interpolations: c.interpolations,
-                lookups: c.lookups,
-                refinements: c.refinements,
-                gradients: c.gradients,
-                shadings: c.shadings,
-                crossings: c.crossings,
-                early_terminations: c.early_terminations,
-                normal_fallbacks: c.normal_fallbacks,
-                slab_misses: c.slab_misses,
-            },
-            nan_pixels: rendered.nan_pixels,
+            rays: Rays::from(c),
+            operations: Operations::from(c),
+            traffic,
+            nan_pixels: c.non_finite_pixels,
             wall_ms: rendered.wall.as_secs_f64() * 1e3,
             pixels_sha256: crate::output::pixels_sha256(&rendered.bytes()),
         }
@@ -153,36 +259,70 @@ fn count(n: u64) -> String {
     }
 }
 
-/// The summary table, one line per view.
+/// The summary table, one line per view, and for distributed runs the messages by kind.
 pub fn summary(views: &[ViewReport]) -> String {
     let mut out = format!(
-        "{:<24} {:>9} {:<9} {:>8} {:>8} {:>8} {:>9} {:>9} {:>9} {:>9}\n",
+        "{:<24} {:>9} {:<9} {:>6} {:>8} {:>8} {:>8} {:>9} {:>9} {:>8} {:>8} {:>8} {:>9}\n",
         "dataset/view",
         "size",
         "mode",
+        "nodes",
         "primary",
         "transp",
         "shadow",
         "samples",
         "interp",
         "shadings",
+        "fwd",
+        "returned",
         "wall"
     );
     for v in views {
         let o = &v.operations;
+        let (fwd, ret) = v.traffic.as_ref().map_or(("-".into(), "-".into()), |t| {
+            (count(t.rays_forwarded), count(t.descriptors_returned))
+        });
         out += &format!(
-            "{:<24} {:>9} {:<9} {:>8} {:>8} {:>8} {:>9} {:>9} {:>9} {:>6.0} ms\n",
+            "{:<24} {:>9} {:<9} {:>6} {:>8} {:>8} {:>8} {:>9} {:>9} {:>8} {:>8} {:>8} {:>6.0} ms\n",
             format!("{}/{}", v.dataset, v.view),
             format!("{}x{}", v.width, v.height),
             v.effects.mode,
+            format!("{}/{}", v.nodes, v.clusters),
             count(v.rays.primary),
             count(v.rays.transparency),
             count(v.rays.shadow),
             count(o.samples),
             count(o.interpolations + o.lookups),
             count(o.shadings),
+            fwd,
+            ret,
             v.wall_ms
         );
+    }
+    for v in views {
+        if let Some(t) = &v.traffic {
+            let msgs: Vec<String> = t
+                .messages
+                .iter()
+                .map(|(k, n)| format!("{k} {}", count(*n)))
+                .collect();
+            let crossings: Vec<String> = t
+                .boundary_crossings
+                .iter()
+                .map(|c| format!("{c:?}"))
+                .collect();
+            out += &format!(
+                "{}/{}: {} fabric, messages: {}",
+                v.dataset,
+                v.view,
+                v.fabric,
+                msgs.join(", ")
+            );
+            out += &format!(
+                "; rays across slab boundaries per cluster: {}\n",
+                crossings.join(" ")
+            );
+        }
     }
     out
 }

@@ -73,3 +73,90 @@ fn scene_prints_the_default_scene_which_parses() {
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("[[datasets]]") && text.contains("builtin = \"molecule\""));
 }
+
+#[test]
+fn sim_fabric_reports_traffic_and_matches_the_direct_image() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let run = |args: &[&str], report: &str| {
+        let out = voxcube()
+            .arg("render")
+            .args(args)
+            .arg("-o")
+            .arg(dir.path())
+            .arg("--report")
+            .arg(dir.path().join(report))
+            .output()
+            .expect("runs");
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let json: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(dir.path().join(report)).expect("report"))
+                .expect("json");
+        (json, String::from_utf8_lossy(&out.stdout).to_string())
+    };
+    let (direct, _) = run(&[], "direct.json");
+    let (sim, stdout) = run(
+        &[
+            "--nodes",
+            "4",
+            "--clusters",
+            "1",
+            "--fabric",
+            "sim",
+            "--seed",
+            "3",
+        ],
+        "sim.json",
+    );
+    assert_eq!(
+        direct["views"][0]["pixels_sha256"],
+        sim["views"][0]["pixels_sha256"]
+    );
+    assert_eq!(direct["views"][0]["traffic"], serde_json::Value::Null);
+    let traffic = &sim["views"][0]["traffic"];
+    assert!(
+        traffic["rays_forwarded"].as_u64().unwrap_or(0) > 0,
+        "{traffic}"
+    );
+    assert!(traffic["descriptors_returned"].as_u64().unwrap_or(0) > 0);
+    assert!(traffic["messages"]["ray"].as_u64().unwrap_or(0) > 0);
+    assert_eq!(traffic["nodes"].as_array().map(Vec::len), Some(4));
+    assert_eq!(
+        traffic["boundary_crossings"][0].as_array().map(Vec::len),
+        Some(3)
+    );
+    assert_eq!(sim["views"][0]["seed"], 3);
+    assert!(stdout.contains("rays across slab boundaries"), "{stdout}");
+}
+
+#[test]
+fn impossible_machines_are_refused_before_anything_is_written() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out_dir = dir.path().join("out");
+    for (args, expect) in [
+        (
+            vec!["--nodes", "4", "--fabric", "direct"],
+            "direct fabric renders on one node",
+        ),
+        (vec!["--nodes", "6"], "power of two"),
+        (
+            vec!["--nodes", "4", "--clusters", "8"],
+            "at most the 4 nodes",
+        ),
+    ] {
+        let out = voxcube()
+            .arg("render")
+            .args(&args)
+            .arg("-o")
+            .arg(&out_dir)
+            .output()
+            .expect("runs");
+        assert!(!out.status.success(), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(expect), "{args:?}: {err}");
+        assert!(!out_dir.join("molecule-paper.png").exists());
+    }
+}

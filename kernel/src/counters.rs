@@ -32,6 +32,8 @@ pub struct Counters {
     pub normal_fallbacks: u64,
     /// Reads outside a slab's stored planes (a ghost region too narrow): must stay zero.
     pub slab_misses: u64,
+    /// Pixels whose colour was not finite before quantisation: must stay zero.
+    pub non_finite_pixels: u64,
 }
 
 impl Counters {
@@ -51,6 +53,7 @@ impl Counters {
             early_terminations,
             normal_fallbacks,
             slab_misses,
+            non_finite_pixels,
         } = *other;
         self.primary_rays = self.primary_rays.saturating_add(primary_rays);
         self.transparency_rays = self.transparency_rays.saturating_add(transparency_rays);
@@ -65,5 +68,6 @@ impl Counters {
         self.early_terminations = self.early_terminations.saturating_add(early_terminations);
         self.normal_fallbacks = self.normal_fallbacks.saturating_add(normal_fallbacks);
         self.slab_misses = self.slab_misses.saturating_add(slab_misses);
+        self.non_finite_pixels = self.non_finite_pixels.saturating_add(non_finite_pixels);
     }
 }

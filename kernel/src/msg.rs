@@ -206,7 +206,8 @@ const RAY_LEN: usize = 1 + 4 + 36 + 16 + 1 + 4 + 4 + 1 + 2 + 1 + 4 + 12 + 6;
 const HIT_LEN: usize = 6 + 4 + 4 + 12 + 12 * MAX_LIGHTS + 1 + 1 + 1;
 const RESOLVED_LEN: usize = 6 + 4 + 1 + 12;
 const PIXELS_LEN: usize = 1 + 8 * PIXELS_PER_SET;
-const STATS_LEN: usize = 2 + 8 * 13 + 8 * 4 + 8 * 8 + 8;
+const STATS_LEN: usize = 2 + 8 * COUNTER_FIELDS + 8 * 4 + 8 * 8 + 8;
+const COUNTER_FIELDS: usize = 14;
 const PLANES_LEN: usize = 4 + 4 + 2 + PLANE_CHUNK;
 
 /// The longest encoded message.
@@ -408,7 +409,7 @@ fn entry_code(e: Entry) -> u8 {
     }
 }
 
-fn counters_fields(c: &Counters) -> [u64; 13] {
+fn counters_fields(c: &Counters) -> [u64; COUNTER_FIELDS] {
     [
         c.primary_rays,
         c.transparency_rays,
@@ -423,10 +424,11 @@ fn counters_fields(c: &Counters) -> [u64; 13] {
         c.early_terminations,
         c.normal_fallbacks,
         c.slab_misses,
+        c.non_finite_pixels,
     ]
 }
 
-fn counters_from(f: [u64; 13]) -> Counters {
+fn counters_from(f: [u64; COUNTER_FIELDS]) -> Counters {
     Counters {
         primary_rays: f[0],
         transparency_rays: f[1],
@@ -441,6 +443,7 @@ fn counters_from(f: [u64; 13]) -> Counters {
         early_terminations: f[10],
         normal_fallbacks: f[11],
         slab_misses: f[12],
+        non_finite_pixels: f[13],
     }
 }
 
@@ -692,7 +695,7 @@ impl Msg {
             }
             MsgKind::Stats => {
                 let node = r.u16()?;
-                let mut f = [0u64; 13];
+                let mut f = [0u64; COUNTER_FIELDS];
                 for v in &mut f {
                     *v = r.u64()?;
                 }

@@ -541,6 +541,7 @@ impl<
             return;
         };
         let pixel = record.pixel();
+        self.stats.counters.non_finite_pixels += u64::from(!color.is_finite());
         self.records[slot] = None;
         self.in_use -= 1;
         self.emit(pixel, rgba8(color));

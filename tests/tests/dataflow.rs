@@ -210,7 +210,7 @@ fn every_test_scene_is_bit_identical_on_every_cluster_size_and_seed() {
     let job = &jobs[0];
     for (v, view) in job.views.iter().enumerate() {
         let one = render(&job.volume, &view.view).expect("renders");
-        assert_eq!(one.nan_pixels, 0);
+        assert_eq!(one.counters.non_finite_pixels, 0);
         for size in [1u32, 2, 3, 4, 8, 16] {
             for seed in [1u64, 2, 3] {
                 let run = sim::run(

@@ -45,7 +45,7 @@ fn check(scene: &str, dims: [u32; 3], min: f64, max: f64, mean: f64) {
     );
     for v in &job.views {
         let r = render(&job.volume, &v.view).expect("renders");
-        assert_eq!(r.nan_pixels, 0);
+        assert_eq!(r.counters.non_finite_pixels, 0);
         assert_eq!(r.counters.slab_misses, 0);
         let lit = r.pixels.iter().filter(|p| p[..3] != [0, 0, 0]).count();
         assert!(
@@ -87,4 +87,49 @@ fn sod_paper_view_projects_onto_the_papers_area() {
         (h / w - 1.0).abs() < 0.02,
         "{h} primary rays vs the paper's {w}"
     );
+}
+
+#[test]
+fn sod_renders_identically_on_one_and_sixteen_nodes() {
+    use voxcube::render::{render_on, Fabric, Machine};
+    use voxcube_kernel::worker::Generation;
+    if data_or_skip().is_none() {
+        return;
+    }
+    let jobs = Scene::from_file(&scene_file("sod.toml"))
+        .and_then(Scene::load)
+        .unwrap_or_else(|e| panic!("{e}"));
+    let job = &jobs[0];
+    for v in &job.views {
+        let one = render(&job.volume, &v.view).expect("renders");
+        let machine = Machine {
+            fabric: Fabric::Sim,
+            nodes: 16,
+            clusters: 1,
+            seed: 16,
+            generation: Generation::Distributed,
+        };
+        let sixteen =
+            render_on(&job.volume, &v.view, &machine).unwrap_or_else(|e| panic!("{}: {e}", v.name));
+        assert!(
+            one.pixels == sixteen.pixels,
+            "sod/{}: 16 nodes differ from 1",
+            v.name
+        );
+        let crossings = &sixteen
+            .distributed
+            .as_ref()
+            .expect("distributed")
+            .boundary_crossings()[0];
+        assert_eq!(crossings.len(), 15);
+        assert!(
+            crossings.iter().all(|&n| n > 0),
+            "sod/{}: every boundary is crossed: {crossings:?}",
+            v.name
+        );
+        eprintln!(
+            "sod/{}: rays across the 15 slab boundaries: {crossings:?}",
+            v.name
+        );
+    }
 }
