@@ -7,15 +7,15 @@ fn voxcube() -> Command {
     Command::new(env!("CARGO_BIN_EXE_voxcube"))
 }
 
-#[test]
-fn default_render_writes_a_png_and_a_report() {
-    let dir = tempfile::tempdir().expect("tempdir");
-    let report = dir.path().join("r.json");
+/// Run `voxcube render ARGS -o DIR --report DIR/REPORT`, which must succeed; the report and stdout.
+fn render_ok(dir: &std::path::Path, args: &[&str], report: &str) -> (serde_json::Value, String) {
     let out = voxcube()
-        .args(["render", "-o"])
-        .arg(dir.path())
+        .arg("render")
+        .args(args)
+        .arg("-o")
+        .arg(dir)
         .arg("--report")
-        .arg(&report)
+        .arg(dir.join(report))
         .output()
         .expect("runs");
     assert!(
@@ -23,15 +23,21 @@ fn default_render_writes_a_png_and_a_report() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+    let json =
+        serde_json::from_slice(&std::fs::read(dir.join(report)).expect("report")).expect("json");
+    (json, String::from_utf8_lossy(&out.stdout).to_string())
+}
+
+#[test]
+fn default_render_writes_a_png_and_a_report() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (json, stdout) = render_ok(dir.path(), &[], "r.json");
     let png = std::fs::read(dir.path().join("molecule-paper.png")).expect("image written");
     assert_eq!(&png[1..4], b"PNG");
-    let json: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(report).expect("report")).expect("json");
     let view = &json["views"][0];
     assert_eq!(view["pixels_sha256"].as_str().map(str::len), Some(64));
     assert_eq!(view["rays"]["shadow"], 0);
     assert_eq!(view["nan_pixels"], 0);
-    let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         stdout.contains("molecule/paper") && stdout.contains("shadow"),
         "{stdout}"
@@ -77,28 +83,9 @@ fn scene_prints_the_default_scene_which_parses() {
 #[test]
 fn sim_fabric_reports_traffic_and_matches_the_direct_image() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let run = |args: &[&str], report: &str| {
-        let out = voxcube()
-            .arg("render")
-            .args(args)
-            .arg("-o")
-            .arg(dir.path())
-            .arg("--report")
-            .arg(dir.path().join(report))
-            .output()
-            .expect("runs");
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        let json: serde_json::Value =
-            serde_json::from_slice(&std::fs::read(dir.path().join(report)).expect("report"))
-                .expect("json");
-        (json, String::from_utf8_lossy(&out.stdout).to_string())
-    };
-    let (direct, _) = run(&[], "direct.json");
-    let (sim, stdout) = run(
+    let (direct, _) = render_ok(dir.path(), &[], "direct.json");
+    let (sim, stdout) = render_ok(
+        dir.path(),
         &[
             "--nodes",
             "4",
