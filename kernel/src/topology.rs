@@ -1,10 +1,16 @@
-//! Where a node sits: `m` clusters of `cd` nodes, node id ↔ (cluster, ring position), and which
-//! image rows a cluster renders.
+//! Where a node sits: `m` clusters of `cd` nodes, node id ↔ (cluster, ring position), e-cube
+//! routes between nodes, and which image rows a cluster renders.
+//!
+//! On a hypercube (`P = 2^k` nodes, `m = 2^i` clusters of `cd = 2^(k−i)`) a node id is the
+//! cluster's bits above the ring's: `node = cluster·cd + gray(position)`, with `gray` the
+//! reflected binary Gray code, which is cyclic — so ring neighbours, the last and first
+//! included, differ in one bit: one hypercube hop. Other sizes (simulated rings of any length,
+//! for tests) number positions plainly.
 //!
 //! Invariants: `1 ≤ m`, `1 ≤ cd ≤ MAX_CLUSTER`, `m·cd < 2^16 − 1` (one id is reserved as
-//! "no node"). Node ids number clusters consecutively: node = cluster·cd + position. Rows are
-//! interleaved over clusters: row `r` belongs to cluster `r mod m`, so neighbouring rows of
-//! similar cost go to different clusters.
+//! "no node"); every node has exactly one (cluster, position). Rows are interleaved over
+//! clusters: row `r` belongs to cluster `r mod m`, so neighbouring rows of similar cost go to
+//! different clusters.
 
 use crate::partition::MAX_CLUSTER;
 use core::fmt;
@@ -69,14 +75,35 @@ impl Layout {
         u32::from(self.clusters) * u32::from(self.size)
     }
 
+    /// Whether this is a hypercube with Gray-code rings (`m` and `cd` powers of two).
+    pub fn is_hypercube(&self) -> bool {
+        self.size.is_power_of_two() && self.clusters.is_power_of_two()
+    }
+
+    /// The hypercube's dimension `k` (`P = 2^k`), when it is one.
+    pub fn dimension(&self) -> Option<u32> {
+        self.is_hypercube().then(|| self.nodes().trailing_zeros())
+    }
+
     /// The node at `position` of `cluster`'s ring.
     pub fn node(&self, cluster: u16, position: u16) -> u16 {
-        cluster * self.size + position
+        let within = if self.size.is_power_of_two() {
+            gray(position)
+        } else {
+            position
+        };
+        cluster * self.size + within
     }
 
     /// `(cluster, position)` of a node.
     pub fn place(&self, node: u16) -> (u16, u16) {
-        (node / self.size, node % self.size)
+        let within = node % self.size;
+        let position = if self.size.is_power_of_two() {
+            gray_inverse(within)
+        } else {
+            within
+        };
+        (node / self.size, position)
     }
 
     /// Rows of a `height`-row image that `cluster` renders.
@@ -93,6 +120,40 @@ impl Layout {
     pub fn row(&self, cluster: u16, i: u32) -> u32 {
         u32::from(cluster) + i * u32::from(self.clusters)
     }
+}
+
+/// The reflected binary Gray code of `j`.
+pub const fn gray(j: u16) -> u16 {
+    j ^ (j >> 1)
+}
+
+/// The `j` whose Gray code is `g`.
+pub const fn gray_inverse(g: u16) -> u16 {
+    let mut j = g;
+    let mut shift = 1;
+    while shift < 16 {
+        j ^= j >> shift;
+        shift <<= 1;
+    }
+    j
+}
+
+/// The e-cube route from `from` to `to` on a hypercube: correct the differing address bits
+/// from the lowest up, one hop per bit. Yields each node after `from`, ending with `to`.
+pub fn ecube_route(from: u16, to: u16) -> impl Iterator<Item = u16> {
+    let mut at = from;
+    (0..16).filter_map(move |bit| {
+        let mask = 1u16 << bit;
+        ((at ^ to) & mask != 0).then(|| {
+            at ^= mask;
+            at
+        })
+    })
+}
+
+/// Hops between two nodes of a hypercube (their Hamming distance).
+pub const fn hops(from: u16, to: u16) -> u32 {
+    (from ^ to).count_ones()
 }
 
 #[cfg(test)]
@@ -116,5 +177,17 @@ mod tests {
                 && Layout::new(1, 2000).is_err()
                 && Layout::new(65535, 1).is_err()
         );
+    }
+
+    #[test]
+    fn gray_code_inverts_and_e_cube_routes_take_one_hop_per_bit() {
+        for j in 0..1024u16 {
+            assert_eq!(gray_inverse(gray(j)), j);
+            assert_eq!(hops(gray(j), gray(j + 1)), 1);
+        }
+        let route: [u16; 3] = [0b0001, 0b0011, 0b0111];
+        assert!(ecube_route(0, 0b0111).eq(route));
+        assert_eq!(ecube_route(5, 5).count(), 0);
+        assert_eq!(hops(0b1010, 0b0101), 4);
     }
 }
