@@ -107,11 +107,8 @@ fn machine(
         GenerationArg::Centralized => Generation::Centralized,
     };
     Ok(Machine {
-        fabric,
-        nodes: n,
-        clusters: m,
-        seed,
         generation,
+        ..Machine::new(fabric, n, m, seed)
     })
 }
 

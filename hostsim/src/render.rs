@@ -13,7 +13,7 @@ use voxcube_kernel::counters::Counters;
 use voxcube_kernel::pixel::rgba8;
 use voxcube_kernel::sample::Sample;
 use voxcube_kernel::slab::{Slab, SlabError};
-use voxcube_kernel::topology::{Layout, LayoutError};
+use voxcube_kernel::topology::LayoutError;
 use voxcube_kernel::trace::trace_pixel;
 use voxcube_kernel::view::View;
 use voxcube_kernel::worker::Generation;
@@ -50,6 +50,26 @@ pub struct Machine {
     pub seed: u64,
     /// Primary-ray generation.
     pub generation: Generation,
+    /// Receive-buffer bytes per node (`None`: the simulator's default).
+    pub buffer_bytes: Option<usize>,
+    /// Ack-counter flow control (off only as a debug option).
+    pub flow_control: bool,
+}
+
+impl Machine {
+    /// `nodes` in `clusters` on `fabric`, with default buffers, flow control on, distributed
+    /// generation.
+    pub fn new(fabric: Fabric, nodes: u32, clusters: u32, seed: u64) -> Machine {
+        Machine {
+            fabric,
+            nodes,
+            clusters,
+            seed,
+            generation: Generation::Distributed,
+            buffer_bytes: None,
+            flow_control: true,
+        }
+    }
 }
 
 /// Why a view could not be rendered.
@@ -129,12 +149,10 @@ pub fn render_on(volume: &Volume, view: &View, machine: &Machine) -> Result<Rend
                 )));
             }
             let cfg = SimConfig {
-                layout: Layout::new(machine.clusters, size)?,
-                seed: machine.seed,
                 generation: machine.generation,
-                cuts: None,
-                #[cfg(feature = "mutants")]
-                mutants: Default::default(),
+                buffer_bytes: machine.buffer_bytes,
+                flow_control: machine.flow_control,
+                ..SimConfig::machine(machine.clusters, size, machine.seed)?
             };
             let run = sim::run(volume, view, &cfg)?;
             let spec = view.spec();

@@ -164,7 +164,7 @@ pub struct ViewReport {
     pub pixels_sha256: String,
 }
 
-fn kinds(counts: &[u64; 8]) -> BTreeMap<&'static str, u64> {
+fn kinds(counts: &[u64; 9]) -> BTreeMap<&'static str, u64> {
     KIND_NAMES
         .iter()
         .zip(counts)

@@ -26,6 +26,7 @@
 pub mod camera;
 pub mod counters;
 pub mod field;
+pub mod flow;
 pub mod grid;
 pub mod lattice;
 pub mod lighting;

@@ -6,6 +6,7 @@
 //! bounded, and float fields may hold any bits (the tracer is robust to NaN).
 
 use crate::counters::Counters;
+use crate::flow::Class;
 use crate::lattice::{Lattice, MAX_SAMPLES};
 use crate::march::{RayKind, RayState};
 use crate::ray::{Entry, Ray};
@@ -161,10 +162,13 @@ pub enum Msg {
     Hit(HitRecord),
     /// A resolved descriptor, going home.
     Resolved(Resolved),
-    /// Acknowledges `count` messages received from `from` (flow control).
+    /// Acknowledges `count` messages of credit class `class` read from the receiver of this
+    /// ack, by node `from` (flow control).
     Ack {
         /// The acknowledging node.
         from: u16,
+        /// Credit class index (see [`crate::flow::CREDIT_CLASSES`]).
+        class: u8,
         /// Messages acknowledged.
         count: u16,
     },
@@ -179,6 +183,8 @@ pub enum Msg {
     Stats(NodeStats),
     /// Slab plane data, between neighbours.
     Planes(PlaneChunk),
+    /// The host, after every cluster's token: send your statistics once your acks are in.
+    Collect,
 }
 
 /// The kinds of message.
@@ -200,13 +206,17 @@ pub enum MsgKind {
     Stats = 6,
     /// [`Msg::Planes`].
     Planes = 7,
+    /// [`Msg::Collect`].
+    Collect = 8,
 }
 
 const RAY_LEN: usize = 1 + 4 + 36 + 16 + 1 + 4 + 4 + 1 + 2 + 1 + 4 + 12 + 6;
 const HIT_LEN: usize = 6 + 4 + 4 + 12 + 12 * MAX_LIGHTS + 1 + 1 + 1;
 const RESOLVED_LEN: usize = 6 + 4 + 1 + 12;
 const PIXELS_LEN: usize = 1 + 8 * PIXELS_PER_SET;
-const STATS_LEN: usize = 2 + 8 * COUNTER_FIELDS + 8 * 4 + 8 * 8 + 8;
+const STATS_LEN: usize = 2 + 8 * COUNTER_FIELDS + 8 * 4 + 8 * KINDS + 8 + 8 * 5;
+/// Number of message kinds.
+pub const KINDS: usize = 9;
 const COUNTER_FIELDS: usize = 14;
 const PLANES_LEN: usize = 4 + 4 + 2 + PLANE_CHUNK;
 
@@ -231,11 +241,12 @@ impl MsgKind {
             MsgKind::Ray => RAY_LEN,
             MsgKind::Hit => HIT_LEN,
             MsgKind::Resolved => RESOLVED_LEN,
-            MsgKind::Ack => 4,
+            MsgKind::Ack => 5,
             MsgKind::Token => 2,
             MsgKind::Pixels => PIXELS_LEN,
             MsgKind::Stats => STATS_LEN,
             MsgKind::Planes => PLANES_LEN,
+            MsgKind::Collect => 0,
         }
     }
 
@@ -249,6 +260,7 @@ impl MsgKind {
             5 => MsgKind::Pixels,
             6 => MsgKind::Stats,
             7 => MsgKind::Planes,
+            8 => MsgKind::Collect,
             _ => return None,
         })
     }
@@ -459,6 +471,19 @@ impl Msg {
             Msg::Pixels(_) => MsgKind::Pixels,
             Msg::Stats(_) => MsgKind::Stats,
             Msg::Planes(_) => MsgKind::Planes,
+            Msg::Collect => MsgKind::Collect,
+        }
+    }
+
+    /// The class this message is queued and credited in.
+    pub fn class(&self) -> Class {
+        match self {
+            Msg::Ray(t) => Class::of_ray(t.ray.kind, t.ray.ray.dir.x),
+            Msg::Hit(_) | Msg::Resolved(_) => Class::Result,
+            Msg::Ack { .. } => Class::Ack,
+            Msg::Token { .. } | Msg::Pixels(_) | Msg::Stats(_) | Msg::Planes(_) | Msg::Collect => {
+                Class::Control
+            }
         }
     }
 
@@ -520,10 +545,12 @@ impl Msg {
                     }
                 }
             }
-            Msg::Ack { from, count } => {
+            Msg::Ack { from, class, count } => {
                 w.u16(*from);
+                w.u8(*class);
                 w.u16(*count);
             }
+            Msg::Collect => {}
             Msg::Token { cluster } => w.u16(*cluster),
             Msg::Pixels(p) => {
                 w.u8(p.count);
@@ -549,6 +576,15 @@ impl Msg {
                     w.u64(v);
                 }
                 w.u64(s.protocol_errors);
+                for v in [
+                    s.peak_pending,
+                    s.peak_records,
+                    s.peak_outbox,
+                    s.peak_unacked,
+                    s.pixels_sent,
+                ] {
+                    w.u64(v);
+                }
             }
             Msg::Planes(p) => {
                 w.u32(p.plane);
@@ -674,10 +710,19 @@ impl Msg {
                     outcome,
                 })
             }
-            MsgKind::Ack => Msg::Ack {
-                from: r.u16()?,
-                count: r.u16()?,
-            },
+            MsgKind::Ack => {
+                let from = r.u16()?;
+                let class = r.u8()?;
+                if Class::from_credit_index(class).is_none() {
+                    return Err(r.bad("class"));
+                }
+                Msg::Ack {
+                    from,
+                    class,
+                    count: r.u16()?,
+                }
+            }
+            MsgKind::Collect => Msg::Collect,
             MsgKind::Token => Msg::Token { cluster: r.u16()? },
             MsgKind::Pixels => {
                 let count = r.u8()?;
@@ -701,11 +746,13 @@ impl Msg {
                 }
                 let (forwarded_next, forwarded_prev, forwarded_far, returned) =
                     (r.u64()?, r.u64()?, r.u64()?, r.u64()?);
-                let mut sent = [0u64; 8];
+                let mut sent = [0u64; KINDS];
                 for v in &mut sent {
                     *v = r.u64()?;
                 }
                 let protocol_errors = r.u64()?;
+                let (peak_pending, peak_records, peak_outbox, peak_unacked, pixels_sent) =
+                    (r.u64()?, r.u64()?, r.u64()?, r.u64()?, r.u64()?);
                 Msg::Stats(NodeStats {
                     node,
                     counters: counters_from(f),
@@ -715,6 +762,11 @@ impl Msg {
                     returned,
                     sent,
                     protocol_errors,
+                    peak_pending,
+                    peak_records,
+                    peak_outbox,
+                    peak_unacked,
+                    pixels_sent,
                 })
             }
             MsgKind::Planes => {
@@ -803,7 +855,12 @@ mod tests {
                 outcome,
             }));
         }
-        roundtrip(Msg::Ack { from: 4, count: 2 });
+        roundtrip(Msg::Ack {
+            from: 4,
+            class: 2,
+            count: 2,
+        });
+        roundtrip(Msg::Collect);
         roundtrip(Msg::Token { cluster: 1 });
         let mut set = PixelSet::default();
         set.push(5, [1, 2, 3, 4]).unwrap();
@@ -811,7 +868,8 @@ mod tests {
         roundtrip(Msg::Stats(NodeStats {
             node: 2,
             forwarded_next: 9,
-            sent: [1; 8],
+            sent: [1; KINDS],
+            peak_unacked: 3,
             ..NodeStats::default()
         }));
         roundtrip(Msg::Planes(PlaneChunk {

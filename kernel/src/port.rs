@@ -2,9 +2,11 @@
 //! board's link driver) implements it; the worker never sees a thread, a clock or a socket.
 //!
 //! Invariants a port keeps: a message handed to `try_send` is delivered exactly once or handed
-//! back; `try_recv` returns messages of the asked class only; nothing blocks.
+//! back; received messages are queued by [`Class`], first in first out within a class, and
+//! `peek`/`try_recv` look only at the asked class; nothing blocks.
 
-use crate::msg::{Msg, MsgKind};
+use crate::flow::Class;
+use crate::msg::Msg;
 
 /// Where a message goes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -15,31 +17,6 @@ pub enum Dest {
     Host,
 }
 
-/// Classes of received messages, in the worker's reading priority.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Class {
-    /// Acknowledgements (flow control).
-    Ack,
-    /// Hit records and resolved descriptors going home.
-    Resolved,
-    /// Forwarded rays.
-    Ray,
-    /// Everything else: tokens, slab planes, host traffic.
-    Control,
-}
-
-impl MsgKind {
-    /// The reading class of this kind.
-    pub fn class(self) -> Class {
-        match self {
-            MsgKind::Ack => Class::Ack,
-            MsgKind::Hit | MsgKind::Resolved => Class::Resolved,
-            MsgKind::Ray => Class::Ray,
-            MsgKind::Token | MsgKind::Pixels | MsgKind::Stats | MsgKind::Planes => Class::Control,
-        }
-    }
-}
-
 /// A node's connection to the others and the host.
 pub trait Port {
     /// Send `msg` to `to`, or hand it back when it cannot be taken now.
@@ -48,8 +25,10 @@ pub trait Port {
         reason = "a full link hands the message back, as heapless does; there is no heap to box it on"
     )]
     fn try_send(&mut self, to: Dest, msg: Msg) -> Result<(), Msg>;
-    /// The next received message of `class`, if any.
-    fn try_recv(&mut self, class: Class) -> Option<Msg>;
+    /// The next received message of `class`, without taking it.
+    fn peek(&mut self, class: Class) -> Option<&Msg>;
+    /// Take the next received message of `class`, with its sender (`Dest::Host` for the host).
+    fn try_recv(&mut self, class: Class) -> Option<(Dest, Msg)>;
     /// Received messages not yet read, all classes.
     fn pending(&self) -> usize;
 }

@@ -163,22 +163,33 @@ impl PixelRecord {
 
     /// The pixel's colour, once every part has arrived.
     pub fn color(&self, background: Vec3) -> Option<Vec3> {
+        self.combine(background, true)
+    }
+
+    /// The colour as if every missing shadow ray had returned unshadowed: a fault for negative
+    /// controls.
+    #[cfg(feature = "mutants")]
+    pub fn color_without_waiting_for_shadows(&self, background: Vec3) -> Option<Vec3> {
+        self.combine(background, false)
+    }
+
+    fn combine(&self, background: Vec3, wait_for_shadows: bool) -> Option<Vec3> {
         if let Some(c) = self.color {
             return Some(c);
         }
         let n = usize::from(self.chain?);
         let hits = self.hits.get(..n)?;
-        if !hits
-            .iter()
-            .all(|h| h.present && h.seen & h.shadow_mask == h.shadow_mask)
-        {
+        let complete = |h: &HitPart| {
+            h.present && (!wait_for_shadows || h.seen & h.shadow_mask == h.shadow_mask)
+        };
+        if !hits.iter().all(complete) {
             return None;
         }
         let mut seen = background;
         for h in hits.iter().rev() {
             let mut visibility = [1.0f32; MAX_LIGHTS];
             for (l, v) in visibility.iter_mut().enumerate() {
-                if h.shadow_mask & (1 << l) != 0 {
+                if h.shadow_mask & h.seen & (1 << l) != 0 {
                     *v = h.visibility[l];
                 }
             }

@@ -4,6 +4,7 @@
 //! own pixel records are not messages and are not counted).
 
 use crate::counters::Counters;
+use crate::msg::KINDS;
 
 /// Message kinds, in the order of [`NodeStats::sent`].
 pub const KIND_NAMES: [&str; 8] = [
@@ -26,7 +27,17 @@ pub struct NodeStats {
     /// Hit records and resolved descriptors sent home to another node.
     pub returned: u64,
     /// Messages sent, by kind (see [`KIND_NAMES`]).
-    pub sent: [u64; 8],
+    pub sent: [u64; KINDS],
     /// Messages that made no sense here (unknown pixel record, duplicate part): must be 0.
     pub protocol_errors: u64,
+    /// Most rays waiting in the local continuation queues at once.
+    pub peak_pending: u64,
+    /// Most pixel records in use at once.
+    pub peak_records: u64,
+    /// Most messages waiting in the outbox at once.
+    pub peak_outbox: u64,
+    /// Largest unacknowledged count toward one destination in one class (never above `i_max`).
+    pub peak_unacked: u64,
+    /// Pixels this worker sent to the host: the host ends only once it holds them all.
+    pub pixels_sent: u64,
 }

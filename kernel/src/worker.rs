@@ -1,30 +1,54 @@
 //! The worker: one node's sans-IO state machine. It generates the primary rays of its
 //! cluster's rows that start in its slab, traces rays through its slab, forwards those that
 //! leave to the node owning their next sample, keeps the pixel records of the primary rays it
-//! generated, and sends finished pixels to the host in pixel sets. It is driven by
+//! generated, sends finished pixels to the host in pixel sets, keeps the ack counters of
+//! [`crate::flow`], and passes its cluster's termination token. It is driven by
 //! [`Worker::poll`] and talks only through a [`Port`].
 //!
 //! Where the paper keeps a primary-ray descriptor on the node of the first intersection,
 //! voxcube keeps it on the node that generated the ray (its *home*), reserved before the ray
 //! starts. Every hit's lighting and every secondary ray's result returns there, and the pixel
 //! is combined there by [`crate::tree`]'s formula. So a ray never waits for memory on another
-//! node, and "all pixels of my primary rays are final" (the paper's token condition) is a
-//! local fact.
+//! node, and "all pixels of my primary rays are final" (the token's condition) is a local
+//! fact.
 //!
-//! Invariants: all state is in fixed-capacity containers; a step is attempted only with room
-//! for everything it can produce (at most one message, one pixel-set flush, and one shadow ray
-//! per light), so no item is ever dropped: a full container is back-pressure. Shadow rays,
-//! which spawn nothing, are traced first, so the queues always drain. A ray's lattice, `k` and
-//! state travel with it unchanged.
+//! One step traces one primary or transparency ray through the slab, and at a hit also every
+//! shadow ray it spawns (as the paper does). A continuation past a semi-transparent surface
+//! waits in the local queue of its X direction. Reading follows the paper's priority: acks,
+//! then results, then rays, each class in its own queue. A ray is read only when it can start
+//! at once: it needs credit for every message its step may send (`r_imax` per class and
+//! destination), room for its continuation, and for an unadopted primary a free record. A new
+//! primary ray is generated only when nothing at all is pending.
+//!
+//! Termination. Tokens, one per cluster, start at the ring end nearest the viewpoint and pass
+//! in the direction rays travel. A worker passes its token once:
+//! - every primary ray it generates has been generated, its pixel final and sent;
+//! - nothing waits in its queues;
+//! - every message it sent has been acknowledged (all `n_i = 0`).
+//!
+//! The last worker gives the token to the host. The host, holding all `m` tokens, asks every
+//! worker for its statistics. A worker answers only once all its `n_i = 0` again and its own
+//! acks are sent. The invariant that makes this correct:
+//! - a pixel is final only when its whole ray tree is back, and never reopens;
+//! - a worker generates no ray after its token passed;
+//! - every ray or result in flight belongs to a pixel that is not final.
+//!
+//! So once every home's pixels are final, no ray or result message exists anywhere. The host
+//! then ends after the last statistics, when every `n_i = 0` and no message of any kind is in
+//! flight. The simulator checks this at the end of every run.
+//!
+//! Memory: all state is in fixed-capacity containers (const generics) or fixed arrays. A step
+//! runs only with room for all it can produce, so no item is ever dropped: a full container is
+//! back-pressure.
 
 use crate::counters::Counters;
-use crate::grid::Grid;
+use crate::flow::{r_imax, Class, FlowControl, CLASSES, CREDITS, CREDIT_CLASSES};
 use crate::lighting::lighting;
-use crate::march::{march, Hit, RayKind, Stop};
+use crate::march::{march, Hit, RayKind, RayState, Stop};
 use crate::msg::{HitRecord, Msg, Outcome, PixelSet, Reply, Resolved, Travel, NO_HOME, NO_LIGHT};
-use crate::partition::Partition;
+use crate::partition::{Partition, MAX_CLUSTER};
 use crate::pixel::rgba8;
-use crate::port::{Class, Dest, Port};
+use crate::port::{Dest, Port};
 use crate::record::PixelRecord;
 use crate::sample::Sample;
 use crate::shade::MAX_LIGHTS;
@@ -46,12 +70,20 @@ pub enum Generation {
     Centralized,
 }
 
-/// Faults that tests switch on to show the bit-identity tests catch them (negative controls).
+/// Faults that tests switch on to show that the test suite catches them (negative controls).
 #[cfg(feature = "mutants")]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Mutants {
     /// Move a forwarded ray's lattice back by a quarter step: a shortened step at the boundary.
     pub shorten_step_at_boundary: bool,
+    /// Start rays without the `r_imax` headroom (only `n_i < i_max` at each send is kept).
+    pub no_headroom: bool,
+    /// Send an ack only while the receiver of the ack has result credit left.
+    pub acks_need_credit: bool,
+    /// Pass the token once generation is done, before the pixels are final.
+    pub early_token: bool,
+    /// Finish a pixel as soon as its hits are in, before its shadow rays return.
+    pub early_pixel: bool,
 }
 
 /// Where a worker sits.
@@ -74,15 +106,30 @@ pub enum WorkerError {
     Slab,
     /// A capacity is too small to make progress.
     Capacity,
+    /// `i_max` leaves no ray room to start: it must be at least `needed`.
+    Credit {
+        /// `i_max` given.
+        i_max: u16,
+        /// The smallest that works for this view.
+        needed: u16,
+    },
 }
 
 impl fmt::Display for WorkerError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            WorkerError::Place => "the node's place does not fit the layout or the partition",
-            WorkerError::Slab => "the slab does not hold this position's planes and ghost planes",
-            WorkerError::Capacity => "a worker capacity is too small to make progress",
-        })
+        match self {
+            WorkerError::Place => {
+                f.write_str("the node's place does not fit the layout or the partition")
+            }
+            WorkerError::Slab => {
+                f.write_str("the slab does not hold this position's planes and ghost planes")
+            }
+            WorkerError::Capacity => f.write_str("a worker capacity is too small to make progress"),
+            WorkerError::Credit { i_max, needed } => write!(
+                f,
+                "i_max {i_max} leaves no ray room to start (r_imax + 1 = {needed} needed)"
+            ),
+        }
     }
 }
 
@@ -97,20 +144,20 @@ pub enum Progress {
     Idle,
 }
 
-/// Room kept in each ray queue for what one traced ray can spawn.
-const RESERVE: usize = MAX_LIGHTS + 1;
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Token {
+    /// Not here (yet).
+    Away,
+    /// Here, to pass on once this worker is done.
+    Holding,
+    /// Passed on.
+    Passed,
+}
 
-/// One node. `RAYS` and `SHADOWS` bound the ray queues, `RECORDS` the pixel records,
-/// `OUTBOX` the messages waiting for the port.
+/// One node. `PENDING` bounds each direction's continuation queue, `RECORDS` the pixel
+/// records, `OUTBOX` the messages waiting for the port.
 #[derive(Debug)]
-pub struct Worker<
-    'a,
-    T,
-    const RAYS: usize,
-    const SHADOWS: usize,
-    const RECORDS: usize,
-    const OUTBOX: usize,
-> {
+pub struct Worker<'a, T, const PENDING: usize, const RECORDS: usize, const OUTBOX: usize> {
     view: &'a View,
     slab: Slab<'a, T>,
     partition: &'a Partition,
@@ -119,35 +166,40 @@ pub struct Worker<
     generation: Generation,
     cursor: u64,
     cluster_pixels: u64,
-    rays: Deque<Travel, RAYS>,
-    shadows: Deque<Travel, SHADOWS>,
+    pending_up: Deque<Travel, PENDING>,
+    pending_down: Deque<Travel, PENDING>,
     records: [Option<PixelRecord>; RECORDS],
     in_use: usize,
     outbox: Deque<(Dest, Msg), OUTBOX>,
     batch: PixelSet,
+    flow: FlowControl,
+    shadow_lights: u8,
+    /// `n_i`: per ring position and credit class, messages sent and not yet acknowledged.
+    unacked: [[u16; CREDITS]; MAX_CLUSTER],
+    /// Reads per ring position and credit class not yet acknowledged.
+    acks_due: [[u16; CREDITS]; MAX_CLUSTER],
+    token: Token,
+    token_upward: bool,
+    collecting: bool,
+    reported: bool,
     stats: NodeStats,
     /// Test-only faults.
     #[cfg(feature = "mutants")]
     pub mutants: Mutants,
 }
 
-impl<
-        'a,
-        T: Sample,
-        const RAYS: usize,
-        const SHADOWS: usize,
-        const RECORDS: usize,
-        const OUTBOX: usize,
-    > Worker<'a, T, RAYS, SHADOWS, RECORDS, OUTBOX>
+impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: usize>
+    Worker<'a, T, PENDING, RECORDS, OUTBOX>
 {
     /// A worker at `place`, tracing `slab` (which must own `partition`'s planes for its ring
-    /// position, with the view's ghost planes).
+    /// position, with the view's ghost planes), under `flow` control.
     pub fn new(
         view: &'a View,
         slab: Slab<'a, T>,
         partition: &'a Partition,
         place: Place,
         generation: Generation,
+        flow: FlowControl,
     ) -> Result<Self, WorkerError> {
         let layout = place.layout;
         if place.cluster >= layout.clusters()
@@ -157,19 +209,29 @@ impl<
             return Err(WorkerError::Place);
         }
         let planes = partition.planes(usize::from(place.position));
-        let grid: &Grid = slab.grid();
         if slab.owned() != planes
-            || slab.stored() != stored_planes(grid, planes, view.ghost_planes())
+            || slab.stored() != stored_planes(slab.grid(), planes, view.ghost_planes())
         {
             return Err(WorkerError::Slab);
         }
-        if RAYS <= 2 * RESERVE || SHADOWS <= 2 * RESERVE || RECORDS == 0 || OUTBOX < 2 {
+        if PENDING == 0 || RECORDS == 0 || OUTBOX < 3 {
             return Err(WorkerError::Capacity);
+        }
+        let shadow_lights = view.effects().shadow_lights;
+        let needed = r_imax(RayKind::Primary, shadow_lights) as u16 + 1;
+        if flow.enabled && layout.size() > 1 && flow.i_max < needed {
+            return Err(WorkerError::Credit {
+                i_max: flow.i_max,
+                needed,
+            });
         }
         let spec = view.spec();
         let cluster_pixels =
             u64::from(layout.rows(place.cluster, spec.height)) * u64::from(spec.width);
         let node = layout.node(place.cluster, place.position);
+        // The token starts at the ring end nearest the viewpoint: rays travel from there.
+        let token_upward = !(spec.camera.forward().x < 0.0);
+        let starter = if token_upward { 0 } else { layout.size() - 1 };
         Ok(Worker {
             view,
             slab,
@@ -179,12 +241,24 @@ impl<
             generation,
             cursor: 0,
             cluster_pixels,
-            rays: Deque::new(),
-            shadows: Deque::new(),
+            pending_up: Deque::new(),
+            pending_down: Deque::new(),
             records: [None; RECORDS],
             in_use: 0,
             outbox: Deque::new(),
             batch: PixelSet::default(),
+            flow,
+            shadow_lights,
+            unacked: [[0; CREDITS]; MAX_CLUSTER],
+            acks_due: [[0; CREDITS]; MAX_CLUSTER],
+            token: if place.position == starter {
+                Token::Holding
+            } else {
+                Token::Away
+            },
+            token_upward,
+            collecting: false,
+            reported: false,
             stats: NodeStats {
                 node,
                 ..NodeStats::default()
@@ -209,16 +283,30 @@ impl<
         self.stats.counters
     }
 
-    /// Whether this worker has nothing left: every primary ray generated, every record
-    /// complete, every ray and message gone, every pixel sent. (A forwarded ray arriving later
-    /// makes it busy again.)
-    pub fn is_finished(&self) -> bool {
-        self.generation_done()
-            && self.rays.is_empty()
-            && self.shadows.is_empty()
-            && self.outbox.is_empty()
-            && self.in_use == 0
-            && self.batch.count == 0
+    /// The flow-control settings.
+    pub fn flow(&self) -> FlowControl {
+        self.flow
+    }
+
+    /// The largest `n_i` now, over destinations and classes.
+    pub fn max_unacked(&self) -> u16 {
+        let size = usize::from(self.place.layout.size());
+        self.unacked[..size]
+            .iter()
+            .flatten()
+            .copied()
+            .max()
+            .unwrap_or(0)
+    }
+
+    /// Whether this worker has sent its statistics to the host: its part is over.
+    pub fn has_reported(&self) -> bool {
+        self.reported
+    }
+
+    /// Whether every primary ray this worker generates is generated, its pixel final and sent.
+    pub fn pixels_final(&self) -> bool {
+        self.generation_done() && self.in_use == 0 && self.batch.count == 0
     }
 
     fn generation_done(&self) -> bool {
@@ -234,43 +322,46 @@ impl<
         OUTBOX - self.outbox.len()
     }
 
-    /// Do a bounded amount of work: send what waits, read messages (resolved parts first,
-    /// then rays), trace one ray, or — when nothing at all is pending — generate a primary ray.
+    fn position_of(&self, node: u16) -> usize {
+        usize::from(self.place.layout.place(node).1)
+    }
+
+    /// Do a bounded amount of work: send what waits, read acks and results, start one ray
+    /// (a queued continuation first, then a received ray), or — when nothing at all is
+    /// pending — generate a primary ray; pass the token, answer the host.
     pub fn poll(&mut self, port: &mut impl Port) -> Progress {
         let mut worked = self.flush(port);
-        while self.outbox_free() >= 2 {
-            let Some(m) = port.try_recv(Class::Resolved) else {
+        while let Some((from, msg)) = port.try_recv(Class::Ack) {
+            self.receive(from, msg);
+            worked = true;
+        }
+        while self.outbox_free() >= 3 {
+            let Some((from, msg)) = port.try_recv(Class::Result) else {
                 break;
             };
-            self.receive(m);
+            self.receive(from, msg);
             worked = true;
         }
-        while RAYS - self.rays.len() > RESERVE && SHADOWS - self.shadows.len() > RESERVE {
-            let Some(m) = port.try_recv(Class::Ray) else {
-                break;
-            };
-            self.receive(m);
+        while let Some((from, msg)) = port.try_recv(Class::Control) {
+            self.receive(from, msg);
             worked = true;
         }
-        while let Some(m) = port.try_recv(Class::Control) {
-            // Nothing of this class is addressed to a worker yet.
-            self.receive(m);
-            worked = true;
-        }
-        let traced = self.outbox_free() >= 2 && self.trace_one();
-        // A new primary ray only when nothing at all is pending (the paper's reading rule).
-        let generated = !traced
+        let stepped = self.outbox_free() >= 3 && (self.step_pending() || self.step_received(port));
+        let generated = !stepped
             && !worked
             && port.pending() == 0
-            && self.rays.is_empty()
-            && self.shadows.is_empty()
-            && self.outbox_free() >= 2
+            && self.pending_up.is_empty()
+            && self.pending_down.is_empty()
+            && self.outbox_free() >= 3
             && self.generate();
-        worked |= traced || generated;
+        worked |= stepped || generated;
         if !worked && self.batch.count > 0 && self.outbox_free() >= 1 {
             self.flush_batch();
             worked = true;
         }
+        worked |= self.send_acks(!worked);
+        worked |= self.pass_token();
+        worked |= self.report();
         worked |= self.flush(port);
         if worked {
             Progress::Busy
@@ -290,73 +381,185 @@ impl<
             }
             sent = true;
         }
+        self.stats.peak_outbox = self.stats.peak_outbox.max(self.outbox.len() as u64);
         sent
     }
 
-    fn send(&mut self, to: Dest, msg: Msg) {
+    fn enqueue(&mut self, to: Dest, msg: Msg) {
         self.stats.sent[msg.kind() as usize] += 1;
         if self.outbox.push_back((to, msg)).is_err() {
             // Unreachable while every step checks its room first; counted, never a panic.
             self.stats.protocol_errors += 1;
         }
+        self.stats.peak_outbox = self.stats.peak_outbox.max(self.outbox.len() as u64);
     }
 
-    fn receive(&mut self, msg: Msg) {
+    /// Send to the node at ring position `to`, counting the credit it takes.
+    fn send(&mut self, to: usize, msg: Msg) {
+        if let Some(c) = msg.class().credit_index() {
+            if let Some(n) = self.unacked.get_mut(to).and_then(|row| row.get_mut(c)) {
+                *n = n.saturating_add(1);
+                self.stats.peak_unacked = self.stats.peak_unacked.max(u64::from(*n));
+            }
+        }
+        let node = self.place.layout.node(self.place.cluster, to as u16);
+        self.enqueue(Dest::Node(node), msg);
+    }
+
+    fn receive(&mut self, from: Dest, msg: Msg) {
+        if let (Dest::Node(node), Some(c)) = (from, msg.class().credit_index()) {
+            let p = self.position_of(node);
+            if let Some(due) = self.acks_due.get_mut(p).and_then(|row| row.get_mut(c)) {
+                *due = due.saturating_add(1);
+            }
+        }
         match msg {
-            Msg::Ray(t) => {
-                let full = if t.ray.kind == RayKind::Shadow {
-                    self.shadows.push_back(t).is_err()
-                } else {
-                    self.rays.push_back(t).is_err()
-                };
-                if full {
-                    self.stats.protocol_errors += 1;
+            Msg::Ack { from, class, count } => {
+                let p = self.position_of(from);
+                match self
+                    .unacked
+                    .get_mut(p)
+                    .and_then(|row| row.get_mut(usize::from(class)))
+                {
+                    Some(n) if *n >= count => *n -= count,
+                    _ => self.stats.protocol_errors += 1,
                 }
             }
             Msg::Hit(h) => self.apply_hit(&h),
             Msg::Resolved(r) => self.apply_resolved(&r),
+            Msg::Ray(t) => self.trace(t),
+            Msg::Token { .. } if self.token == Token::Away => self.token = Token::Holding,
+            Msg::Collect => self.collecting = true,
             _ => self.stats.protocol_errors += 1,
         }
     }
 
-    /// Trace the next ray that can be traced now; whether one was.
-    fn trace_one(&mut self) -> bool {
-        if let Some(t) = self.shadows.pop_front() {
-            self.trace(t);
+    /// Whether a step of ray `t` can start now: credit for everything it may send, room for a
+    /// continuation, and a record for an unadopted primary ray.
+    fn can_start(&self, t: &Travel, from_pending: bool) -> bool {
+        let kind = t.ray.kind;
+        if kind != RayKind::Shadow {
+            let queue = if Class::of_ray(kind, t.ray.ray.dir.x) == Class::RayDown {
+                &self.pending_down
+            } else {
+                &self.pending_up
+            };
+            if !from_pending && queue.is_full() {
+                return false;
+            }
+            if t.reply.home == NO_HOME && self.in_use >= RECORDS {
+                return false;
+            }
+        }
+        if !self.flow.enabled {
             return true;
         }
-        if SHADOWS - self.shadows.len() < MAX_LIGHTS {
-            return false;
+        #[cfg(feature = "mutants")]
+        if self.mutants.no_headroom {
+            return true;
         }
-        for _ in 0..self.rays.len() {
-            let Some(mut t) = self.rays.pop_front() else {
+        let r = r_imax(kind, self.shadow_lights) as u16;
+        let i_max = self.flow.i_max;
+        let me = usize::from(self.place.position);
+        let size = usize::from(self.place.layout.size());
+        // Results go home.
+        if t.reply.home != NO_HOME && t.reply.home != self.node {
+            let home = self.position_of(t.reply.home);
+            if self.unacked[home][0].saturating_add(r) >= i_max {
                 return false;
+            }
+        }
+        // Rays go ahead in their direction: the ray itself, and shadow rays either way.
+        let own = Class::of_ray(kind, t.ray.ray.dir.x);
+        for (c, class) in CREDIT_CLASSES.iter().enumerate().skip(1) {
+            let need = match (kind, *class) {
+                (_, cl) if cl == own => 1,
+                (RayKind::Shadow, _) => continue,
+                (_, Class::ShadowUp | Class::ShadowDown) if self.shadow_lights > 0 => {
+                    u16::from(self.shadow_lights)
+                }
+                _ => continue,
             };
-            if t.reply.home == NO_HOME {
-                // A primary ray sent by the generator: adopt it, if a record is free.
-                match self.reserve(t.ray.pixel) {
-                    Some(slot) => {
-                        t.reply = Reply {
-                            home: self.node,
-                            slot,
-                            hit: 0,
-                            light: NO_LIGHT,
-                        };
-                        self.stats.counters.primary_rays += 1;
-                    }
-                    None => {
-                        let _ = self.rays.push_back(t);
-                        continue;
-                    }
+            let ahead = match class.upward() {
+                Some(true) => me + 1..size,
+                _ => 0..me,
+            };
+            if ahead
+                .clone()
+                .any(|i| self.unacked[i][c].saturating_add(need) >= i_max)
+            {
+                return false;
+            }
+        }
+        true
+    }
+
+    /// Step the oldest startable continuation; whether one was.
+    fn step_pending(&mut self) -> bool {
+        for down in [false, true] {
+            let queue = if down {
+                &self.pending_down
+            } else {
+                &self.pending_up
+            };
+            let Some(front) = queue.front() else { continue };
+            if self.can_start(front, true) {
+                let t = if down {
+                    self.pending_down.pop_front()
+                } else {
+                    self.pending_up.pop_front()
+                };
+                if let Some(t) = t {
+                    self.trace(t);
+                    return true;
                 }
             }
-            self.trace(t);
-            return true;
+        }
+        false
+    }
+
+    /// Read and step one received ray that can start now, shadow rays first; whether one was.
+    fn step_received(&mut self, port: &mut impl Port) -> bool {
+        for class in [
+            Class::ShadowUp,
+            Class::ShadowDown,
+            Class::RayUp,
+            Class::RayDown,
+        ] {
+            let ready = match port.peek(class) {
+                Some(Msg::Ray(t)) => self.can_start(t, false),
+                Some(_) => true,
+                None => false,
+            };
+            if ready {
+                if let Some((from, msg)) = port.try_recv(class) {
+                    self.receive(from, msg);
+                    return true;
+                }
+            }
         }
         false
     }
 
     fn trace(&mut self, mut t: Travel) {
+        if t.reply.home == NO_HOME {
+            // A primary ray from the generator: adopt it (can_start checked a record is free).
+            match self.reserve(t.ray.pixel) {
+                Some(slot) => {
+                    t.reply = Reply {
+                        home: self.node,
+                        slot,
+                        hit: 0,
+                        light: NO_LIGHT,
+                    };
+                    self.stats.counters.primary_rays += 1;
+                }
+                None => {
+                    self.stats.protocol_errors += 1;
+                    return;
+                }
+            }
+        }
         match march(self.view, &self.slab, &mut t.ray, &mut self.stats.counters) {
             Stop::Leave { plane } => self.forward(t, plane),
             Stop::Hit(hit) => self.on_hit(t, hit),
@@ -365,8 +568,8 @@ impl<
     }
 
     fn forward(&mut self, t: Travel, plane: u32) {
-        let to = self.partition.owner(plane) as u16;
-        let me = self.place.position;
+        let to = self.partition.owner(plane);
+        let me = usize::from(self.place.position);
         match to {
             _ if to == me => {
                 // `march` leaves only for planes it does not own.
@@ -379,8 +582,7 @@ impl<
         }
         #[cfg(feature = "mutants")]
         let t = self.mutate_forwarded(t);
-        let node = self.place.layout.node(self.place.cluster, to);
-        self.send(Dest::Node(node), Msg::Ray(t));
+        self.send(to, Msg::Ray(t));
     }
 
     #[cfg(feature = "mutants")]
@@ -401,7 +603,7 @@ impl<
             self.stats.protocol_errors += 1;
             return;
         };
-        let ray = &t.ray;
+        let ray = t.ray;
         let light = lighting(
             view,
             &self.slab,
@@ -412,8 +614,10 @@ impl<
             &mut self.stats.counters,
         );
         let alpha = surface.opacity();
+        let next = view.continuation(&ray, alpha);
         let mut shadow_mask = 0u8;
-        for l in 0..MAX_LIGHTS {
+        let mut shadows: [Option<RayState>; MAX_LIGHTS] = [None; MAX_LIGHTS];
+        for (l, slot) in shadows.iter_mut().enumerate() {
             if light.shadow_mask & (1 << l) == 0 {
                 continue;
             }
@@ -421,22 +625,10 @@ impl<
             if let Some(shadow) = view.shadow_ray(ray.pixel, hit.point, to_light, distance) {
                 self.stats.counters.shadow_rays += 1;
                 shadow_mask |= 1 << l;
-                let reply = Reply {
-                    light: l as u8,
-                    hit: ray.depth,
-                    ..t.reply
-                };
-                // Room: trace_one checked SHADOWS has MAX_LIGHTS free.
-                if self
-                    .shadows
-                    .push_back(Travel { ray: shadow, reply })
-                    .is_err()
-                {
-                    self.stats.protocol_errors += 1;
-                }
+                *slot = Some(shadow);
             }
         }
-        let next = view.continuation(ray, alpha);
+        // The hit record first, so the home learns how many shadow results to wait for.
         let record = HitRecord {
             reply: Reply {
                 hit: ray.depth,
@@ -451,25 +643,40 @@ impl<
             lights: light.lights,
             continues: next.is_some(),
         };
+        self.deliver_hit(record);
+        for (l, shadow) in shadows.into_iter().enumerate() {
+            if let Some(shadow) = shadow {
+                let reply = Reply {
+                    light: l as u8,
+                    hit: ray.depth,
+                    ..t.reply
+                };
+                self.trace(Travel { ray: shadow, reply });
+            }
+        }
         match next {
             Some(next) => {
                 self.stats.counters.transparency_rays += 1;
-                let reply = Reply {
-                    hit: next.depth,
-                    ..t.reply
+                let cont = Travel {
+                    ray: next,
+                    reply: Reply {
+                        hit: next.depth,
+                        ..t.reply
+                    },
                 };
-                // Room: the ray being traced freed its slot.
-                if self.rays.push_back(Travel { ray: next, reply }).is_err() {
+                let queue = if Class::of_ray(next.kind, next.ray.dir.x) == Class::RayDown {
+                    &mut self.pending_down
+                } else {
+                    &mut self.pending_up
+                };
+                // Room: can_start checked it.
+                if queue.push_back(cont).is_err() {
                     self.stats.protocol_errors += 1;
                 }
+                let waiting = (self.pending_up.len() + self.pending_down.len()) as u64;
+                self.stats.peak_pending = self.stats.peak_pending.max(waiting);
             }
             None => self.stats.counters.early_terminations += u64::from(alpha < 1.0),
-        }
-        if record.reply.home == self.node {
-            self.apply_hit(&record);
-        } else {
-            self.stats.returned += 1;
-            self.send(Dest::Node(record.reply.home), Msg::Hit(record));
         }
     }
 
@@ -493,7 +700,18 @@ impl<
             self.apply_resolved(&resolved);
         } else {
             self.stats.returned += 1;
-            self.send(Dest::Node(t.reply.home), Msg::Resolved(resolved));
+            let home = self.position_of(t.reply.home);
+            self.send(home, Msg::Resolved(resolved));
+        }
+    }
+
+    fn deliver_hit(&mut self, record: HitRecord) {
+        if record.reply.home == self.node {
+            self.apply_hit(&record);
+        } else {
+            self.stats.returned += 1;
+            let home = self.position_of(record.reply.home);
+            self.send(home, Msg::Hit(record));
         }
     }
 
@@ -501,6 +719,7 @@ impl<
         let slot = self.records.iter().position(Option::is_none)?;
         self.records[slot] = Some(PixelRecord::new(pixel));
         self.in_use += 1;
+        self.stats.peak_records = self.stats.peak_records.max(self.in_use as u64);
         Some(slot as u16)
     }
 
@@ -537,9 +756,15 @@ impl<
         let Some(Some(record)) = self.records.get(slot) else {
             return;
         };
-        let Some(color) = record.color(background) else {
-            return;
+        #[cfg(feature = "mutants")]
+        let color = if self.mutants.early_pixel {
+            record.color_without_waiting_for_shadows(background)
+        } else {
+            record.color(background)
         };
+        #[cfg(not(feature = "mutants"))]
+        let color = record.color(background);
+        let Some(color) = color else { return };
         let pixel = record.pixel();
         self.stats.counters.non_finite_pixels += u64::from(!color.is_finite());
         self.records[slot] = None;
@@ -559,18 +784,103 @@ impl<
 
     fn flush_batch(&mut self) {
         let set = core::mem::take(&mut self.batch);
-        self.send(Dest::Host, Msg::Pixels(set));
+        self.stats.pixels_sent += u64::from(set.count);
+        self.enqueue(Dest::Host, Msg::Pixels(set));
     }
 
-    /// Generate primary rays up to one kept (or one row scanned); whether anything was done.
+    /// Acknowledge reads: a class's batch once full, everything when `idle`.
+    fn send_acks(&mut self, idle: bool) -> bool {
+        let mut sent = false;
+        let size = usize::from(self.place.layout.size());
+        for p in 0..size {
+            for c in 0..CREDITS {
+                let due = self.acks_due[p][c];
+                if due == 0 || (!idle && due < self.flow.ack_batch) || self.outbox_free() < 2 {
+                    continue;
+                }
+                #[cfg(feature = "mutants")]
+                if self.mutants.acks_need_credit && self.unacked[p][0] >= self.flow.i_max {
+                    continue;
+                }
+                self.acks_due[p][c] = 0;
+                let node = self.place.layout.node(self.place.cluster, p as u16);
+                self.enqueue(
+                    Dest::Node(node),
+                    Msg::Ack {
+                        from: self.node,
+                        class: c as u8,
+                        count: due,
+                    },
+                );
+                sent = true;
+            }
+        }
+        sent
+    }
+
+    fn quiet(&self) -> bool {
+        let size = usize::from(self.place.layout.size());
+        self.pending_up.is_empty()
+            && self.pending_down.is_empty()
+            && self.outbox.is_empty()
+            && self.unacked[..size].iter().flatten().all(|&n| n == 0)
+            && self.acks_due[..size].iter().flatten().all(|&n| n == 0)
+    }
+
+    /// Pass the token on once this worker's pixels are final and it is quiet.
+    fn pass_token(&mut self) -> bool {
+        if self.token != Token::Holding || self.outbox_free() < 1 {
+            return false;
+        }
+        #[cfg(feature = "mutants")]
+        let ready = if self.mutants.early_token {
+            self.generation_done()
+        } else {
+            self.pixels_final() && self.quiet()
+        };
+        #[cfg(not(feature = "mutants"))]
+        let ready = self.pixels_final() && self.quiet();
+        if !ready {
+            return false;
+        }
+        self.token = Token::Passed;
+        let (me, last) = (self.place.position, self.place.layout.size() - 1);
+        let next = if self.token_upward {
+            (me < last).then(|| me + 1)
+        } else {
+            me.checked_sub(1)
+        };
+        let msg = Msg::Token {
+            cluster: self.place.cluster,
+        };
+        match next {
+            Some(p) => {
+                let node = self.place.layout.node(self.place.cluster, p);
+                self.enqueue(Dest::Node(node), msg);
+            }
+            None => self.enqueue(Dest::Host, msg),
+        }
+        true
+    }
+
+    /// Answer the host's request once every message this worker sent is acknowledged.
+    fn report(&mut self) -> bool {
+        if !self.collecting || self.reported || !self.quiet() || self.outbox_free() < 1 {
+            return false;
+        }
+        self.reported = true;
+        self.stats.sent[crate::msg::MsgKind::Stats as usize] += 1;
+        let stats = self.stats;
+        let _ = self.outbox.push_back((Dest::Host, Msg::Stats(stats)));
+        true
+    }
+
+    /// Generate primary rays up to one started (or one row scanned); whether anything was done.
     fn generate(&mut self) -> bool {
-        if self.generation_done() || RAYS - self.rays.len() <= RESERVE {
+        if self.generation_done() {
             return false;
         }
         let generator = self.place.position == 0;
-        if self.generation == Generation::Distributed && self.in_use >= RECORDS {
-            return false;
-        }
         let spec = self.view.spec();
         let width = u64::from(spec.width);
         let end = (self.cursor + width).min(self.cluster_pixels);
@@ -593,39 +903,46 @@ impl<
             let first = ray.ray.at(ray.lattice.t(0));
             let owner = self
                 .partition
-                .owner(self.slab.grid().owner_plane(first.x, spec.model))
-                as u16;
+                .owner(self.slab.grid().owner_plane(first.x, spec.model));
+            let mine = owner == usize::from(self.place.position);
+            let unadopted = Travel {
+                ray,
+                reply: Reply {
+                    home: NO_HOME,
+                    slot: 0,
+                    hit: 0,
+                    light: NO_LIGHT,
+                },
+            };
             match self.generation {
-                Generation::Distributed if owner == self.place.position => {
-                    let Some(slot) = self.reserve(pixel) else {
-                        return true;
-                    };
+                Generation::Distributed if mine => {
+                    if !self.can_start(&unadopted, false) {
+                        return false;
+                    }
                     self.cursor += 1;
-                    self.stats.counters.primary_rays += 1;
-                    let reply = Reply {
-                        home: self.node,
-                        slot,
-                        hit: 0,
-                        light: NO_LIGHT,
-                    };
-                    let _ = self.rays.push_back(Travel { ray, reply });
+                    self.trace(unadopted);
                     return true;
                 }
                 Generation::Distributed => self.cursor += 1,
-                Generation::Centralized => {
-                    self.cursor += 1;
-                    let reply = Reply {
-                        home: NO_HOME,
-                        slot: 0,
-                        hit: 0,
-                        light: NO_LIGHT,
-                    };
-                    if owner == self.place.position {
-                        let _ = self.rays.push_back(Travel { ray, reply });
-                    } else {
-                        let node = self.place.layout.node(self.place.cluster, owner);
-                        self.send(Dest::Node(node), Msg::Ray(Travel { ray, reply }));
+                Generation::Centralized if mine => {
+                    if !self.can_start(&unadopted, false) {
+                        return false;
                     }
+                    self.cursor += 1;
+                    self.trace(unadopted);
+                    return true;
+                }
+                Generation::Centralized => {
+                    let class = Class::of_ray(ray.kind, ray.ray.dir.x)
+                        .credit_index()
+                        .unwrap_or(3);
+                    if self.flow.enabled
+                        && self.unacked[owner][class].saturating_add(1) >= self.flow.i_max
+                    {
+                        return false;
+                    }
+                    self.cursor += 1;
+                    self.send(owner, Msg::Ray(unadopted));
                     return true;
                 }
             }
@@ -633,3 +950,6 @@ impl<
         true
     }
 }
+
+/// Reading order of the classes, for fabrics that poll by class.
+pub const READING_ORDER: [Class; 7] = CLASSES;

@@ -92,7 +92,6 @@ fn sod_paper_view_projects_onto_the_papers_area() {
 #[test]
 fn sod_renders_identically_on_one_and_sixteen_nodes() {
     use voxcube::render::{render_on, Fabric, Machine};
-    use voxcube_kernel::worker::Generation;
     if data_or_skip().is_none() {
         return;
     }
@@ -102,13 +101,7 @@ fn sod_renders_identically_on_one_and_sixteen_nodes() {
     let job = &jobs[0];
     for v in &job.views {
         let one = render(&job.volume, &v.view).expect("renders");
-        let machine = Machine {
-            fabric: Fabric::Sim,
-            nodes: 16,
-            clusters: 1,
-            seed: 16,
-            generation: Generation::Distributed,
-        };
+        let machine = Machine::new(Fabric::Sim, 16, 1, 16);
         let sixteen =
             render_on(&job.volume, &v.view, &machine).unwrap_or_else(|e| panic!("{}: {e}", v.name));
         assert!(

@@ -19,8 +19,10 @@ pub struct NodeReport {
     pub planes: Range<u32>,
     /// The X planes it stored (with ghosts).
     pub stored: Range<u32>,
-    /// What it did and sent.
+    /// What it did and sent, as it reported to the host.
     pub stats: NodeStats,
+    /// Most bytes its receive buffer held at once.
+    pub peak_buffer: usize,
 }
 
 /// The result of a distributed render.
@@ -31,11 +33,15 @@ pub struct Distributed {
     /// Per node, in node-id order.
     pub nodes: Vec<NodeReport>,
     /// Messages delivered, by kind (see `voxcube_kernel::stats::KIND_NAMES`).
-    pub messages: [u64; 8],
+    pub messages: [u64; 9],
     /// Bytes delivered.
     pub bytes: u64,
     /// Scheduler events (deliveries and node steps).
     pub events: u64,
+    /// Receive-buffer capacity of each node, bytes.
+    pub buffer_capacity: usize,
+    /// The `i_max` that capacity allows.
+    pub i_max: u16,
     /// Wall-clock time.
     pub wall: Duration,
 }

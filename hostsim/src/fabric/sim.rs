@@ -1,30 +1,75 @@
 //! The simulator fabric: every node of the machine in one thread, a seeded scheduler choosing
 //! at each event either an in-flight message to deliver or a node to step. The same seed gives
-//! the same run, event for event.
+//! the same run, event for event, so any failure replays from its seed.
 //!
-//! Invariants checked as it runs: every message is encoded and decoded on the way (the codec
-//! is on the path); a pixel reaches the host once; the run ends only when no message is in
-//! flight and no node can step, and then the host must hold every pixel and every worker must
-//! be finished with no protocol error — anything else is a reported failure, never a partial
-//! image. Links are unbounded here; bounded buffers and flow control come with the next fabric
-//! features.
+//! Each node has a receive buffer of a fixed byte capacity. A message takes its room there
+//! when it is sent, and gives it back when the node reads it. A send that does not fit is
+//! refused: the worker keeps the message and, once its outbox is full, stops. Flow control
+//! exists to make this never happen.
+//!
+//! After every event the invariants are checked:
+//! - no buffer holds more than its capacity;
+//! - every `n_i` stays within `[0, i_max]` (with flow control on);
+//! - messages are conserved: sent = delivered + in flight;
+//! - no pixel reaches the host twice;
+//! - the host never ends with a pixel missing.
+//!
+//! The run ends when the host holds every cluster's token and every worker's statistics.
+//! Then no message may be in flight, every `n_i` must be 0, every pixel present and no
+//! protocol error counted. "Stuck" means no event is possible while the host has not ended (a
+//! deadlock); a run far longer than its work can need is stopped by a watchdog (a livelock).
+//! Either way the error carries the seed and the last events.
 
 use super::{Distributed, NodeReport};
 use crate::dataset::{Volume, VolumeData};
 use crate::rng::SplitMix;
 use std::collections::VecDeque;
+use std::fmt;
 use std::time::Instant;
-use voxcube_kernel::msg::{DecodeError, Msg, MAX_MSG_LEN};
+use voxcube_kernel::flow::{self, Class, FlowControl, CLASSES};
+use voxcube_kernel::msg::{DecodeError, Msg, MsgKind, MAX_MSG_LEN};
 use voxcube_kernel::partition::{Partition, PartitionError};
-use voxcube_kernel::port::{Class, Dest, Port};
+use voxcube_kernel::port::{Dest, Port};
 use voxcube_kernel::sample::Sample;
 use voxcube_kernel::slab::{stored_planes, Slab, SlabError};
 use voxcube_kernel::topology::Layout;
 use voxcube_kernel::view::View;
 use voxcube_kernel::worker::{Generation, Place, Progress, Worker, WorkerError};
 
-/// Worker capacities in the simulator: rays, shadow rays, pixel records, outbox.
-pub type SimWorker<'a, T> = Worker<'a, T, 64, 64, 64, 16>;
+/// Worker capacities in the simulator: continuations per direction, pixel records, outbox.
+pub type SimWorker<'a, T> = Worker<'a, T, 32, 64, 16>;
+
+/// `i_max` the default receive buffer is sized for.
+pub const DEFAULT_I_MAX: usize = 8;
+
+/// Which in-flight message or node the scheduler favours.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Scheduler {
+    /// Every enabled event equally likely.
+    Uniform,
+    /// Deliver the newest message first (a stack, not a queue), stepping nodes at random.
+    NewestFirst,
+    /// Never deliver on the link `from → to` while anything else can happen.
+    Starve {
+        /// Sending node.
+        from: u16,
+        /// Receiving node.
+        to: u16,
+    },
+    /// Deliver acknowledgements only when nothing else can happen.
+    DelayAcks,
+}
+
+impl fmt::Display for Scheduler {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Scheduler::Uniform => f.write_str("uniform"),
+            Scheduler::NewestFirst => f.write_str("newest-first"),
+            Scheduler::Starve { from, to } => write!(f, "starve {from}->{to}"),
+            Scheduler::DelayAcks => f.write_str("delay-acks"),
+        }
+    }
+}
 
 /// How to run.
 #[derive(Clone, Debug)]
@@ -33,33 +78,112 @@ pub struct SimConfig {
     pub layout: Layout,
     /// Scheduler seed.
     pub seed: u64,
+    /// Scheduler policy.
+    pub scheduler: Scheduler,
     /// Primary-ray generation.
     pub generation: Generation,
     /// Slab cuts (`cd + 1` of them); `None` for a uniform partition.
     pub cuts: Option<Vec<u32>>,
+    /// Receive-buffer bytes per node; `None` for room for [`DEFAULT_I_MAX`].
+    pub buffer_bytes: Option<usize>,
+    /// Ack-counter flow control (off only to show what it prevents).
+    pub flow_control: bool,
     /// Test-only faults, applied to every worker.
     #[cfg(feature = "mutants")]
     pub mutants: voxcube_kernel::worker::Mutants,
 }
 
 impl SimConfig {
-    /// One cluster of `size` nodes, uniform slabs, distributed generation.
+    /// One cluster of `size` nodes, uniform slabs, distributed generation, uniform schedule.
     pub fn cluster(
         size: u32,
         seed: u64,
     ) -> Result<SimConfig, voxcube_kernel::topology::LayoutError> {
+        SimConfig::machine(1, size, seed)
+    }
+
+    /// `clusters` clusters of `size` nodes, otherwise as [`SimConfig::cluster`].
+    pub fn machine(
+        clusters: u32,
+        size: u32,
+        seed: u64,
+    ) -> Result<SimConfig, voxcube_kernel::topology::LayoutError> {
         Ok(SimConfig {
-            layout: Layout::new(1, size)?,
+            layout: Layout::new(clusters, size)?,
             seed,
+            scheduler: Scheduler::Uniform,
             generation: Generation::Distributed,
             cuts: None,
+            buffer_bytes: None,
+            flow_control: true,
             #[cfg(feature = "mutants")]
             mutants: Default::default(),
         })
     }
+
+    /// The receive-buffer bytes this configuration gives each node.
+    pub fn buffer(&self) -> usize {
+        self.buffer_bytes
+            .unwrap_or_else(|| flow::buffer_bytes(usize::from(self.layout.size()), DEFAULT_I_MAX))
+    }
 }
 
-/// Why a simulated run failed.
+/// One scheduler event, for traces.
+#[derive(Clone, Copy, Debug)]
+enum Event {
+    Deliver {
+        from: Option<u16>,
+        to: Dest,
+        kind: MsgKind,
+    },
+    Step {
+        node: u16,
+        busy: bool,
+    },
+    Refused {
+        from: u16,
+        to: u16,
+        kind: MsgKind,
+    },
+}
+
+impl fmt::Display for Event {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let who = |n: Option<u16>| n.map_or("host".to_string(), |n| format!("node {n}"));
+        match *self {
+            Event::Deliver { from, to, kind } => {
+                let to = match to {
+                    Dest::Node(n) => format!("node {n}"),
+                    Dest::Host => "host".into(),
+                };
+                write!(f, "deliver {kind:?} {} -> {to}", who(from))
+            }
+            Event::Step { node, busy } => write!(
+                f,
+                "step node {node}: {}",
+                if busy { "busy" } else { "idle" }
+            ),
+            Event::Refused { from, to, kind } => {
+                write!(f, "refused {kind:?} node {from} -> node {to}: buffer full")
+            }
+        }
+    }
+}
+
+/// The last events of a run, oldest first.
+#[derive(Clone, Debug, Default)]
+pub struct Trace(pub Vec<String>);
+
+impl fmt::Display for Trace {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for line in &self.0 {
+            writeln!(f, "  {line}")?;
+        }
+        Ok(())
+    }
+}
+
+/// Why a simulated run failed. Every failure of a run names its seed; replay with it.
 #[derive(Debug, thiserror::Error)]
 pub enum SimError {
     /// The partition does not fit the grid.
@@ -68,9 +192,23 @@ pub enum SimError {
     /// A slab could not be built.
     #[error("slab: {0}")]
     Slab(#[from] SlabError),
-    /// A worker could not be set up.
+    /// A worker could not be set up (e.g. a buffer too small for any ray to start).
     #[error("worker: {0}")]
     Worker(#[from] WorkerError),
+    /// The receive buffer leaves no ray room to start.
+    #[error("a receive buffer of {bytes} bytes allows i_max {i_max} in clusters of {size}; this view needs i_max {needed}: give each node at least {min_bytes} bytes")]
+    Buffer {
+        /// Bytes given.
+        bytes: usize,
+        /// Nodes per cluster.
+        size: usize,
+        /// `i_max` those bytes allow.
+        i_max: usize,
+        /// `i_max` needed (`r_imax + 1`).
+        needed: usize,
+        /// The smallest buffer that works.
+        min_bytes: usize,
+    },
     /// A message did not decode.
     #[error("message from node {from}: {error}")]
     Decode {
@@ -79,88 +217,138 @@ pub enum SimError {
         /// Why.
         error: DecodeError,
     },
-    /// The host received a pixel twice or out of range.
-    #[error("pixel {pixel} reached the host twice or is out of range (seed {seed})")]
-    Pixel {
-        /// The pixel.
-        pixel: u32,
-        /// The seed, to replay.
+    /// An invariant failed.
+    #[error("invariant broken after {events} events (seed {seed}, {scheduler}): {what}\nlast events:\n{trace}")]
+    Invariant {
+        /// What.
+        what: String,
+        /// Events run.
+        events: u64,
+        /// The seed.
         seed: u64,
+        /// The scheduler.
+        scheduler: Scheduler,
+        /// The last events.
+        trace: Trace,
     },
-    /// No event is possible and work remains.
-    #[error("stuck after {events} events with {missing} pixels missing; unfinished nodes {unfinished:?} (seed {seed})")]
-    Stuck {
+    /// No event is possible and the host has not ended: a deadlock.
+    #[error("deadlock after {events} events (seed {seed}, {scheduler}): {missing} pixels missing, {tokens} tokens, {reports} of {nodes} reports; unfinished nodes {unfinished:?}\nlast events:\n{trace}")]
+    Deadlock {
         /// Events run.
         events: u64,
         /// Pixels the host lacks.
         missing: u64,
-        /// Nodes not finished.
+        /// Tokens the host holds.
+        tokens: u32,
+        /// Statistics received.
+        reports: usize,
+        /// Nodes.
+        nodes: usize,
+        /// Nodes whose pixels are not final.
         unfinished: Vec<u16>,
-        /// The seed, to replay.
-        seed: u64,
-    },
-    /// A worker reported messages that made no sense.
-    #[error("node {node} counted {count} protocol errors (seed {seed})")]
-    Protocol {
-        /// The node.
-        node: u16,
-        /// How many.
-        count: u64,
         /// The seed.
         seed: u64,
+        /// The scheduler.
+        scheduler: Scheduler,
+        /// The last events.
+        trace: Trace,
     },
-    /// Far more events than the work can need.
-    #[error("no end after {events} events (seed {seed})")]
+    /// Far more events than the work can need: a livelock.
+    #[error("no end after {events} events (seed {seed}, {scheduler})\nlast events:\n{trace}")]
     Watchdog {
         /// Events run.
         events: u64,
         /// The seed.
         seed: u64,
+        /// The scheduler.
+        scheduler: Scheduler,
+        /// The last events.
+        trace: Trace,
     },
 }
 
 struct Envelope {
-    from: u16,
+    from: Option<u16>,
     to: Dest,
     len: usize,
     bytes: [u8; MAX_MSG_LEN],
+    seq: u64,
 }
 
 #[derive(Default)]
 struct Mailbox {
-    by_class: [VecDeque<Msg>; 4],
-}
-
-fn class_index(c: Class) -> usize {
-    match c {
-        Class::Ack => 0,
-        Class::Resolved => 1,
-        Class::Ray => 2,
-        Class::Control => 3,
-    }
+    by_class: [VecDeque<(Dest, Msg)>; 7],
 }
 
 struct SimPort<'n> {
     from: u16,
-    inflight: &'n mut Vec<Envelope>,
+    net: &'n mut Network,
     mailbox: &'n mut Mailbox,
+    capacity: usize,
+}
+
+/// Messages in flight and what each node's buffer holds.
+struct Network {
+    inflight: Vec<Envelope>,
+    /// Bytes each node's receive buffer holds or has promised (in flight to it, or unread).
+    used: Vec<usize>,
+    peak: Vec<usize>,
+    sent: u64,
+    delivered: u64,
+    seq: u64,
+    refused: Option<(u16, u16, MsgKind)>,
+}
+
+impl Network {
+    fn push(&mut self, from: Option<u16>, to: Dest, msg: &Msg) {
+        let mut bytes = [0u8; MAX_MSG_LEN];
+        let len = msg.encode(&mut bytes);
+        if let Dest::Node(n) = to {
+            if let Some(u) = self.used.get_mut(usize::from(n)) {
+                *u += len;
+                self.peak[usize::from(n)] = self.peak[usize::from(n)].max(*u);
+            }
+        }
+        self.seq += 1;
+        self.sent += 1;
+        self.inflight.push(Envelope {
+            from,
+            to,
+            len,
+            bytes,
+            seq: self.seq,
+        });
+    }
 }
 
 impl Port for SimPort<'_> {
     fn try_send(&mut self, to: Dest, msg: Msg) -> Result<(), Msg> {
-        let mut bytes = [0u8; MAX_MSG_LEN];
-        let len = msg.encode(&mut bytes);
-        self.inflight.push(Envelope {
-            from: self.from,
-            to,
-            len,
-            bytes,
-        });
+        if let Dest::Node(n) = to {
+            let len = msg.kind().encoded_len();
+            if self
+                .net
+                .used
+                .get(usize::from(n))
+                .is_none_or(|&u| u + len > self.capacity)
+            {
+                self.net.refused = Some((self.from, n, msg.kind()));
+                return Err(msg);
+            }
+        }
+        self.net.push(Some(self.from), to, &msg);
         Ok(())
     }
 
-    fn try_recv(&mut self, class: Class) -> Option<Msg> {
-        self.mailbox.by_class[class_index(class)].pop_front()
+    fn peek(&mut self, class: Class) -> Option<&Msg> {
+        self.mailbox.by_class[class.index()].front().map(|(_, m)| m)
+    }
+
+    fn try_recv(&mut self, class: Class) -> Option<(Dest, Msg)> {
+        let (from, msg) = self.mailbox.by_class[class.index()].pop_front()?;
+        if let Some(u) = self.net.used.get_mut(usize::from(self.from)) {
+            *u = u.saturating_sub(msg.kind().encoded_len());
+        }
+        Some((from, msg))
     }
 
     fn pending(&self) -> usize {
@@ -175,6 +363,14 @@ pub fn run(volume: &Volume, view: &View, cfg: &SimConfig) -> Result<Distributed,
         VolumeData::U16(d) => run_typed(volume, d, view, cfg),
         VolumeData::F32(d) => run_typed(volume, d, view, cfg),
     }
+}
+
+struct Host {
+    image: Vec<Option<[u8; 4]>>,
+    received: u64,
+    tokens: Vec<bool>,
+    reports: Vec<Option<voxcube_kernel::stats::NodeStats>>,
+    collecting: bool,
 }
 
 fn run_typed<T: Sample>(
@@ -192,6 +388,19 @@ fn run_typed<T: Sample>(
         Some(cuts) => Partition::new(cuts, nx)?,
         None => Partition::uniform(nx, size)?,
     };
+    let capacity = cfg.buffer();
+    let mut flow = FlowControl::for_buffer(capacity, size);
+    flow.enabled = cfg.flow_control;
+    let needed = flow::min_i_max(view.effects().shadow_lights);
+    if cfg.flow_control && size > 1 && usize::from(flow.i_max) < needed {
+        return Err(SimError::Buffer {
+            bytes: capacity,
+            size,
+            i_max: usize::from(flow.i_max),
+            needed,
+            min_bytes: flow::buffer_bytes(size, needed),
+        });
+    }
     let ghost = view.ghost_planes();
     let plane = grid.plane_len();
     // Each ring position loads only its slab (the same for every cluster, so shared here).
@@ -202,9 +411,10 @@ fn run_typed<T: Sample>(
         .iter()
         .map(|r| &data[r.start as usize * plane..r.end as usize * plane])
         .collect();
-    let mut workers: Vec<Box<SimWorker<'_, T>>> = Vec::new();
-    let mut reports = Vec::new();
-    for node in 0..layout.nodes() as u16 {
+    let nodes = layout.nodes() as usize;
+    let mut workers: Vec<Box<SimWorker<'_, T>>> = Vec::with_capacity(nodes);
+    let mut reports = Vec::with_capacity(nodes);
+    for node in 0..nodes as u16 {
         let (cluster, position) = layout.place(node);
         let j = usize::from(position);
         let slab = Slab::new(grid, partition.planes(j), ghost, storage[j])?;
@@ -220,6 +430,7 @@ fn run_typed<T: Sample>(
             &partition,
             place,
             cfg.generation,
+            flow,
         )?);
         #[cfg(feature = "mutants")]
         {
@@ -228,117 +439,332 @@ fn run_typed<T: Sample>(
         workers.push(worker);
         reports.push((cluster, position, partition.planes(j), stored[j].clone()));
     }
-    let nodes = workers.len();
     let mut mailboxes: Vec<Mailbox> = (0..nodes).map(|_| Mailbox::default()).collect();
-    let mut inflight: Vec<Envelope> = Vec::new();
+    let mut net = Network {
+        inflight: Vec::new(),
+        used: vec![0; nodes],
+        peak: vec![0; nodes],
+        sent: 0,
+        delivered: 0,
+        seq: 0,
+        refused: None,
+    };
     let mut active: Vec<usize> = (0..nodes).collect();
     let mut is_active = vec![true; nodes];
     let pixels = view.pixel_count() as usize;
-    let mut image: Vec<Option<[u8; 4]>> = vec![None; pixels];
-    let mut received = 0u64;
-    let (mut messages, mut bytes, mut events) = ([0u64; 8], 0u64, 0u64);
+    let mut host = Host {
+        image: vec![None; pixels],
+        received: 0,
+        tokens: vec![false; usize::from(layout.clusters())],
+        reports: vec![None; nodes],
+        collecting: false,
+    };
+    let (mut messages, mut bytes, mut events) = ([0u64; 9], 0u64, 0u64);
     let mut rng = SplitMix(cfg.seed);
-    let limit = 1_000_000 + 2_000 * pixels as u64 * nodes as u64;
+    let mut trace: VecDeque<Event> = VecDeque::with_capacity(64);
+    let limit = 10_000_000 + 4_000 * pixels as u64 * nodes as u64;
+    let fail = |what: String, events: u64, trace: &VecDeque<Event>| SimError::Invariant {
+        what,
+        events,
+        seed: cfg.seed,
+        scheduler: cfg.scheduler,
+        trace: Trace(trace.iter().map(ToString::to_string).collect()),
+    };
+    let record = |trace: &mut VecDeque<Event>, e: Event| {
+        if trace.len() == 64 {
+            trace.pop_front();
+        }
+        trace.push_back(e);
+    };
     loop {
-        let choices = inflight.len() + active.len();
+        // The host ends once it has every report and every pixel the reports say were sent.
+        if host.reports.iter().all(Option::is_some) {
+            let sent: u64 = host.reports.iter().flatten().map(|s| s.pixels_sent).sum();
+            if host.received >= sent {
+                break;
+            }
+        }
+        let choices = net.inflight.len() + active.len();
         if choices == 0 {
-            break;
+            let unfinished: Vec<u16> = workers
+                .iter()
+                .filter(|w| !w.pixels_final())
+                .map(|w| w.node())
+                .collect();
+            return Err(SimError::Deadlock {
+                events,
+                missing: pixels as u64 - host.received,
+                tokens: host.tokens.iter().filter(|&&t| t).count() as u32,
+                reports: host.reports.iter().filter(|r| r.is_some()).count(),
+                nodes,
+                unfinished,
+                seed: cfg.seed,
+                scheduler: cfg.scheduler,
+                trace: Trace(trace.iter().map(ToString::to_string).collect()),
+            });
         }
         events += 1;
         if events > limit {
             return Err(SimError::Watchdog {
                 events,
                 seed: cfg.seed,
+                scheduler: cfg.scheduler,
+                trace: Trace(trace.iter().map(ToString::to_string).collect()),
             });
         }
-        let pick = rng.below(choices);
-        if pick < inflight.len() {
-            let env = inflight.swap_remove(pick);
-            let msg = Msg::decode(&env.bytes[..env.len]).map_err(|error| SimError::Decode {
-                from: env.from,
-                error,
-            })?;
-            messages[msg.kind() as usize] += 1;
-            bytes += env.len as u64;
-            match env.to {
-                Dest::Host => {
-                    if let Msg::Pixels(set) = msg {
-                        for &(pixel, rgba) in set.entries() {
-                            match image.get_mut(pixel as usize) {
-                                Some(slot @ None) => *slot = Some(rgba),
-                                _ => {
-                                    return Err(SimError::Pixel {
-                                        pixel,
-                                        seed: cfg.seed,
-                                    })
-                                }
+        match choose(cfg.scheduler, &mut rng, &net.inflight, active.len()) {
+            Choice::Deliver(i) => {
+                let env = net.inflight.swap_remove(i);
+                let msg = Msg::decode(&env.bytes[..env.len]).map_err(|error| SimError::Decode {
+                    from: env.from.unwrap_or(u16::MAX),
+                    error,
+                })?;
+                net.delivered += 1;
+                messages[msg.kind() as usize] += 1;
+                bytes += env.len as u64;
+                record(
+                    &mut trace,
+                    Event::Deliver {
+                        from: env.from,
+                        to: env.to,
+                        kind: msg.kind(),
+                    },
+                );
+                match env.to {
+                    Dest::Host => {
+                        if let Err(what) = host_receive(&mut host, msg, &layout) {
+                            return Err(fail(what, events, &trace));
+                        }
+                        if !host.collecting && host.tokens.iter().all(|&t| t) {
+                            // Every cluster's token: every pixel is final (some may still be
+                            // on their way here); ask every worker for its statistics.
+                            host.collecting = true;
+                            for n in 0..nodes as u16 {
+                                net.push(None, Dest::Node(n), &Msg::Collect);
                             }
-                            received += 1;
                         }
                     }
-                }
-                Dest::Node(n) => {
-                    let n = usize::from(n);
-                    if let Some(mailbox) = mailboxes.get_mut(n) {
-                        mailbox.by_class[class_index(msg.kind().class())].push_back(msg);
-                        if !is_active[n] {
-                            is_active[n] = true;
-                            active.push(n);
+                    Dest::Node(n) => {
+                        let n = usize::from(n);
+                        let from = env.from.map_or(Dest::Host, Dest::Node);
+                        if let Some(mailbox) = mailboxes.get_mut(n) {
+                            mailbox.by_class[msg.class().index()].push_back((from, msg));
+                            if !is_active[n] {
+                                is_active[n] = true;
+                                active.push(n);
+                            }
                         }
                     }
                 }
             }
-        } else {
-            let i = pick - inflight.len();
-            let n = active[i];
-            let mut port = SimPort {
-                from: n as u16,
-                inflight: &mut inflight,
-                mailbox: &mut mailboxes[n],
-            };
-            if workers[n].poll(&mut port) == Progress::Idle {
-                active.swap_remove(i);
-                is_active[n] = false;
+            Choice::Step(i) => {
+                let n = active[i];
+                let mut port = SimPort {
+                    from: n as u16,
+                    net: &mut net,
+                    mailbox: &mut mailboxes[n],
+                    capacity,
+                };
+                let progress = workers[n].poll(&mut port);
+                if let Some((from, to, kind)) = net.refused.take() {
+                    record(&mut trace, Event::Refused { from, to, kind });
+                }
+                record(
+                    &mut trace,
+                    Event::Step {
+                        node: n as u16,
+                        busy: progress == Progress::Busy,
+                    },
+                );
+                if progress == Progress::Idle {
+                    active.swap_remove(i);
+                    is_active[n] = false;
+                }
+                if cfg.flow_control && workers[n].max_unacked() > flow.i_max {
+                    return Err(fail(
+                        format!("node {n} has {} unacknowledged messages to one node in one class, i_max is {}", workers[n].max_unacked(), flow.i_max),
+                        events,
+                        &trace,
+                    ));
+                }
             }
         }
+        if let Some(n) = net.used.iter().position(|&u| u > capacity) {
+            return Err(fail(
+                format!(
+                    "node {n}'s receive buffer holds {} bytes, capacity {capacity}",
+                    net.used[n]
+                ),
+                events,
+                &trace,
+            ));
+        }
+        if net.sent != net.delivered + net.inflight.len() as u64 {
+            return Err(fail(
+                format!(
+                    "{} sent, {} delivered, {} in flight",
+                    net.sent,
+                    net.delivered,
+                    net.inflight.len()
+                ),
+                events,
+                &trace,
+            ));
+        }
     }
-    let unfinished: Vec<u16> = workers
-        .iter()
-        .filter(|w| !w.is_finished())
-        .map(|w| w.node())
-        .collect();
-    if received < pixels as u64 || !unfinished.is_empty() {
-        return Err(SimError::Stuck {
-            events,
-            missing: pixels as u64 - received,
-            unfinished,
-            seed: cfg.seed,
-        });
+    // The host has ended: nothing may be left anywhere.
+    let end_fail = |what: String| fail(what, events, &trace);
+    if !net.inflight.is_empty() {
+        return Err(end_fail(format!(
+            "the host ended with {} messages in flight",
+            net.inflight.len()
+        )));
     }
-    if let Some(w) = workers.iter().find(|w| w.stats().protocol_errors > 0) {
-        return Err(SimError::Protocol {
-            node: w.node(),
-            count: w.stats().protocol_errors,
-            seed: cfg.seed,
-        });
+    if host.received != pixels as u64 {
+        return Err(end_fail(format!(
+            "the host ended with {} of {pixels} pixels",
+            host.received
+        )));
     }
-    let nodes = workers
-        .iter()
+    for w in &workers {
+        if w.max_unacked() != 0 {
+            return Err(end_fail(format!(
+                "node {} ended with unacknowledged messages",
+                w.node()
+            )));
+        }
+        if w.stats().protocol_errors > 0 {
+            return Err(end_fail(format!(
+                "node {} counted {} protocol errors",
+                w.node(),
+                w.stats().protocol_errors
+            )));
+        }
+    }
+    let nodes = host
+        .reports
+        .into_iter()
         .zip(reports)
-        .map(|(w, (cluster, position, planes, stored))| NodeReport {
-            cluster,
-            position,
-            planes,
-            stored,
-            stats: w.stats(),
-        })
+        .zip(&net.peak)
+        .map(
+            |((stats, (cluster, position, planes, stored)), &peak)| NodeReport {
+                cluster,
+                position,
+                planes,
+                stored,
+                stats: stats.unwrap_or_default(),
+                peak_buffer: peak,
+            },
+        )
         .collect();
     Ok(Distributed {
-        pixels: image.into_iter().map(|p| p.unwrap_or_default()).collect(),
+        pixels: host
+            .image
+            .into_iter()
+            .map(|p| p.unwrap_or_default())
+            .collect(),
         nodes,
         messages,
         bytes,
         events,
+        buffer_capacity: capacity,
+        i_max: flow.i_max,
         wall: start.elapsed(),
     })
 }
+
+fn host_receive(host: &mut Host, msg: Msg, layout: &Layout) -> Result<(), String> {
+    match msg {
+        Msg::Pixels(set) => {
+            for &(pixel, rgba) in set.entries() {
+                match host.image.get_mut(pixel as usize) {
+                    Some(slot @ None) => *slot = Some(rgba),
+                    Some(Some(_)) => return Err(format!("pixel {pixel} reached the host twice")),
+                    None => return Err(format!("pixel {pixel} is outside the image")),
+                }
+                host.received += 1;
+            }
+            Ok(())
+        }
+        Msg::Token { cluster } => match host.tokens.get_mut(usize::from(cluster)) {
+            Some(t @ false) => {
+                *t = true;
+                Ok(())
+            }
+            _ => Err(format!("a second or unknown token of cluster {cluster}")),
+        },
+        Msg::Stats(stats) => {
+            if !host.collecting {
+                return Err(format!(
+                    "node {} reported before the host asked",
+                    stats.node
+                ));
+            }
+            match host.reports.get_mut(usize::from(stats.node)) {
+                Some(r @ None) if u32::from(stats.node) < layout.nodes() => {
+                    *r = Some(stats);
+                    Ok(())
+                }
+                _ => Err(format!(
+                    "a second or unknown report from node {}",
+                    stats.node
+                )),
+            }
+        }
+        other => Err(format!("the host got an unexpected {:?}", other.kind())),
+    }
+}
+
+enum Choice {
+    Deliver(usize),
+    Step(usize),
+}
+
+fn choose(scheduler: Scheduler, rng: &mut SplitMix, inflight: &[Envelope], nodes: usize) -> Choice {
+    let uniform = |rng: &mut SplitMix| {
+        let pick = rng.below(inflight.len() + nodes);
+        if pick < inflight.len() {
+            Choice::Deliver(pick)
+        } else {
+            Choice::Step(pick - inflight.len())
+        }
+    };
+    // Pick among the messages `keep` allows, falling back to all when it allows none.
+    let among = |rng: &mut SplitMix, keep: &dyn Fn(&Envelope) -> bool| {
+        let allowed: Vec<usize> = (0..inflight.len())
+            .filter(|&i| keep(&inflight[i]))
+            .collect();
+        if allowed.is_empty() && nodes == 0 {
+            return uniform(rng);
+        }
+        let pick = rng.below(allowed.len() + nodes);
+        if pick < allowed.len() {
+            Choice::Deliver(allowed[pick])
+        } else {
+            Choice::Step(pick - allowed.len())
+        }
+    };
+    match scheduler {
+        Scheduler::Uniform => uniform(rng),
+        Scheduler::NewestFirst => {
+            if !inflight.is_empty() && (nodes == 0 || rng.below(2) == 0) {
+                let newest = (0..inflight.len())
+                    .max_by_key(|&i| inflight[i].seq)
+                    .unwrap_or(0);
+                Choice::Deliver(newest)
+            } else {
+                Choice::Step(rng.below(nodes.max(1)))
+            }
+        }
+        Scheduler::Starve { from, to } => among(rng, &|e: &Envelope| {
+            !(e.from == Some(from) && e.to == Dest::Node(to))
+        }),
+        Scheduler::DelayAcks => {
+            let is_ack = |e: &Envelope| e.bytes[0] == MsgKind::Ack as u8;
+            among(rng, &|e: &Envelope| !is_ack(e))
+        }
+    }
+}
+
+/// Every class a port reads, for reports.
+pub const READ_CLASSES: [Class; 7] = CLASSES;

@@ -1,0 +1,237 @@
+//! Flow control: the classes messages travel in, the ack counters that bound every receive
+//! buffer, and the arithmetic linking a buffer's bytes to `i_max`.
+//!
+//! For each destination `i` and each credit class, a worker counts `n_i`: messages sent and
+//! not yet acknowledged. It sends only while `n_i < i_max`, and starts a ray only if
+//! `n_i + r_imax < i_max` for every `i` and class the ray may reach, so a started ray never
+//! waits to send. A receiver acknowledges a message when it reads it. So no receive buffer
+//! ever holds more than `i_max` messages per sender and class, and no send is ever refused.
+//!
+//! Why this cannot deadlock: messages are split into classes whose waits form no cycle.
+//! - **Results** (hit records and resolved descriptors going home) are always read: reading
+//!   one needs nothing but room to send pixels to the host, which always drains.
+//! - **Shadow rays** travelling up (toward higher X) need credit only toward higher
+//!   positions, or result credit. Shadow rays travelling down need credit only toward lower
+//!   positions. Each chain ends at the last slab in its direction, where the ray must end.
+//! - **Primary and transparency rays** travelling up (or down) need credit in their own
+//!   class toward higher (lower) positions, result credit, and shadow credit. They also need
+//!   room for a continuation in that direction's local queue, which drains along the same
+//!   chain.
+//!
+//! Every wait points along a chain that ends, or to a class that is always read, so some
+//! worker can always make progress. Each class has its own receive queue, so one class never
+//! blocks another at the head of a queue. Acknowledgements need no credit: acks that needed
+//! credit could wait on each other forever (a negative control shows it).
+
+use crate::march::RayKind;
+use crate::msg::MsgKind;
+
+/// Classes of received messages. The credit classes are also the reading queues. The order
+/// is the worker's reading priority: acks, then results, then rays.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Class {
+    /// Acknowledgements: always read, no credit.
+    Ack,
+    /// Hit records and resolved descriptors going home.
+    Result,
+    /// Shadow rays travelling toward higher X.
+    ShadowUp,
+    /// Shadow rays travelling toward lower X.
+    ShadowDown,
+    /// Primary and transparency rays travelling toward higher X.
+    RayUp,
+    /// Primary and transparency rays travelling toward lower X.
+    RayDown,
+    /// Tokens, the host's requests, slab planes: no credit.
+    Control,
+}
+
+/// The classes that carry credit, in the index order of [`Class::credit_index`].
+pub const CREDIT_CLASSES: [Class; 5] = [
+    Class::Result,
+    Class::ShadowUp,
+    Class::ShadowDown,
+    Class::RayUp,
+    Class::RayDown,
+];
+
+/// Number of credit classes.
+pub const CREDITS: usize = CREDIT_CLASSES.len();
+
+/// Every class, in reading priority.
+pub const CLASSES: [Class; 7] = [
+    Class::Ack,
+    Class::Result,
+    Class::ShadowUp,
+    Class::ShadowDown,
+    Class::RayUp,
+    Class::RayDown,
+    Class::Control,
+];
+
+impl Class {
+    /// Index among [`CREDIT_CLASSES`], or `None` for classes without credit.
+    pub const fn credit_index(self) -> Option<usize> {
+        match self {
+            Class::Result => Some(0),
+            Class::ShadowUp => Some(1),
+            Class::ShadowDown => Some(2),
+            Class::RayUp => Some(3),
+            Class::RayDown => Some(4),
+            Class::Ack | Class::Control => None,
+        }
+    }
+
+    /// The credit class at `index`.
+    pub fn from_credit_index(index: u8) -> Option<Class> {
+        CREDIT_CLASSES.get(usize::from(index)).copied()
+    }
+
+    /// Index among [`CLASSES`].
+    pub const fn index(self) -> usize {
+        self as usize
+    }
+
+    /// The class of a ray of `kind` whose X direction is `dx`. Rays with `dx = 0` never leave
+    /// their slab except for the first hop of centralized generation, which is a leaf of the
+    /// wait graph either way.
+    pub fn of_ray(kind: RayKind, dx: f32) -> Class {
+        let up = !(dx < 0.0);
+        match (kind, up) {
+            (RayKind::Shadow, true) => Class::ShadowUp,
+            (RayKind::Shadow, false) => Class::ShadowDown,
+            (_, true) => Class::RayUp,
+            (_, false) => Class::RayDown,
+        }
+    }
+
+    /// Whether messages of this class travel toward higher ring positions (`None`: either).
+    pub fn upward(self) -> Option<bool> {
+        match self {
+            Class::ShadowUp | Class::RayUp => Some(true),
+            Class::ShadowDown | Class::RayDown => Some(false),
+            _ => None,
+        }
+    }
+
+    /// The longest message of this class.
+    pub const fn max_len(self) -> usize {
+        match self {
+            Class::Ack => MsgKind::Ack.encoded_len(),
+            Class::Result => max(MsgKind::Hit.encoded_len(), MsgKind::Resolved.encoded_len()),
+            Class::ShadowUp | Class::ShadowDown | Class::RayUp | Class::RayDown => {
+                MsgKind::Ray.encoded_len()
+            }
+            Class::Control => MsgKind::Collect.encoded_len(),
+        }
+    }
+}
+
+const fn max(a: usize, b: usize) -> usize {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
+/// Room kept in a receive buffer for control messages: a token and the host's request.
+pub const CONTROL_RESERVE: usize = MsgKind::Token.encoded_len() + MsgKind::Collect.encoded_len();
+
+/// Receive-buffer bytes a node of a ring of `cluster_size` needs so that `i_max` messages per
+/// sender and class always fit. A sender below sends only up-travelling rays and results, a
+/// sender above only down-travelling rays and results: three classes per sender, each with
+/// its acknowledgements.
+pub const fn buffer_bytes(cluster_size: usize, i_max: usize) -> usize {
+    let per_sender = i_max
+        * (Class::Result.max_len()
+            + Class::ShadowUp.max_len()
+            + Class::RayUp.max_len()
+            + 3 * Class::Ack.max_len());
+    cluster_size.saturating_sub(1) * per_sender + CONTROL_RESERVE
+}
+
+/// The largest `i_max` a receive buffer of `bytes` allows in a ring of `cluster_size`.
+pub const fn i_max_for(bytes: usize, cluster_size: usize) -> usize {
+    let per_sender = Class::Result.max_len()
+        + Class::ShadowUp.max_len()
+        + Class::RayUp.max_len()
+        + 3 * Class::Ack.max_len();
+    let senders = if cluster_size > 1 {
+        cluster_size - 1
+    } else {
+        1
+    };
+    if bytes < CONTROL_RESERVE {
+        return 0;
+    }
+    (bytes - CONTROL_RESERVE) / (senders * per_sender)
+}
+
+/// `r_imax`: the most messages of one class toward one destination that tracing one ray of
+/// `kind` on one node can send, with `shadow_lights` shadow-casting lights. A primary or
+/// transparency ray sends one ray message, or a hit record plus one result per shadow ray
+/// ending here, or up to one shadow ray per light; a shadow ray sends one message.
+pub const fn r_imax(kind: RayKind, shadow_lights: u8) -> usize {
+    match kind {
+        RayKind::Shadow => 1,
+        RayKind::Primary | RayKind::Transparency => 1 + shadow_lights as usize,
+    }
+}
+
+/// The smallest `i_max` with which any ray can start (`r_imax < i_max` from `n_i = 0`).
+pub const fn min_i_max(shadow_lights: u8) -> usize {
+    r_imax(RayKind::Primary, shadow_lights) + 1
+}
+
+/// Flow-control settings of a worker.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FlowControl {
+    /// Whether credits limit sends (off only as a debug option, to show what it prevents).
+    pub enabled: bool,
+    /// Messages per destination and class that may be unacknowledged.
+    pub i_max: u16,
+    /// Acknowledge after this many reads from one sender in one class (and whenever idle).
+    pub ack_batch: u16,
+}
+
+impl FlowControl {
+    /// Flow control for a receive buffer of `bytes` in a ring of `cluster_size`.
+    pub fn for_buffer(bytes: usize, cluster_size: usize) -> FlowControl {
+        let i_max = i_max_for(bytes, cluster_size).min(usize::from(u16::MAX)) as u16;
+        FlowControl {
+            enabled: true,
+            i_max,
+            ack_batch: (i_max / 2).max(1),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn buffer_arithmetic_round_trips() {
+        for size in [2usize, 3, 16, 128] {
+            for i_max in [2usize, 5, 40] {
+                let bytes = buffer_bytes(size, i_max);
+                assert_eq!(i_max_for(bytes, size), i_max);
+                assert_eq!(i_max_for(bytes - 1, size), i_max - 1);
+            }
+        }
+        assert_eq!(i_max_for(0, 4), 0);
+    }
+
+    #[test]
+    fn headroom_grows_with_shadow_lights_only() {
+        assert_eq!(min_i_max(0), 2);
+        assert_eq!(min_i_max(2), 4);
+        assert_eq!(r_imax(RayKind::Shadow, 3), 1);
+        assert_eq!(Class::of_ray(RayKind::Primary, -0.5), Class::RayDown);
+        assert_eq!(Class::of_ray(RayKind::Shadow, 0.0), Class::ShadowUp);
+        for (i, c) in CREDIT_CLASSES.iter().enumerate() {
+            assert_eq!(c.credit_index(), Some(i));
+        }
+    }
+}
