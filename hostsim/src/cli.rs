@@ -2,6 +2,7 @@
 //! `scene`. Errors go to stderr with a non-zero exit; nothing is written unless the whole
 //! scene loaded and checked.
 
+use crate::explore;
 use crate::output::{write_atomic, write_png};
 use crate::render::{render_on, Fabric, Machine};
 use crate::report::{summary, Report, ViewReport};
@@ -55,6 +56,41 @@ pub enum Command {
     },
     /// Print the built-in default scene: a complete, commented example of the format.
     Scene,
+    /// Explore schedules on the simulator: configurations (scenes with shadows and
+    /// transparency, cube shapes, buffer sizes) × schedulers × seeds. Prints what was explored,
+    /// deadlocks, invariant violations, differing images and the worst buffer use.
+    Explore {
+        /// Seeds per configuration and scheduler.
+        #[arg(long, default_value_t = 4)]
+        seeds: u64,
+        /// Which configurations: all of them, or only the tight ones (small buffers, shadows).
+        #[arg(long, value_enum, default_value_t = ConfigSet::All)]
+        configs: ConfigSet,
+        /// Ack-counter flow control; `off` is the negative control and should find deadlocks.
+        #[arg(long, value_enum, default_value_t = Switch::On)]
+        flow_control: Switch,
+        /// Receive-buffer bytes per node for every configuration (default: each configuration's own).
+        #[arg(long)]
+        buffer: Option<usize>,
+    },
+}
+
+/// `explore --configs` values.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ConfigSet {
+    /// Every configuration.
+    All,
+    /// Shadow scenes on rings of 2 or more with small buffers.
+    Tight,
+}
+
+/// On or off.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Switch {
+    /// On.
+    On,
+    /// Off.
+    Off,
 }
 
 /// `--fabric` values.
@@ -129,6 +165,42 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
     match cli.command {
         Command::Scene => {
             print!("{DEFAULT_SCENE}");
+            Ok(())
+        }
+        Command::Explore {
+            seeds,
+            configs,
+            flow_control,
+            buffer,
+        } => {
+            let job = explore::scenes()?;
+            let mut all = explore::configs(&job);
+            if configs == ConfigSet::Tight {
+                all.retain(|c| {
+                    c.view < 2
+                        && c.size >= 2
+                        && c.buffer <= voxcube_kernel::flow::buffer_bytes(c.size as usize, 8)
+                });
+            }
+            if let Some(bytes) = buffer {
+                for c in &mut all {
+                    c.buffer = bytes;
+                }
+            }
+            let on = flow_control == Switch::On;
+            let found = explore::explore(&job, &all, seeds, &|cfg| cfg.flow_control = on);
+            print!(
+                "flow control          {}\n{found}",
+                if on { "on" } else { "off" }
+            );
+            if on && found.failures() > 0 {
+                return Err(format!(
+                    "{} of {} runs failed with flow control on",
+                    found.failures(),
+                    found.runs
+                )
+                .into());
+            }
             Ok(())
         }
         Command::Render {

@@ -11,6 +11,7 @@
 pub mod builtin;
 pub mod cli;
 pub mod dataset;
+pub mod explore;
 pub mod fabric;
 pub mod formats;
 pub mod output;

@@ -78,7 +78,7 @@ pub struct Mutants {
     pub shorten_step_at_boundary: bool,
     /// Start rays without the `r_imax` headroom (only `n_i < i_max` at each send is kept).
     pub no_headroom: bool,
-    /// Send an ack only while the receiver of the ack has result credit left.
+    /// Send an ack only with a credit of headroom toward its receiver, as if it were a message.
     pub acks_need_credit: bool,
     /// Pass the token once generation is done, before the pixels are final.
     pub early_token: bool,
@@ -799,7 +799,11 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
                     continue;
                 }
                 #[cfg(feature = "mutants")]
-                if self.mutants.acks_need_credit && self.unacked[p][0] >= self.flow.i_max {
+                if self.mutants.acks_need_credit
+                    && self.unacked[p]
+                        .iter()
+                        .any(|&n| n.saturating_add(1) >= self.flow.i_max)
+                {
                     continue;
                 }
                 self.acks_due[p][c] = 0;

@@ -1,0 +1,262 @@
+//! Schedule exploration: many configurations (scenes, cube shapes, buffer sizes) × schedulers
+//! × seeds on the simulator. For each run it checks that the run completes, that the image is
+//! bit-identical to the direct render, and that every invariant held. It reports how many runs
+//! deadlocked, broke an invariant or differed, and the worst buffer occupancy seen against its
+//! capacity.
+
+use crate::fabric::sim::{self, Scheduler, SimConfig, SimError};
+use crate::render::render;
+use crate::scene::{DatasetJob, Scene, SceneError};
+use std::fmt;
+use voxcube_kernel::flow;
+
+/// The scenes explored: shadow rays flowing against primary rays, nested transparency, point
+/// lights inside the volume (rays in both directions), compositing.
+pub const SCENES: &str = r#"
+[[datasets]]
+name = "m"
+builtin = "molecule"
+
+[[datasets.views]]
+name = "shadows-transparency"
+width = 12
+height = 10
+[[datasets.views.surfaces]]
+iso = 30.0
+transparency = 0.5
+[[datasets.views.surfaces]]
+iso = 90.0
+[[datasets.views.lights]]
+type = "directional"
+direction = [-0.7, -0.3, -0.6]
+shadows = true
+[[datasets.views.lights]]
+type = "directional"
+direction = [0.9, -0.2, 0.1]
+shadows = true
+
+[[datasets.views]]
+name = "inside-point-light"
+width = 12
+height = 10
+[datasets.views.camera]
+projection = "perspective"
+eye = [48.0, 50.0, 58.0]
+look_at = [20.0, 48.0, 40.0]
+fov = 120.0
+[[datasets.views.surfaces]]
+iso = 45.0
+transparency = 0.4
+[[datasets.views.lights]]
+type = "point"
+position = [60.0, 40.0, 60.0]
+shadows = true
+
+[[datasets.views]]
+name = "composite"
+width = 12
+height = 10
+mode = "composite"
+[datasets.views.camera]
+azimuth = 100.0
+elevation = 10.0
+[[datasets.views.transfer]]
+value = 5.0
+color = [0.2, 0.3, 0.9]
+opacity = 0.0
+[[datasets.views.transfer]]
+value = 120.0
+color = [1.0, 0.8, 0.4]
+opacity = 0.5
+"#;
+
+/// Cube shapes explored: (clusters, nodes per cluster).
+pub const SHAPES: [(u32, u32); 9] = [
+    (1, 2),
+    (1, 3),
+    (1, 4),
+    (2, 2),
+    (1, 8),
+    (2, 4),
+    (4, 2),
+    (1, 16),
+    (2, 8),
+];
+
+/// Receive buffers explored, as `i_max` above the smallest that admits a ray.
+pub const HEADROOMS: [usize; 3] = [0, 1, 6];
+
+/// One configuration.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Config {
+    /// Index of the view in [`SCENES`].
+    pub view: usize,
+    /// Clusters.
+    pub clusters: u32,
+    /// Nodes per cluster.
+    pub size: u32,
+    /// Receive-buffer bytes per node.
+    pub buffer: usize,
+}
+
+/// What exploring found.
+#[derive(Clone, Debug, Default)]
+pub struct Findings {
+    /// Configurations explored.
+    pub configs: usize,
+    /// Runs (configurations × schedulers × seeds).
+    pub runs: u64,
+    /// Runs that deadlocked.
+    pub deadlocks: u64,
+    /// Runs that broke an invariant (or a watchdog fired).
+    pub violations: u64,
+    /// Runs that completed with an image that differs from the direct render.
+    pub differing: u64,
+    /// Highest peak receive-buffer occupancy over capacity, with the bytes.
+    pub worst_occupancy: (usize, usize),
+    /// The first failure, with everything needed to replay it.
+    pub first_failure: Option<String>,
+}
+
+impl Findings {
+    /// Runs that failed in any way.
+    pub fn failures(&self) -> u64 {
+        self.deadlocks + self.violations + self.differing
+    }
+}
+
+impl fmt::Display for Findings {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let (peak, cap) = self.worst_occupancy;
+        writeln!(f, "configurations        {}", self.configs)?;
+        writeln!(f, "schedules run         {}", self.runs)?;
+        writeln!(f, "deadlocks             {}", self.deadlocks)?;
+        writeln!(f, "invariant violations  {}", self.violations)?;
+        writeln!(f, "images differing      {}", self.differing)?;
+        let pct = if cap > 0 {
+            100.0 * peak as f64 / cap as f64
+        } else {
+            0.0
+        };
+        writeln!(f, "worst buffer use      {peak} of {cap} bytes ({pct:.0}%)")?;
+        if let Some(first) = &self.first_failure {
+            writeln!(f, "first failure:\n{first}")?;
+        }
+        Ok(())
+    }
+}
+
+/// The explored scenes, loaded.
+pub fn scenes() -> Result<DatasetJob, SceneError> {
+    let mut jobs =
+        Scene::parse(SCENES, "<exploration scenes>", std::path::Path::new("."))?.load()?;
+    Ok(jobs.remove(0))
+}
+
+/// Every configuration: views × shapes × buffers.
+pub fn configs(job: &DatasetJob) -> Vec<Config> {
+    let mut out = Vec::new();
+    for (view, v) in job.views.iter().enumerate() {
+        let needed = flow::min_i_max(v.view.effects().shadow_lights);
+        for &(clusters, size) in &SHAPES {
+            for headroom in HEADROOMS {
+                let buffer = flow::buffer_bytes(size as usize, needed + headroom);
+                out.push(Config {
+                    view,
+                    clusters,
+                    size,
+                    buffer,
+                });
+            }
+        }
+    }
+    out
+}
+
+/// The schedulers tried on a cluster of `size`.
+pub fn schedulers(size: u32) -> Vec<Scheduler> {
+    let mut s = vec![
+        Scheduler::Uniform,
+        Scheduler::NewestFirst,
+        Scheduler::DelayAcks,
+    ];
+    if size > 1 {
+        s.push(Scheduler::Starve { from: 0, to: 1 });
+    }
+    s
+}
+
+/// Run `seeds` seeds of every scheduler on every configuration. `adjust` may change each
+/// simulator configuration (flow control off, a mutant) before it runs.
+pub fn explore(
+    job: &DatasetJob,
+    configs: &[Config],
+    seeds: u64,
+    adjust: &dyn Fn(&mut SimConfig),
+) -> Findings {
+    let mut findings = Findings {
+        configs: configs.len(),
+        ..Findings::default()
+    };
+    let references: Vec<Vec<[u8; 4]>> = job
+        .views
+        .iter()
+        .map(|v| {
+            render(&job.volume, &v.view)
+                .map(|r| r.pixels)
+                .unwrap_or_default()
+        })
+        .collect();
+    for c in configs {
+        let view = &job.views[c.view];
+        for scheduler in schedulers(c.size) {
+            for seed in 0..seeds {
+                let Ok(base) = SimConfig::machine(c.clusters, c.size, seed) else {
+                    continue;
+                };
+                let mut cfg = SimConfig {
+                    scheduler,
+                    buffer_bytes: Some(c.buffer),
+                    ..base
+                };
+                adjust(&mut cfg);
+                findings.runs += 1;
+                let failure = match sim::run(&job.volume, &view.view, &cfg) {
+                    Ok(run) => {
+                        for n in &run.nodes {
+                            let (peak, cap) = findings.worst_occupancy;
+                            if cap == 0 || n.peak_buffer * cap > peak * run.buffer_capacity {
+                                findings.worst_occupancy = (n.peak_buffer, run.buffer_capacity);
+                            }
+                        }
+                        if run.pixels == references[c.view] {
+                            None
+                        } else {
+                            findings.differing += 1;
+                            Some("the image differs from the direct render".to_string())
+                        }
+                    }
+                    Err(e @ SimError::Deadlock { .. }) => {
+                        findings.deadlocks += 1;
+                        Some(e.to_string())
+                    }
+                    Err(e) => {
+                        findings.violations += 1;
+                        Some(e.to_string())
+                    }
+                };
+                if let (Some(what), None) = (failure, &findings.first_failure) {
+                    findings.first_failure = Some(format!(
+                        "view {} on {} clusters of {}, buffer {} bytes, {scheduler}, seed {seed}, flow control {}:\n{what}",
+                        view.name,
+                        c.clusters,
+                        c.size,
+                        c.buffer,
+                        if cfg.flow_control { "on" } else { "off" }
+                    ));
+                }
+            }
+        }
+    }
+    findings
+}
