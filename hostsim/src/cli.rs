@@ -2,9 +2,10 @@
 //! `scene`. Errors go to stderr with a non-zero exit; nothing is written unless the whole
 //! scene loaded and checked.
 
+use crate::budget::{MODERN, NCUBE2};
 use crate::explore;
 use crate::output::{write_atomic, write_png};
-use crate::render::{render_on, Fabric, Machine};
+use crate::render::{preflight, render_on, Fabric, Machine};
 use crate::report::{summary, Report, ViewReport};
 use crate::scene::{Scene, ViewJob, DEFAULT_SCENE};
 use clap::{Parser, Subcommand};
@@ -53,6 +54,13 @@ pub enum Command {
         /// position 0 for its whole cluster.
         #[arg(long, value_enum, default_value_t = GenerationArg::Distributed)]
         generation: GenerationArg,
+        /// Receive-buffer bytes per node (sim): sets `i_max`; too small for any ray to start
+        /// is refused, naming the smallest that works.
+        #[arg(long)]
+        buffer: Option<usize>,
+        /// The machine profile whose node memory every node must fit.
+        #[arg(long, value_enum, default_value_t = ProfileArg::Ncube2)]
+        machine: ProfileArg,
     },
     /// Print the built-in default scene: a complete, commented example of the format.
     Scene,
@@ -102,6 +110,15 @@ pub enum FabricArg {
     Sim,
 }
 
+/// `--machine` values.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ProfileArg {
+    /// The paper's nCUBE 2: 4 MiB per node.
+    Ncube2,
+    /// A modern cluster node: 1 GiB per node.
+    Modern,
+}
+
 /// `--generation` values.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum GenerationArg {
@@ -112,6 +129,7 @@ pub enum GenerationArg {
 }
 
 /// The machine for one view: the scene's nodes and clusters unless overridden.
+#[allow(clippy::too_many_arguments, reason = "one call site: the render flags")]
 fn machine(
     view: &ViewJob,
     nodes: Option<u32>,
@@ -119,6 +137,7 @@ fn machine(
     fabric: Option<FabricArg>,
     seed: u64,
     generation: GenerationArg,
+    buffer: Option<usize>,
 ) -> Result<Machine, String> {
     let n = nodes.unwrap_or(view.nodes);
     let m = clusters.unwrap_or(if nodes.is_some() { 1 } else { view.clusters });
@@ -144,6 +163,7 @@ fn machine(
     };
     Ok(Machine {
         generation,
+        buffer_bytes: buffer,
         ..Machine::new(fabric, n, m, seed)
     })
 }
@@ -213,6 +233,8 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             fabric,
             seed,
             generation,
+            buffer,
+            machine: profile,
         } => {
             let (scene, name) = match &scene {
                 Some(path) => (Scene::from_file(path)?, path.display().to_string()),
@@ -226,7 +248,14 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             let mut plan = Vec::new();
             for job in &jobs {
                 for v in &job.views {
-                    let m = machine(v, nodes, clusters, fabric, seed, generation)
+                    let mut m = machine(v, nodes, clusters, fabric, seed, generation, buffer)
+                        .map_err(|e| format!("{}/{}: {e}", job.name, v.name))?;
+                    m.profile = match profile {
+                        ProfileArg::Ncube2 => NCUBE2,
+                        ProfileArg::Modern => MODERN,
+                    };
+                    // Configuration errors up front: nothing renders if any view cannot.
+                    preflight(&job.volume, &v.view, &m)
                         .map_err(|e| format!("{}/{}: {e}", job.name, v.name))?;
                     plan.push((job, v, m));
                 }

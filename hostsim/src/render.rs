@@ -5,11 +5,13 @@
 //! formula, so their images are bit-identical; a non-finite colour is counted in the counters
 //! (`non_finite_pixels`, which tests require to be zero) before it becomes a defined pixel.
 
+use crate::budget::{self, BudgetError, Profile, NCUBE2};
 use crate::dataset::{Volume, VolumeData};
 use crate::fabric::sim::{self, SimConfig, SimError};
 use crate::fabric::Distributed;
 use std::time::{Duration, Instant};
 use voxcube_kernel::counters::Counters;
+use voxcube_kernel::flow;
 use voxcube_kernel::pixel::rgba8;
 use voxcube_kernel::sample::Sample;
 use voxcube_kernel::slab::{Slab, SlabError};
@@ -54,11 +56,13 @@ pub struct Machine {
     pub buffer_bytes: Option<usize>,
     /// Ack-counter flow control (off only as a debug option).
     pub flow_control: bool,
+    /// The machine profile whose node memory every node must fit.
+    pub profile: Profile,
 }
 
 impl Machine {
-    /// `nodes` in `clusters` on `fabric`, with default buffers, flow control on, distributed
-    /// generation.
+    /// `nodes` in `clusters` on `fabric`: default buffers, flow control on, distributed
+    /// generation, the nCUBE 2's 4 MiB nodes.
     pub fn new(fabric: Fabric, nodes: u32, clusters: u32, seed: u64) -> Machine {
         Machine {
             fabric,
@@ -68,7 +72,22 @@ impl Machine {
             generation: Generation::Distributed,
             buffer_bytes: None,
             flow_control: true,
+            profile: NCUBE2,
         }
+    }
+
+    /// Nodes per cluster.
+    pub fn cluster_size(&self) -> u32 {
+        self.nodes / self.clusters.max(1)
+    }
+
+    fn sim_config(&self) -> Result<SimConfig, LayoutError> {
+        Ok(SimConfig {
+            generation: self.generation,
+            buffer_bytes: self.buffer_bytes,
+            flow_control: self.flow_control,
+            ..SimConfig::machine(self.clusters, self.cluster_size(), self.seed)?
+        })
     }
 }
 
@@ -87,6 +106,21 @@ pub enum RenderError {
     /// The simulated run failed.
     #[error("simulation: {0}")]
     Sim(#[from] SimError),
+    /// A node would not fit the machine's node memory.
+    #[error("{0}")]
+    Budget(#[from] BudgetError),
+    /// A node's measured high-water mark exceeded the machine's node memory.
+    #[error("node {node} reached {used} bytes; the {profile} has {available} bytes per node")]
+    Exceeded {
+        /// The node.
+        node: u16,
+        /// Its high-water mark.
+        used: usize,
+        /// The profile.
+        profile: &'static str,
+        /// Bytes per node.
+        available: usize,
+    },
 }
 
 /// A rendered image and what it cost.
@@ -122,39 +156,79 @@ pub fn render(volume: &Volume, view: &View) -> Result<Rendered, SlabError> {
     }
 }
 
+/// Check that `view` of `volume` can render on `machine`, before anything renders: the
+/// machine's shape, enough X planes for the slabs, a receive buffer that lets a ray start,
+/// and every node within the profile's memory. The direct fabric is the host's own reference
+/// render, not a node of the machine, and is not budgeted.
+pub fn preflight(volume: &Volume, view: &View, machine: &Machine) -> Result<(), RenderError> {
+    if machine.fabric == Fabric::Direct {
+        if machine.nodes != 1 {
+            return Err(RenderError::Machine(format!(
+                "the direct fabric renders on one node, not {}; use --fabric sim",
+                machine.nodes
+            )));
+        }
+        return Ok(());
+    }
+    if machine.clusters == 0 || machine.nodes == 0 || machine.nodes % machine.clusters != 0 {
+        return Err(RenderError::Machine(format!(
+            "{} nodes do not split into {} clusters",
+            machine.nodes, machine.clusters
+        )));
+    }
+    let size = machine.cluster_size();
+    let nx = volume.grid.dims()[0];
+    if size > nx {
+        return Err(RenderError::Machine(format!(
+            "clusters of {size} nodes need at least {size} X planes to slice; the volume has {nx}"
+        )));
+    }
+    let cfg = machine.sim_config()?;
+    let needed = flow::min_i_max(view.effects().shadow_lights);
+    let i_max = flow::i_max_for(cfg.buffer(), size as usize);
+    if machine.flow_control && size > 1 && i_max < needed {
+        return Err(RenderError::Sim(SimError::Buffer {
+            bytes: cfg.buffer(),
+            size: size as usize,
+            i_max,
+            needed,
+            min_bytes: flow::buffer_bytes(size as usize, needed),
+        }));
+    }
+    let buffer_for = |s: u32| match machine.buffer_bytes {
+        Some(b) => b,
+        None => flow::buffer_bytes(s as usize, sim::DEFAULT_I_MAX),
+    };
+    budget::check(
+        machine.profile,
+        &volume.grid,
+        volume.data.kind().bytes(),
+        size,
+        view.ghost_planes(),
+        &buffer_for,
+    )?;
+    Ok(())
+}
+
 /// Render `view` of `volume` on `machine`.
 pub fn render_on(volume: &Volume, view: &View, machine: &Machine) -> Result<Rendered, RenderError> {
+    preflight(volume, view, machine)?;
     match machine.fabric {
-        Fabric::Direct => {
-            if machine.nodes != 1 {
-                return Err(RenderError::Machine(format!(
-                    "the direct fabric renders on one node, not {}; use --fabric sim",
-                    machine.nodes
-                )));
-            }
-            Ok(render(volume, view)?)
-        }
+        Fabric::Direct => Ok(render(volume, view)?),
         Fabric::Sim => {
-            if machine.clusters == 0 || machine.nodes % machine.clusters != 0 {
-                return Err(RenderError::Machine(format!(
-                    "{} nodes do not split into {} clusters",
-                    machine.nodes, machine.clusters
-                )));
+            let run = sim::run(volume, view, &machine.sim_config()?)?;
+            if let Some(n) = run
+                .nodes
+                .iter()
+                .find(|n| n.memory.total() > machine.profile.node_memory)
+            {
+                return Err(RenderError::Exceeded {
+                    node: n.stats.node,
+                    used: n.memory.total(),
+                    profile: machine.profile.name,
+                    available: machine.profile.node_memory,
+                });
             }
-            let size = machine.nodes / machine.clusters;
-            let nx = volume.grid.dims()[0];
-            if size > nx {
-                return Err(RenderError::Machine(format!(
-                    "clusters of {size} nodes need at least {size} X planes to slice; the volume has {nx}"
-                )));
-            }
-            let cfg = SimConfig {
-                generation: machine.generation,
-                buffer_bytes: machine.buffer_bytes,
-                flow_control: machine.flow_control,
-                ..SimConfig::machine(machine.clusters, size, machine.seed)?
-            };
-            let run = sim::run(volume, view, &cfg)?;
             let spec = view.spec();
             Ok(Rendered {
                 width: spec.width,

@@ -106,6 +106,11 @@ pub struct NodeEntry {
     pub rays: Rays,
     /// Work done here.
     pub operations: Operations,
+    /// Measured memory high-water mark, bytes: slab, receive buffer at its peak, worker state,
+    /// code and stack.
+    pub memory_high_water: usize,
+    /// Most bytes the receive buffer held at once.
+    pub peak_buffer: usize,
 }
 
 /// What a distributed run moved.
@@ -123,6 +128,14 @@ pub struct TrafficReport {
     pub events: u64,
     /// Per cluster, rays that crossed each slab boundary (between ring positions j and j+1).
     pub boundary_crossings: Vec<Vec<u64>>,
+    /// Receive-buffer capacity per node, bytes, and the `i_max` it allows.
+    pub buffer_capacity: usize,
+    /// The `i_max` of that buffer.
+    pub i_max: u16,
+    /// Largest node memory high-water mark, bytes.
+    pub memory_max: usize,
+    /// Mean node memory high-water mark, bytes.
+    pub memory_mean: usize,
     /// Per node.
     pub nodes: Vec<NodeEntry>,
 }
@@ -204,6 +217,8 @@ impl ViewReport {
                     sent: kinds(&n.stats.sent),
                     rays: Rays::from(&n.stats.counters),
                     operations: Operations::from(&n.stats.counters),
+                    memory_high_water: n.memory.total(),
+                    peak_buffer: n.peak_buffer,
                 })
                 .collect();
             TrafficReport {
@@ -213,6 +228,11 @@ impl ViewReport {
                 bytes: d.bytes,
                 events: d.events,
                 boundary_crossings: d.boundary_crossings(),
+                buffer_capacity: d.buffer_capacity,
+                i_max: d.i_max,
+                memory_max: nodes.iter().map(|n| n.memory_high_water).max().unwrap_or(0),
+                memory_mean: nodes.iter().map(|n| n.memory_high_water).sum::<usize>()
+                    / nodes.len().max(1),
                 nodes,
             }
         });
@@ -259,14 +279,20 @@ fn count(n: u64) -> String {
     }
 }
 
-/// The summary table, one line per view, and for distributed runs the messages by kind.
+fn mib(bytes: usize) -> String {
+    format!("{:.2}", bytes as f64 / (1u64 << 20) as f64)
+}
+
+/// The summary table, one line per view, and for distributed runs the messages by kind and
+/// the rays across each slab boundary.
 pub fn summary(views: &[ViewReport]) -> String {
     let mut out = format!(
-        "{:<24} {:>9} {:<9} {:>6} {:>8} {:>8} {:>8} {:>9} {:>9} {:>8} {:>8} {:>8} {:>9}\n",
+        "{:<24} {:>9} {:<9} {:<6} {:>7} {:>7} {:>7} {:>7} {:>8} {:>8} {:>8} {:>7} {:>7} {:>11} {:>9}\n",
         "dataset/view",
         "size",
         "mode",
-        "nodes",
+        "fabric",
+        "P/m",
         "primary",
         "transp",
         "shadow",
@@ -274,19 +300,26 @@ pub fn summary(views: &[ViewReport]) -> String {
         "interp",
         "shadings",
         "fwd",
-        "returned",
+        "return",
+        "MiB max/avg",
         "wall"
     );
     for v in views {
         let o = &v.operations;
-        let (fwd, ret) = v.traffic.as_ref().map_or(("-".into(), "-".into()), |t| {
-            (count(t.rays_forwarded), count(t.descriptors_returned))
-        });
+        let (fwd, ret, mem) = match &v.traffic {
+            Some(t) => (
+                count(t.rays_forwarded),
+                count(t.descriptors_returned),
+                format!("{}/{}", mib(t.memory_max), mib(t.memory_mean)),
+            ),
+            None => ("-".into(), "-".into(), "-".into()),
+        };
         out += &format!(
-            "{:<24} {:>9} {:<9} {:>6} {:>8} {:>8} {:>8} {:>9} {:>9} {:>8} {:>8} {:>8} {:>6.0} ms\n",
+            "{:<24} {:>9} {:<9} {:<6} {:>7} {:>7} {:>7} {:>7} {:>8} {:>8} {:>8} {:>7} {:>7} {:>11} {:>6.0} ms\n",
             format!("{}/{}", v.dataset, v.view),
             format!("{}x{}", v.width, v.height),
             v.effects.mode,
+            v.fabric,
             format!("{}/{}", v.nodes, v.clusters),
             count(v.rays.primary),
             count(v.rays.transparency),
@@ -296,6 +329,7 @@ pub fn summary(views: &[ViewReport]) -> String {
             count(o.shadings),
             fwd,
             ret,
+            mem,
             v.wall_ms
         );
     }
@@ -312,14 +346,12 @@ pub fn summary(views: &[ViewReport]) -> String {
                 .map(|c| format!("{c:?}"))
                 .collect();
             out += &format!(
-                "{}/{}: {} fabric, messages: {}",
+                "{}/{}: messages: {}; receive buffers {} bytes (i_max {}); rays across slab boundaries per cluster: {}\n",
                 v.dataset,
                 v.view,
-                v.fabric,
-                msgs.join(", ")
-            );
-            out += &format!(
-                "; rays across slab boundaries per cluster: {}\n",
+                msgs.join(", "),
+                t.buffer_capacity,
+                t.i_max,
                 crossings.join(" ")
             );
         }

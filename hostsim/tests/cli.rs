@@ -147,3 +147,37 @@ fn impossible_machines_are_refused_before_anything_is_written() {
         assert!(!out_dir.join("molecule-paper.png").exists());
     }
 }
+
+#[test]
+fn bad_machines_are_clear_errors() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = dir.path().join("s.toml");
+    std::fs::write(&scene, "[[datasets]]\nname = \"s\"\nbuiltin = \"sphere\"\n[[datasets.views]]\nwidth = 8\nheight = 8\n[[datasets.views.surfaces]]\niso = 0.0\n").expect("write");
+    for (args, expect) in [
+        (vec!["--nodes", "0"], "power of two"),
+        (vec!["--nodes", "12"], "power of two"),
+        (vec!["--nodes", "2048"], "1 to 1024"),
+        (vec!["--nodes", "4", "--clusters", "3"], "a power of two"),
+        (vec!["--nodes", "128"], "need at least 128 X planes"),
+        (
+            vec!["--nodes", "4", "--buffer", "100"],
+            "give each node at least",
+        ),
+    ] {
+        let out = voxcube()
+            .arg("render")
+            .arg(&scene)
+            .args(&args)
+            .arg("-o")
+            .arg(dir.path().join("o"))
+            .output()
+            .expect("runs");
+        assert!(!out.status.success(), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(expect), "{args:?}: {err}");
+        assert!(
+            !dir.path().join("o").join("s-view0.png").exists(),
+            "{args:?} wrote an image"
+        );
+    }
+}

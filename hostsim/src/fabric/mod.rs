@@ -23,6 +23,9 @@ pub struct NodeReport {
     pub stats: NodeStats,
     /// Most bytes its receive buffer held at once.
     pub peak_buffer: usize,
+    /// Its measured memory high-water mark: slab, receive buffer at its peak, worker state,
+    /// code and stack.
+    pub memory: crate::budget::NodeMemory,
 }
 
 /// The result of a distributed render.

@@ -21,6 +21,7 @@
 //! Either way the error carries the seed and the last events.
 
 use super::{Distributed, NodeReport};
+use crate::budget::{NodeMemory, CODE_AND_STACK};
 use crate::dataset::{Volume, VolumeData};
 use crate::rng::SplitMix;
 use std::collections::VecDeque;
@@ -650,6 +651,12 @@ fn run_typed<T: Sample>(
             |((stats, (cluster, position, planes, stored)), &peak)| NodeReport {
                 cluster,
                 position,
+                memory: NodeMemory {
+                    slab: (stored.end - stored.start) as usize * plane * size_of::<T>(),
+                    buffer: peak,
+                    worker: size_of::<SimWorker<'_, T>>(),
+                    allowance: CODE_AND_STACK,
+                },
                 planes,
                 stored,
                 stats: stats.unwrap_or_default(),

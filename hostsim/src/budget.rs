@@ -1,0 +1,183 @@
+//! The memory of one node: its slab with ghost planes, its receive buffer, the worker's
+//! fixed-capacity state, and a fixed allowance for code and stack. All of it must fit the
+//! machine profile's node memory (4 MiB on the nCUBE 2).
+//!
+//! The host checks this for every node of every view before any view renders. A configuration
+//! that does not fit is refused, with the bytes needed and available and the smallest cluster
+//! size that would fit. After a simulated run each node's measured high-water mark (the same
+//! parts, with the buffer at its real peak) is checked against the same budget; exceeding it
+//! is an error, never silent.
+
+use crate::fabric::sim::SimWorker;
+use std::fmt;
+use voxcube_kernel::grid::Grid;
+use voxcube_kernel::partition::Partition;
+use voxcube_kernel::slab::stored_planes;
+
+/// Bytes set aside on every node for code and stack.
+pub const CODE_AND_STACK: usize = 256 * 1024;
+
+/// A machine's node, as far as memory goes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Profile {
+    /// Name, as `--machine` takes it.
+    pub name: &'static str,
+    /// Memory of one node, bytes.
+    pub node_memory: usize,
+}
+
+/// The nCUBE 2 of the paper: 4 MiB per node.
+pub const NCUBE2: Profile = Profile {
+    name: "ncube2",
+    node_memory: 4 << 20,
+};
+/// A modern cluster node, for volumes the nCUBE could not hold: 1 GiB per node process.
+pub const MODERN: Profile = Profile {
+    name: "modern",
+    node_memory: 1 << 30,
+};
+
+/// The worker's fixed-capacity state in the simulator and threads fabrics, bytes.
+pub fn worker_bytes() -> usize {
+    size_of::<SimWorker<'static, u8>>()
+}
+
+/// One node's memory, by part.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct NodeMemory {
+    /// Owned and ghost planes.
+    pub slab: usize,
+    /// Receive buffer (its capacity, or its measured peak).
+    pub buffer: usize,
+    /// Worker state: queues, pixel records, outbox, ack counters.
+    pub worker: usize,
+    /// Code and stack.
+    pub allowance: usize,
+}
+
+impl NodeMemory {
+    /// All parts.
+    pub fn total(&self) -> usize {
+        self.slab + self.buffer + self.worker + self.allowance
+    }
+}
+
+/// Why a configuration does not fit.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BudgetError {
+    /// The profile.
+    pub profile: Profile,
+    /// Nodes per cluster asked for.
+    pub cluster_size: u32,
+    /// The largest node's memory.
+    pub needed: NodeMemory,
+    /// The smallest power-of-two cluster size that fits, if any does.
+    pub fits_at: Option<u32>,
+}
+
+impl fmt::Display for BudgetError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let n = &self.needed;
+        write!(
+            f,
+            "a node of a cluster of {} needs {} bytes (slab {} + receive buffer {} + worker {} + code and stack {}); the {} has {} bytes per node",
+            self.cluster_size,
+            n.total(),
+            n.slab,
+            n.buffer,
+            n.worker,
+            n.allowance,
+            self.profile.name,
+            self.profile.node_memory
+        )?;
+        match self.fits_at {
+            Some(size) => write!(f, "; the smallest cluster that fits has {size} nodes"),
+            None => write!(f, "; no cluster size fits this volume"),
+        }
+    }
+}
+
+impl std::error::Error for BudgetError {}
+
+/// The largest node's memory when `grid` of `sample_bytes` samples is cut uniformly into
+/// `cluster_size` slabs with `ghost` planes each side and `buffer` bytes of receive buffer.
+pub fn largest_node(
+    grid: &Grid,
+    sample_bytes: usize,
+    cluster_size: u32,
+    ghost: u32,
+    buffer: usize,
+) -> Option<NodeMemory> {
+    let partition = Partition::uniform(grid.dims()[0], cluster_size as usize).ok()?;
+    let slab = (0..cluster_size as usize)
+        .map(|j| {
+            let s = stored_planes(grid, partition.planes(j), ghost);
+            (s.end - s.start) as usize * grid.plane_len() * sample_bytes
+        })
+        .max()?;
+    Some(NodeMemory {
+        slab,
+        buffer,
+        worker: worker_bytes(),
+        allowance: CODE_AND_STACK,
+    })
+}
+
+/// Check that every node fits `profile`; `buffer_for(size)` gives the receive buffer of a
+/// cluster of `size`.
+pub fn check(
+    profile: Profile,
+    grid: &Grid,
+    sample_bytes: usize,
+    cluster_size: u32,
+    ghost: u32,
+    buffer_for: &dyn Fn(u32) -> usize,
+) -> Result<NodeMemory, BudgetError> {
+    let fits = |size: u32| {
+        largest_node(grid, sample_bytes, size, ghost, buffer_for(size))
+            .filter(|m| m.total() <= profile.node_memory)
+    };
+    if let Some(m) = fits(cluster_size) {
+        return Ok(m);
+    }
+    let needed = largest_node(
+        grid,
+        sample_bytes,
+        cluster_size,
+        ghost,
+        buffer_for(cluster_size),
+    )
+    .unwrap_or_default();
+    let fits_at = (0..=10)
+        .map(|k| 1u32 << k)
+        .filter(|&s| s <= grid.dims()[0])
+        .find(|&s| fits(s).is_some());
+    Err(BudgetError {
+        profile,
+        cluster_size,
+        needed,
+        fits_at,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use voxcube_kernel::Vec3;
+
+    #[test]
+    fn a_big_volume_needs_a_bigger_cluster() {
+        let grid = Grid::new([208, 208, 208], Vec3::ONE).unwrap();
+        let buffer = |_| 16 * 1024;
+        let err = check(NCUBE2, &grid, 1, 2, 3, &buffer).unwrap_err();
+        assert_eq!(err.fits_at, Some(4));
+        let msg = err.to_string();
+        assert!(
+            msg.contains("4194304 bytes per node")
+                && msg.contains("smallest cluster that fits has 4 nodes"),
+            "{msg}"
+        );
+        let ok = check(NCUBE2, &grid, 1, 4, 3, &buffer).unwrap();
+        assert!(ok.total() <= NCUBE2.node_memory);
+    }
+}

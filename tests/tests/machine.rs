@@ -1,0 +1,101 @@
+//! The whole machine: the 4 MiB node budget (refused up front, with the smallest cluster that
+//! fits; measured high-water marks within budget), and images bit-identical for every cube
+//! size and cluster size.
+
+use voxcube::budget::NCUBE2;
+use voxcube::render::{render, render_on, Fabric, Machine, RenderError};
+use voxcube::scene::Scene;
+use voxcube_kernel::grid::Model;
+use voxcube_kernel::Vec3;
+use voxcube_tests::*;
+
+#[test]
+fn a_volume_too_big_for_one_node_renders_once_the_cluster_is_large_enough() {
+    // 208³ u8: 9 MB, more than two 4 MiB nodes can hold.
+    let n = 208u32;
+    let volume = volume_u8([n; 3], Vec3::ONE, |x, y, z| {
+        let d = [x, y, z].map(|v| v as f32 - 103.5);
+        let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        (255.0 * (-(r - 60.0).powi(2) / 200.0).exp()) as u8
+    });
+    assert_eq!(volume.data.len(), 208 * 208 * 208);
+    let c = Vec3::splat(103.5);
+    let cam = ortho(
+        c + Vec3::new(1.0, 0.6, 0.8).normalize() * 400.0,
+        c,
+        Vec3::Y,
+        260.0,
+    );
+    let v = view(
+        lit(
+            spec(cam, 24, 20, Model::Cell, 1.0, surfaces(&[(100.0, 0.0)])),
+            &[],
+        ),
+        &volume,
+    );
+    let reference = render(&volume, &v).expect("renders").pixels;
+    for size in [1u32, 2] {
+        let err = render_on(&volume, &v, &Machine::new(Fabric::Sim, size, 1, 1))
+            .expect_err("does not fit");
+        let msg = err.to_string();
+        assert!(matches!(err, RenderError::Budget(_)), "{msg}");
+        assert!(
+            msg.contains("4194304 bytes per node")
+                && msg.contains("smallest cluster that fits has 4 nodes"),
+            "{msg}"
+        );
+    }
+    for size in [4u32, 8, 16] {
+        let run = render_on(&volume, &v, &Machine::new(Fabric::Sim, size, 1, 3))
+            .unwrap_or_else(|e| panic!("{size}: {e}"));
+        assert!(run.pixels == reference, "{size} nodes: image differs");
+        let d = run.distributed.expect("distributed");
+        for node in &d.nodes {
+            assert!(
+                node.memory.total() <= NCUBE2.node_memory,
+                "node {}: {:?}",
+                node.stats.node,
+                node.memory
+            );
+            assert!(node.memory.slab > 0 && node.memory.buffer > 0);
+        }
+    }
+}
+
+#[test]
+fn every_cube_and_cluster_size_gives_the_same_image() {
+    // The test scenes of the dataflow suite, on 1 to 128 nodes in every cluster size.
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/scenes.toml"))
+        .expect("scenes");
+    let jobs = Scene::parse(&text, "scenes.toml", std::path::Path::new("."))
+        .and_then(Scene::load)
+        .expect("scenes");
+    let job = &jobs[0];
+    for (i, v) in job.views.iter().enumerate() {
+        let reference = render(&job.volume, &v.view).expect("renders").pixels;
+        for k in 0..=7u32 {
+            let nodes = 1u32 << k;
+            for clusters in (0..=k).map(|i| 1u32 << i) {
+                // Every cube size for the first views; a sample of shapes for the others.
+                if i > 1 && (clusters != 1 && clusters != nodes && clusters != nodes / 2) {
+                    continue;
+                }
+                let m = Machine::new(Fabric::Sim, nodes, clusters, u64::from(k) * 31 + i as u64);
+                let result = render_on(&job.volume, &v.view, &m);
+                if nodes / clusters > job.volume.grid.dims()[0] {
+                    // More slabs than X planes: refused up front, clearly.
+                    let err = result.expect_err("more slabs than planes");
+                    assert!(err.to_string().contains("X planes"), "{err}");
+                    continue;
+                }
+                let run =
+                    result.unwrap_or_else(|e| panic!("{} on {nodes}/{clusters}: {e}", v.name));
+                assert!(
+                    run.pixels == reference,
+                    "{} on {nodes} nodes in {clusters} clusters differs",
+                    v.name
+                );
+            }
+        }
+    }
+}
