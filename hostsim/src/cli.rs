@@ -108,6 +108,8 @@ pub enum FabricArg {
     Direct,
     /// The deterministic simulator.
     Sim,
+    /// OS threads (one per core), for wall-clock speed.
+    Threads,
 }
 
 /// `--machine` values.
@@ -154,6 +156,7 @@ fn machine(
     let fabric = match fabric {
         Some(FabricArg::Direct) => Fabric::Direct,
         Some(FabricArg::Sim) => Fabric::Sim,
+        Some(FabricArg::Threads) => Fabric::Threads,
         None if n == 1 => Fabric::Direct,
         None => Fabric::Sim,
     };

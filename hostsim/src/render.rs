@@ -8,6 +8,7 @@
 use crate::budget::{self, BudgetError, Profile, NCUBE2};
 use crate::dataset::{Volume, VolumeData};
 use crate::fabric::sim::{self, SimConfig, SimError};
+use crate::fabric::threads;
 use crate::fabric::Distributed;
 use std::time::{Duration, Instant};
 use voxcube_kernel::counters::Counters;
@@ -27,6 +28,8 @@ pub enum Fabric {
     Direct,
     /// The deterministic simulator.
     Sim,
+    /// OS threads, for wall-clock speed.
+    Threads,
 }
 
 impl Fabric {
@@ -35,6 +38,7 @@ impl Fabric {
         match self {
             Fabric::Direct => "direct",
             Fabric::Sim => "sim",
+            Fabric::Threads => "threads",
         }
     }
 }
@@ -58,6 +62,8 @@ pub struct Machine {
     pub flow_control: bool,
     /// The machine profile whose node memory every node must fit.
     pub profile: Profile,
+    /// OS threads for the threads fabric (0: one per core).
+    pub threads: usize,
 }
 
 impl Machine {
@@ -73,6 +79,7 @@ impl Machine {
             buffer_bytes: None,
             flow_control: true,
             profile: NCUBE2,
+            threads: 0,
         }
     }
 
@@ -215,8 +222,12 @@ pub fn render_on(volume: &Volume, view: &View, machine: &Machine) -> Result<Rend
     preflight(volume, view, machine)?;
     match machine.fabric {
         Fabric::Direct => Ok(render(volume, view)?),
-        Fabric::Sim => {
-            let run = sim::run(volume, view, &machine.sim_config()?)?;
+        Fabric::Sim | Fabric::Threads => {
+            let cfg = machine.sim_config()?;
+            let run = match machine.fabric {
+                Fabric::Threads => threads::run(volume, view, &cfg, machine.threads)?,
+                _ => sim::run(volume, view, &cfg)?,
+            };
             if let Some(n) = run
                 .nodes
                 .iter()

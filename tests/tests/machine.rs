@@ -80,7 +80,14 @@ fn every_cube_and_cluster_size_gives_the_same_image() {
                 if i > 1 && (clusters != 1 && clusters != nodes && clusters != nodes / 2) {
                     continue;
                 }
-                let m = Machine::new(Fabric::Sim, nodes, clusters, u64::from(k) * 31 + i as u64);
+                // The threads fabric on every shape of the first view, and on the pure shapes.
+                let fabric =
+                    if (i == 0 || clusters == 1 || clusters == nodes) && (k + i as u32) % 2 == 0 {
+                        Fabric::Threads
+                    } else {
+                        Fabric::Sim
+                    };
+                let m = Machine::new(fabric, nodes, clusters, u64::from(k) * 31 + i as u64);
                 let result = render_on(&job.volume, &v.view, &m);
                 if nodes / clusters > job.volume.grid.dims()[0] {
                     // More slabs than X planes: refused up front, clearly.
@@ -93,6 +100,38 @@ fn every_cube_and_cluster_size_gives_the_same_image() {
                 assert!(
                     run.pixels == reference,
                     "{} on {nodes} nodes in {clusters} clusters differs",
+                    v.name
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn the_threads_fabric_matches_on_every_cube_size() {
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/scenes.toml"))
+        .expect("scenes");
+    let jobs = Scene::parse(&text, "scenes.toml", std::path::Path::new("."))
+        .and_then(Scene::load)
+        .expect("scenes");
+    let job = &jobs[0];
+    for v in &job.views {
+        let reference = render(&job.volume, &v.view).expect("renders").pixels;
+        for k in 0..=7u32 {
+            let nodes = 1u32 << k;
+            for clusters in [1, nodes.min(2), nodes] {
+                if nodes / clusters > job.volume.grid.dims()[0] {
+                    continue;
+                }
+                let run = render_on(
+                    &job.volume,
+                    &v.view,
+                    &Machine::new(Fabric::Threads, nodes, clusters, 0),
+                )
+                .unwrap_or_else(|e| panic!("{} on {nodes}/{clusters} threads: {e}", v.name));
+                assert!(
+                    run.pixels == reference,
+                    "{} on {nodes} nodes in {clusters} clusters (threads) differs",
                     v.name
                 );
             }

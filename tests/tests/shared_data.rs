@@ -102,6 +102,24 @@ fn sod_renders_identically_on_one_and_sixteen_nodes() {
     for v in &job.views {
         let one = render(&job.volume, &v.view).expect("renders");
         let machine = Machine::new(Fabric::Sim, 16, 1, 16);
+        for (fabric, nodes, clusters) in [
+            (Fabric::Threads, 16, 1),
+            (Fabric::Threads, 128, 8),
+            (Fabric::Sim, 128, 16),
+            (Fabric::Sim, 64, 64),
+        ] {
+            let other = render_on(
+                &job.volume,
+                &v.view,
+                &Machine::new(fabric, nodes, clusters, 5),
+            )
+            .unwrap_or_else(|e| panic!("{}: {e}", v.name));
+            assert!(
+                one.pixels == other.pixels,
+                "sod/{} on {nodes}/{clusters} {fabric:?} differs from 1 node",
+                v.name
+            );
+        }
         let sixteen =
             render_on(&job.volume, &v.view, &machine).unwrap_or_else(|e| panic!("{}: {e}", v.name));
         assert!(

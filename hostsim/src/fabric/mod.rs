@@ -1,7 +1,8 @@
 //! Fabrics: what carries kernel messages between nodes and to the host. `sim` is the
-//! deterministic single-threaded reference; others (threads, MPI) follow.
+//! deterministic single-threaded reference; `threads` runs the same workers on OS threads.
 
 pub mod sim;
+pub mod threads;
 
 use std::ops::Range;
 use std::time::Duration;
