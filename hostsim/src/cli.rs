@@ -2,14 +2,18 @@
 //! `scene`. Errors go to stderr with a non-zero exit; nothing is written unless the whole
 //! scene loaded and checked.
 
+use crate::bench;
 use crate::budget::{MODERN, NCUBE2};
 use crate::explore;
 use crate::output::{write_atomic, write_png};
-use crate::render::{preflight, render_on, Fabric, Machine};
+use crate::render::{preflight, render_on_with_progress, Fabric, Machine};
 use crate::report::{summary, Report, ViewReport};
 use crate::scene::{Scene, ViewJob, DEFAULT_SCENE};
 use clap::{Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::cell::Cell;
 use std::path::PathBuf;
+use std::time::{Duration, Instant};
 use voxcube_kernel::worker::Generation;
 
 /// voxcube: parallel volume ray tracing after Montani, Perego & Scopigno (1992).
@@ -64,6 +68,16 @@ pub enum Command {
     },
     /// Print the built-in default scene: a complete, commented example of the format.
     Scene,
+    /// Benchmark: the default scene and SOD at 350x250, dt = 1/2, surfaces and compositing, on
+    /// one node and on the shapes worth comparing here; medians of several runs.
+    Bench {
+        /// Runs per configuration (the median is reported).
+        #[arg(long, default_value_t = 5)]
+        runs: usize,
+        /// The SOD volume (left out, with a note, if absent).
+        #[arg(long, default_value = "../shared/data/sod-97x97x116.u8.binary")]
+        sod: PathBuf,
+    },
     /// Explore schedules on the simulator: configurations (scenes with shadows and
     /// transparency, cube shapes, buffer sizes) × schedulers × seeds. Prints what was explored,
     /// deadlocks, invariant violations, differing images and the worst buffer use.
@@ -190,6 +204,12 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             print!("{DEFAULT_SCENE}");
             Ok(())
         }
+        Command::Bench { runs, sod } => {
+            let mut notes = String::new();
+            let rows = bench::run(runs, &sod, &mut notes)?;
+            print!("{notes}{}", bench::table(&rows, runs));
+            Ok(())
+        }
         Command::Explore {
             seeds,
             configs,
@@ -267,8 +287,30 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 .map_err(|e| format!("{}: cannot create folder: {e}", out.display()))?;
             let mut views = Vec::new();
             for (job, v, machine) in plan {
-                let rendered = render_on(&job.volume, &v.view, &machine)
+                let bar = ProgressBar::with_draw_target(
+                    Some(v.view.pixel_count()),
+                    ProgressDrawTarget::hidden(),
+                );
+                bar.set_style(
+                    ProgressStyle::with_template(
+                        "{prefix} [{bar:40}] {pos}/{len} pixels, {elapsed}",
+                    )
+                    .unwrap_or_else(|_| ProgressStyle::default_bar()),
+                );
+                bar.set_prefix(format!("{}/{}", job.name, v.name));
+                let started = Instant::now();
+                let shown = Cell::new(false);
+                // Shown only on a terminal, only without --quiet, and only past a second.
+                let progress = |done: u64| {
+                    if !quiet && !shown.get() && started.elapsed() > Duration::from_secs(1) {
+                        bar.set_draw_target(ProgressDrawTarget::stderr());
+                        shown.set(true);
+                    }
+                    bar.set_position(done);
+                };
+                let rendered = render_on_with_progress(&job.volume, &v.view, &machine, &progress)
                     .map_err(|e| format!("{}/{}: {e}", job.name, v.name))?;
+                bar.finish_and_clear();
                 let image = out.join(format!("{}-{}.png", job.name, v.name));
                 write_png(&image, rendered.width, rendered.height, &rendered.bytes())?;
                 views.push(ViewReport::new(

@@ -154,12 +154,23 @@ impl Rendered {
     }
 }
 
+/// Told how many pixels are done, as a render goes.
+pub type OnProgress<'a> = &'a dyn Fn(u64);
+
 /// Render `view` of `volume` directly, on one node.
 pub fn render(volume: &Volume, view: &View) -> Result<Rendered, SlabError> {
+    render_direct(volume, view, &|_| {})
+}
+
+fn render_direct(
+    volume: &Volume,
+    view: &View,
+    progress: OnProgress<'_>,
+) -> Result<Rendered, SlabError> {
     match &volume.data {
-        VolumeData::U8(d) => render_typed(volume, d, view),
-        VolumeData::U16(d) => render_typed(volume, d, view),
-        VolumeData::F32(d) => render_typed(volume, d, view),
+        VolumeData::U8(d) => render_typed(volume, d, view, progress),
+        VolumeData::U16(d) => render_typed(volume, d, view, progress),
+        VolumeData::F32(d) => render_typed(volume, d, view, progress),
     }
 }
 
@@ -219,14 +230,26 @@ pub fn preflight(volume: &Volume, view: &View, machine: &Machine) -> Result<(), 
 
 /// Render `view` of `volume` on `machine`.
 pub fn render_on(volume: &Volume, view: &View, machine: &Machine) -> Result<Rendered, RenderError> {
+    render_on_with_progress(volume, view, machine, &|_| {})
+}
+
+/// [`render_on`], telling `progress` how many pixels are done as they arrive.
+pub fn render_on_with_progress(
+    volume: &Volume,
+    view: &View,
+    machine: &Machine,
+    progress: OnProgress<'_>,
+) -> Result<Rendered, RenderError> {
     preflight(volume, view, machine)?;
     match machine.fabric {
-        Fabric::Direct => Ok(render(volume, view)?),
+        Fabric::Direct => Ok(render_direct(volume, view, progress)?),
         Fabric::Sim | Fabric::Threads => {
             let cfg = machine.sim_config()?;
             let run = match machine.fabric {
-                Fabric::Threads => threads::run(volume, view, &cfg, machine.threads)?,
-                _ => sim::run(volume, view, &cfg)?,
+                Fabric::Threads => {
+                    threads::run_with_progress(volume, view, &cfg, machine.threads, progress)?
+                }
+                _ => sim::run_with_progress(volume, view, &cfg, progress)?,
             };
             if let Some(n) = run
                 .nodes
@@ -257,6 +280,7 @@ fn render_typed<T: Sample>(
     volume: &Volume,
     data: &[T],
     view: &View,
+    progress: OnProgress<'_>,
 ) -> Result<Rendered, SlabError> {
     let slab = Slab::whole(volume.grid, data)?;
     let start = Instant::now();
@@ -267,6 +291,9 @@ fn render_typed<T: Sample>(
         let c = trace_pixel(view, &slab, pixel as u32, &mut counters);
         counters.non_finite_pixels += u64::from(!c.is_finite());
         pixels.push(rgba8(c));
+        if (pixel + 1) % u64::from(view.spec().width) == 0 {
+            progress(pixel + 1);
+        }
     }
     let spec = view.spec();
     Ok(Rendered {

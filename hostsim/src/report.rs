@@ -111,6 +111,8 @@ pub struct NodeEntry {
     pub memory_high_water: usize,
     /// Most bytes the receive buffer held at once.
     pub peak_buffer: usize,
+    /// Wall time spent in busy polls, milliseconds (threads fabric).
+    pub busy_ms: f64,
 }
 
 /// What a distributed run moved.
@@ -219,6 +221,7 @@ impl ViewReport {
                     operations: Operations::from(&n.stats.counters),
                     memory_high_water: n.memory.total(),
                     peak_buffer: n.peak_buffer,
+                    busy_ms: n.busy.as_secs_f64() * 1e3,
                 })
                 .collect();
             TrafficReport {

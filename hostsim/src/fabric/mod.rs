@@ -27,6 +27,9 @@ pub struct NodeReport {
     /// Its measured memory high-water mark: slab, receive buffer at its peak, worker state,
     /// code and stack.
     pub memory: crate::budget::NodeMemory,
+    /// Wall time it spent in busy polls (threads fabric; zero in the simulator, whose time is
+    /// not wall time).
+    pub busy: Duration,
 }
 
 /// The result of a distributed render.

@@ -26,7 +26,7 @@ use crate::dataset::{Volume, VolumeData};
 use crate::rng::SplitMix;
 use std::collections::VecDeque;
 use std::fmt;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 use voxcube_kernel::flow::{self, Class, FlowControl, CLASSES};
 use voxcube_kernel::msg::{DecodeError, Msg, MsgKind, MAX_MSG_LEN};
 use voxcube_kernel::partition::{Partition, PartitionError};
@@ -359,10 +359,20 @@ impl Port for SimPort<'_> {
 
 /// Render `view` of `volume` on the simulated machine.
 pub fn run(volume: &Volume, view: &View, cfg: &SimConfig) -> Result<Distributed, SimError> {
+    run_with_progress(volume, view, cfg, &|_| {})
+}
+
+/// [`run`], telling `progress` how many pixels the host holds as they arrive.
+pub fn run_with_progress(
+    volume: &Volume,
+    view: &View,
+    cfg: &SimConfig,
+    progress: &dyn Fn(u64),
+) -> Result<Distributed, SimError> {
     match &volume.data {
-        VolumeData::U8(d) => run_typed(volume, d, view, cfg),
-        VolumeData::U16(d) => run_typed(volume, d, view, cfg),
-        VolumeData::F32(d) => run_typed(volume, d, view, cfg),
+        VolumeData::U8(d) => run_typed(volume, d, view, cfg, progress),
+        VolumeData::U16(d) => run_typed(volume, d, view, cfg, progress),
+        VolumeData::F32(d) => run_typed(volume, d, view, cfg, progress),
     }
 }
 
@@ -379,6 +389,7 @@ fn run_typed<T: Sample>(
     data: &[T],
     view: &View,
     cfg: &SimConfig,
+    progress: &dyn Fn(u64),
 ) -> Result<Distributed, SimError> {
     let start = Instant::now();
     let grid = volume.grid;
@@ -536,6 +547,7 @@ fn run_typed<T: Sample>(
                         if let Err(what) = host_receive(&mut host, msg, &layout) {
                             return Err(fail(what, events, &trace));
                         }
+                        progress(host.received);
                         if !host.collecting && host.tokens.iter().all(|&t| t) {
                             // Every cluster's token: every pixel is final (some may still be
                             // on their way here); ask every worker for its statistics.
@@ -661,6 +673,7 @@ fn run_typed<T: Sample>(
                 stored,
                 stats: stats.unwrap_or_default(),
                 peak_buffer: peak,
+                busy: Duration::ZERO,
             },
         )
         .collect();

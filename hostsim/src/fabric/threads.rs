@@ -168,10 +168,21 @@ pub fn run(
     cfg: &SimConfig,
     threads: usize,
 ) -> Result<Distributed, SimError> {
+    run_with_progress(volume, view, cfg, threads, &|_| {})
+}
+
+/// [`run`], telling `progress` how many pixels the host holds as they arrive.
+pub fn run_with_progress(
+    volume: &Volume,
+    view: &View,
+    cfg: &SimConfig,
+    threads: usize,
+    progress: &dyn Fn(u64),
+) -> Result<Distributed, SimError> {
     match &volume.data {
-        VolumeData::U8(d) => run_typed(volume, d, view, cfg, threads),
-        VolumeData::U16(d) => run_typed(volume, d, view, cfg, threads),
-        VolumeData::F32(d) => run_typed(volume, d, view, cfg, threads),
+        VolumeData::U8(d) => run_typed(volume, d, view, cfg, threads, progress),
+        VolumeData::U16(d) => run_typed(volume, d, view, cfg, threads, progress),
+        VolumeData::F32(d) => run_typed(volume, d, view, cfg, threads, progress),
     }
 }
 
@@ -181,6 +192,7 @@ fn run_typed<T: Sample + Sync>(
     view: &View,
     cfg: &SimConfig,
     threads: usize,
+    progress: &dyn Fn(u64),
 ) -> Result<Distributed, SimError> {
     let start = Instant::now();
     let grid = volume.grid;
@@ -247,10 +259,12 @@ fn run_typed<T: Sample + Sync>(
     for (i, w) in workers.into_iter().enumerate() {
         shares[i % threads].push(w);
     }
+    let mut busy = vec![Duration::ZERO; nodes];
     let outcome = std::thread::scope(|scope| {
+        let mut handles = Vec::new();
         for share in shares {
             let (buffers, done, host) = (&buffers, &done, host_tx.clone());
-            scope.spawn(move || {
+            handles.push(scope.spawn(move || {
                 let mut ports: Vec<ThreadPort<'_>> = share
                     .iter()
                     .map(|w| ThreadPort {
@@ -262,11 +276,16 @@ fn run_typed<T: Sample + Sync>(
                     })
                     .collect();
                 let mut share = share;
+                let mut busy_time = vec![Duration::ZERO; share.len()];
                 let mut idle_rounds = 0u32;
                 while !done.load(Ordering::Acquire) {
                     let mut busy = false;
-                    for (w, port) in share.iter_mut().zip(&mut ports) {
-                        busy |= w.poll(port) == Progress::Busy;
+                    for ((w, port), spent) in share.iter_mut().zip(&mut ports).zip(&mut busy_time) {
+                        let t = Instant::now();
+                        if w.poll(port) == Progress::Busy {
+                            busy = true;
+                            *spent += t.elapsed();
+                        }
                     }
                     if busy {
                         idle_rounds = 0;
@@ -279,7 +298,12 @@ fn run_typed<T: Sample + Sync>(
                         }
                     }
                 }
-            });
+                share
+                    .iter()
+                    .map(|w| w.node())
+                    .zip(busy_time)
+                    .collect::<Vec<_>>()
+            }));
         }
         drop(host_tx);
         let result = host(
@@ -289,8 +313,17 @@ fn run_typed<T: Sample + Sync>(
             pixels,
             nodes,
             usize::from(layout.clusters()),
+            progress,
         );
         done.store(true, Ordering::Release);
+        for h in handles {
+            // A worker thread that panicked has no times to give; the host's result stands.
+            for (node, spent) in h.join().unwrap_or_default() {
+                if let Some(b) = busy.get_mut(usize::from(node)) {
+                    *b = spent;
+                }
+            }
+        }
         result
     });
     let (image, reports) = outcome?;
@@ -314,6 +347,7 @@ fn run_typed<T: Sample + Sync>(
                 },
                 stats,
                 peak_buffer: peak,
+                busy: busy[n],
             }
         })
         .collect::<Vec<_>>();
@@ -345,6 +379,7 @@ fn host(
     pixels: usize,
     nodes: usize,
     clusters: usize,
+    progress: &dyn Fn(u64),
 ) -> HostResult {
     let stalled = |what: String| SimError::Invariant {
         what,
@@ -381,6 +416,7 @@ fn host(
                     }
                     received += 1;
                 }
+                progress(received as u64);
             }
             Msg::Token { cluster } => match tokens.get_mut(usize::from(cluster)) {
                 Some(t @ false) => *t = true,
