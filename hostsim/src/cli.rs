@@ -65,6 +65,9 @@ pub enum Command {
         /// The machine profile whose node memory every node must fit.
         #[arg(long, value_enum, default_value_t = ProfileArg::Ncube2)]
         machine: ProfileArg,
+        /// OS threads of the threads fabric (0: one per core, the measured best here).
+        #[arg(long, default_value_t = 0)]
+        threads: usize,
     },
     /// Print the built-in default scene: a complete, commented example of the format.
     Scene,
@@ -258,6 +261,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             generation,
             buffer,
             machine: profile,
+            threads,
         } => {
             let (scene, name) = match &scene {
                 Some(path) => (Scene::from_file(path)?, path.display().to_string()),
@@ -273,6 +277,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 for v in &job.views {
                     let mut m = machine(v, nodes, clusters, fabric, seed, generation, buffer)
                         .map_err(|e| format!("{}/{}: {e}", job.name, v.name))?;
+                    m.threads = threads;
                     m.profile = match profile {
                         ProfileArg::Ncube2 => NCUBE2,
                         ProfileArg::Modern => MODERN,
