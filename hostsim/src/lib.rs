@@ -17,6 +17,7 @@ pub mod explore;
 pub mod fabric;
 pub mod formats;
 pub mod output;
+pub mod profile;
 pub mod render;
 pub mod report;
 pub mod rng;

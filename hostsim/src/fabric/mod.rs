@@ -32,6 +32,64 @@ pub struct NodeReport {
     pub busy: Duration,
 }
 
+/// Where a node's virtual time went (the paper's Table 4 categories, plus idle).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Category {
+    /// Testing the communication buffer for messages (the nCUBE's `ntest`).
+    Test,
+    /// Interpolating the field (`Interpolate`).
+    Interpolate,
+    /// Stepping along rays and setting them up (`Trace`).
+    Trace,
+    /// Finding and refining crossings, gradients and shading (`Voxel_Sample`).
+    SampleShade,
+    /// Reading messages (`nread`).
+    Read,
+    /// Writing messages (`nwrite`).
+    Write,
+    /// Waiting with nothing to do.
+    Idle,
+}
+
+impl Category {
+    /// Number of categories.
+    pub const COUNT: usize = 7;
+    /// All, in order.
+    pub const ALL: [Category; 7] = [
+        Category::Test,
+        Category::Interpolate,
+        Category::Trace,
+        Category::SampleShade,
+        Category::Read,
+        Category::Write,
+        Category::Idle,
+    ];
+
+    /// The paper's name for it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Category::Test => "ntest",
+            Category::Interpolate => "Interpolate",
+            Category::Trace => "Trace",
+            Category::SampleShade => "Voxel_Sample",
+            Category::Read => "nread",
+            Category::Write => "nwrite",
+            Category::Idle => "idle",
+        }
+    }
+}
+
+/// Virtual time of a timed simulated run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VirtualTime {
+    /// Seconds until the host held the last pixel: the frame time.
+    pub frame: f64,
+    /// Seconds until the host's run ended (statistics collected).
+    pub end: f64,
+    /// Per node, seconds by [`Category`].
+    pub parts: Vec<[f64; Category::COUNT]>,
+}
+
 /// The result of a distributed render.
 #[derive(Clone, Debug)]
 pub struct Distributed {
@@ -51,6 +109,8 @@ pub struct Distributed {
     pub i_max: u16,
     /// Wall-clock time.
     pub wall: Duration,
+    /// Virtual time, for timed simulated runs.
+    pub time: Option<VirtualTime>,
 }
 
 impl Distributed {

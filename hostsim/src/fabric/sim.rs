@@ -20,19 +20,23 @@
 //! deadlock); a run far longer than its work can need is stopped by a watchdog (a livelock).
 //! Either way the error carries the seed and the last events.
 
+use super::{Category, VirtualTime};
 use super::{Distributed, NodeReport};
 use crate::budget::{NodeMemory, CODE_AND_STACK};
 use crate::dataset::{Volume, VolumeData};
+use crate::profile::MachineProfile;
 use crate::rng::SplitMix;
 use std::collections::VecDeque;
 use std::fmt;
 use std::time::{Duration, Instant};
+use voxcube_kernel::counters::Counters;
 use voxcube_kernel::flow::{self, Class, FlowControl, CLASSES};
 use voxcube_kernel::msg::{DecodeError, Msg, MsgKind, MAX_MSG_LEN};
 use voxcube_kernel::partition::{Partition, PartitionError};
 use voxcube_kernel::port::{Dest, Port};
 use voxcube_kernel::sample::Sample;
 use voxcube_kernel::slab::{stored_planes, Slab, SlabError};
+use voxcube_kernel::topology::hops;
 use voxcube_kernel::topology::Layout;
 use voxcube_kernel::view::View;
 use voxcube_kernel::worker::{Generation, Place, Progress, Worker, WorkerError};
@@ -89,6 +93,9 @@ pub struct SimConfig {
     pub buffer_bytes: Option<usize>,
     /// Ack-counter flow control (off only to show what it prevents).
     pub flow_control: bool,
+    /// Virtual time on this machine profile: events run in time order (the scheduler and seed
+    /// then only break ties) and every node's time is kept by category.
+    pub time: Option<MachineProfile>,
     /// Test-only faults, applied to every worker.
     #[cfg(feature = "mutants")]
     pub mutants: voxcube_kernel::worker::Mutants,
@@ -117,6 +124,7 @@ impl SimConfig {
             cuts: None,
             buffer_bytes: None,
             flow_control: true,
+            time: None,
             #[cfg(feature = "mutants")]
             mutants: Default::default(),
         })
@@ -274,6 +282,8 @@ struct Envelope {
     len: usize,
     bytes: [u8; MAX_MSG_LEN],
     seq: u64,
+    /// Virtual arrival time (timed runs).
+    arrival: f64,
 }
 
 #[derive(Default)]
@@ -286,6 +296,7 @@ struct SimPort<'n> {
     net: &'n mut Network,
     mailbox: &'n mut Mailbox,
     capacity: usize,
+    received: u64,
 }
 
 /// Messages in flight and what each node's buffer holds.
@@ -318,6 +329,7 @@ impl Network {
             len,
             bytes,
             seq: self.seq,
+            arrival: f64::NAN,
         });
     }
 }
@@ -346,6 +358,7 @@ impl Port for SimPort<'_> {
 
     fn try_recv(&mut self, class: Class) -> Option<(Dest, Msg)> {
         let (from, msg) = self.mailbox.by_class[class.index()].pop_front()?;
+        self.received += 1;
         if let Some(u) = self.net.used.get_mut(usize::from(self.from)) {
             *u = u.saturating_sub(msg.kind().encoded_len());
         }
@@ -473,6 +486,7 @@ fn run_typed<T: Sample>(
     };
     let (mut messages, mut bytes, mut events) = ([0u64; 9], 0u64, 0u64);
     let mut rng = SplitMix(cfg.seed);
+    let mut clock = cfg.time.as_ref().map(|p| Clock::new(p, nodes));
     let mut trace: VecDeque<Event> = VecDeque::with_capacity(64);
     let limit = 10_000_000 + 4_000 * pixels as u64 * nodes as u64;
     let fail = |what: String, events: u64, trace: &VecDeque<Event>| SimError::Invariant {
@@ -524,7 +538,11 @@ fn run_typed<T: Sample>(
                 trace: Trace(trace.iter().map(ToString::to_string).collect()),
             });
         }
-        match choose(cfg.scheduler, &mut rng, &net.inflight, active.len()) {
+        let choice = match &clock {
+            Some(clock) => clock.choose(&net.inflight, &active),
+            None => choose(cfg.scheduler, &mut rng, &net.inflight, active.len()),
+        };
+        match choice {
             Choice::Deliver(i) => {
                 let env = net.inflight.swap_remove(i);
                 let msg = Msg::decode(&env.bytes[..env.len]).map_err(|error| SimError::Decode {
@@ -544,6 +562,9 @@ fn run_typed<T: Sample>(
                 );
                 match env.to {
                     Dest::Host => {
+                        if let Some(clock) = &mut clock {
+                            clock.host_receives(env.arrival, &msg);
+                        }
                         if let Err(what) = host_receive(&mut host, msg, &layout) {
                             return Err(fail(what, events, &trace));
                         }
@@ -554,6 +575,10 @@ fn run_typed<T: Sample>(
                             host.collecting = true;
                             for n in 0..nodes as u16 {
                                 net.push(None, Dest::Node(n), &Msg::Collect);
+                                if let (Some(clock), Some(env)) = (&clock, net.inflight.last_mut())
+                                {
+                                    env.arrival = clock.host_time + clock.transfer(env.len, 1);
+                                }
                             }
                         }
                     }
@@ -562,6 +587,9 @@ fn run_typed<T: Sample>(
                         let from = env.from.map_or(Dest::Host, Dest::Node);
                         if let Some(mailbox) = mailboxes.get_mut(n) {
                             mailbox.by_class[msg.class().index()].push_back((from, msg));
+                            if let Some(clock) = &mut clock {
+                                clock.wake(n, env.arrival);
+                            }
                             if !is_active[n] {
                                 is_active[n] = true;
                                 active.push(n);
@@ -572,13 +600,31 @@ fn run_typed<T: Sample>(
             }
             Choice::Step(i) => {
                 let n = active[i];
+                let pending = mailboxes[n]
+                    .by_class
+                    .iter()
+                    .map(VecDeque::len)
+                    .sum::<usize>();
+                let before = (workers[n].counters(), net.inflight.len());
                 let mut port = SimPort {
                     from: n as u16,
                     net: &mut net,
                     mailbox: &mut mailboxes[n],
                     capacity,
+                    received: 0,
                 };
                 let progress = workers[n].poll(&mut port);
+                let received = port.received;
+                if let Some(clock) = &mut clock {
+                    clock.step(
+                        n,
+                        &workers[n].counters(),
+                        &before.0,
+                        pending,
+                        received,
+                        &mut net.inflight[before.1..],
+                    );
+                }
                 if let Some((from, to, kind)) = net.refused.take() {
                     record(&mut trace, Event::Refused { from, to, kind });
                 }
@@ -677,7 +723,9 @@ fn run_typed<T: Sample>(
             },
         )
         .collect();
+    let time = clock.map(Clock::finish);
     Ok(Distributed {
+        time,
         pixels: host
             .image
             .into_iter()
@@ -788,3 +836,132 @@ fn choose(scheduler: Scheduler, rng: &mut SplitMix, inflight: &[Envelope], nodes
 
 /// Every class a port reads, for reports.
 pub const READ_CLASSES: [Class; 7] = CLASSES;
+
+/// Virtual time of a timed run: every node's clock and its time by category.
+struct Clock {
+    profile: MachineProfile,
+    now: Vec<f64>,
+    parts: Vec<[f64; Category::COUNT]>,
+    host_time: f64,
+    last_pixel: f64,
+}
+
+impl Clock {
+    fn new(profile: &MachineProfile, nodes: usize) -> Clock {
+        Clock {
+            profile: profile.clone(),
+            now: vec![0.0; nodes],
+            parts: vec![[0.0; Category::COUNT]; nodes],
+            host_time: 0.0,
+            last_pixel: 0.0,
+        }
+    }
+
+    /// Seconds for a message of `len` bytes over `hops` hops.
+    fn transfer(&self, len: usize, hops: u32) -> f64 {
+        let m = &self.profile.messages;
+        self.profile.scale
+            * (m.latency + len as f64 * m.per_byte + f64::from(hops.saturating_sub(1)) * m.per_hop)
+    }
+
+    /// The earliest event: a delivery, or a step of the node whose clock is earliest.
+    fn choose(&self, inflight: &[Envelope], active: &[usize]) -> Choice {
+        let deliver = inflight
+            .iter()
+            .enumerate()
+            .min_by(|(_, a), (_, b)| a.arrival.total_cmp(&b.arrival).then(a.seq.cmp(&b.seq)));
+        let step = active
+            .iter()
+            .enumerate()
+            .min_by(|(_, &a), (_, &b)| self.now[a].total_cmp(&self.now[b]).then(a.cmp(&b)));
+        match (deliver, step) {
+            (Some((i, e)), Some((_, &n))) if e.arrival <= self.now[n] => Choice::Deliver(i),
+            (_, Some((j, _))) => Choice::Step(j),
+            (Some((i, _)), None) => Choice::Deliver(i),
+            (None, None) => Choice::Step(0),
+        }
+    }
+
+    /// Charge node `n`'s step (counters `before` → `after`, `pending` messages waiting when it
+    /// began, `received` read) and stamp the arrival of the messages it sent.
+    fn step(
+        &mut self,
+        n: usize,
+        after: &Counters,
+        before: &Counters,
+        pending: usize,
+        received: u64,
+        sent: &mut [Envelope],
+    ) {
+        let (c, m, scale) = (
+            self.profile.costs,
+            self.profile.messages,
+            self.profile.scale,
+        );
+        let d = |a: u64, b: u64| a.saturating_sub(b) as f64;
+        let mut parts = [0.0; Category::COUNT];
+        parts[Category::Test as usize] = m.test + m.test_per_pending * pending as f64;
+        parts[Category::Interpolate as usize] = d(after.interpolations, before.interpolations)
+            * c.interpolation
+            + d(after.lookups, before.lookups) * c.lookup;
+        parts[Category::Trace as usize] = d(after.samples, before.samples) * c.sample
+            + d(after.primary_rays, before.primary_rays) * c.ray_setup;
+        parts[Category::SampleShade as usize] = d(after.refinements, before.refinements)
+            * c.refinement
+            + d(after.gradients, before.gradients) * c.gradient
+            + d(after.shadings, before.shadings) * c.shading
+            + d(after.crossings, before.crossings) * c.crossing;
+        parts[Category::Read as usize] = received as f64 * m.read;
+        parts[Category::Write as usize] = sent.len() as f64 * m.write;
+        let mut spent = 0.0;
+        for (total, part) in self.parts[n].iter_mut().zip(parts) {
+            *total += part * scale;
+            spent += part * scale;
+        }
+        self.now[n] += spent;
+        let me = n as u16;
+        for e in sent.iter_mut() {
+            let h = match e.to {
+                Dest::Node(to) => hops(me, to).max(1),
+                Dest::Host => 1,
+            };
+            e.arrival = self.now[n] + self.transfer(e.len, h);
+        }
+    }
+
+    /// Node `n` is woken by a message arriving at `at`: the wait is idle time.
+    fn wake(&mut self, n: usize, at: f64) {
+        if at > self.now[n] {
+            self.parts[n][Category::Idle as usize] += at - self.now[n];
+            self.now[n] = at;
+        }
+    }
+
+    fn host_receives(&mut self, at: f64, msg: &Msg) {
+        self.host_time = self.host_time.max(at);
+        if let Msg::Pixels(_) = msg {
+            self.last_pixel = self.last_pixel.max(at);
+        }
+    }
+
+    fn finish(self) -> VirtualTime {
+        let end = self.last_pixel;
+        // From a node's last work to the end of the frame it is idle too.
+        let parts = self
+            .parts
+            .into_iter()
+            .zip(&self.now)
+            .map(|(mut p, &now)| {
+                if end > now {
+                    p[Category::Idle as usize] += end - now;
+                }
+                p
+            })
+            .collect();
+        VirtualTime {
+            frame: end,
+            end: self.host_time,
+            parts,
+        }
+    }
+}

@@ -366,6 +366,7 @@ fn run_typed<T: Sample + Sync>(
         buffer_capacity: capacity,
         i_max: flow.i_max,
         wall: start.elapsed(),
+        time: None,
     })
 }
 

@@ -1,0 +1,194 @@
+//! Machine profiles: what each of the kernel's counted operations costs on a machine, what a
+//! message costs, and how much memory a node has. Profiles are TOML files shipped with voxcube
+//! (`hostsim/profiles/`), selectable by name (`ncube2`, `modern`) or read from a path.
+//!
+//! Invariants: every cost is finite and non-negative, `scale` and `node_memory` positive. The
+//! time of a piece of work is `scale × Σ count × cost`; `scale` is the one calibrated number.
+
+use serde::Deserialize;
+use std::path::Path;
+
+/// Per-operation costs, seconds (before `scale`).
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Costs {
+    /// Stepping to one lattice sample.
+    pub sample: f64,
+    /// One trilinear interpolation.
+    pub interpolation: f64,
+    /// One nearest-node read.
+    pub lookup: f64,
+    /// One refinement evaluation (beyond its interpolation).
+    pub refinement: f64,
+    /// One gradient (beyond its interpolations).
+    pub gradient: f64,
+    /// Shading one point.
+    pub shading: f64,
+    /// One crossing found.
+    pub crossing: f64,
+    /// Setting up one primary ray.
+    pub ray_setup: f64,
+}
+
+/// Message costs, seconds (before `scale`).
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct MessageCosts {
+    /// Start-up of one message.
+    pub latency: f64,
+    /// Per byte on a link.
+    pub per_byte: f64,
+    /// Per hop beyond the first.
+    pub per_hop: f64,
+    /// Reading one message from the buffer.
+    pub read: f64,
+    /// Writing one message.
+    pub write: f64,
+    /// One test of the buffer...
+    pub test: f64,
+    /// ...plus this per pending message.
+    pub test_per_pending: f64,
+}
+
+/// A machine profile.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct MachineProfile {
+    /// Name.
+    pub name: String,
+    /// Bytes of memory per node.
+    pub node_memory: usize,
+    /// The calibrated overall factor.
+    pub scale: f64,
+    /// Operation costs.
+    pub costs: Costs,
+    /// Message costs.
+    pub messages: MessageCosts,
+}
+
+/// The profiles shipped with voxcube.
+pub const BUILT_IN: [(&str, &str); 2] = [
+    ("ncube2", include_str!("../profiles/ncube2.toml")),
+    ("modern", include_str!("../profiles/modern.toml")),
+];
+
+/// Why a profile cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum ProfileError {
+    /// No built-in profile of that name and no such file.
+    #[error("unknown machine \"{0}\": give ncube2, modern, or a profile file (.toml)")]
+    Unknown(String),
+    /// The file could not be read.
+    #[error("{file}: cannot read: {source}")]
+    Read {
+        /// The file.
+        file: String,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// Not a valid profile.
+    #[error("{file}: {message}")]
+    Invalid {
+        /// The file.
+        file: String,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+impl MachineProfile {
+    /// A built-in profile by name, or a profile file by path.
+    pub fn load(name_or_path: &str) -> Result<MachineProfile, ProfileError> {
+        if let Some((_, text)) = BUILT_IN.iter().find(|(n, _)| *n == name_or_path) {
+            return MachineProfile::parse(text, name_or_path);
+        }
+        let path = Path::new(name_or_path);
+        if path.extension().and_then(|e| e.to_str()) != Some("toml") {
+            return Err(ProfileError::Unknown(name_or_path.to_string()));
+        }
+        let text = std::fs::read_to_string(path).map_err(|source| ProfileError::Read {
+            file: name_or_path.to_string(),
+            source,
+        })?;
+        MachineProfile::parse(&text, name_or_path)
+    }
+
+    /// Parse and check profile text.
+    pub fn parse(text: &str, file: &str) -> Result<MachineProfile, ProfileError> {
+        let invalid = |message: String| ProfileError::Invalid {
+            file: file.to_string(),
+            message,
+        };
+        let p: MachineProfile =
+            toml::from_str(text).map_err(|e| invalid(e.to_string().trim_end().to_string()))?;
+        let c = &p.costs;
+        let m = &p.messages;
+        let named = [
+            ("costs.sample", c.sample),
+            ("costs.interpolation", c.interpolation),
+            ("costs.lookup", c.lookup),
+            ("costs.refinement", c.refinement),
+            ("costs.gradient", c.gradient),
+            ("costs.shading", c.shading),
+            ("costs.crossing", c.crossing),
+            ("costs.ray_setup", c.ray_setup),
+            ("messages.latency", m.latency),
+            ("messages.per_byte", m.per_byte),
+            ("messages.per_hop", m.per_hop),
+            ("messages.read", m.read),
+            ("messages.write", m.write),
+            ("messages.test", m.test),
+            ("messages.test_per_pending", m.test_per_pending),
+        ];
+        if let Some((key, v)) = named.iter().find(|(_, v)| !(v.is_finite() && *v >= 0.0)) {
+            return Err(invalid(format!(
+                "{key}: {v} must be a finite number of seconds >= 0"
+            )));
+        }
+        if !(p.scale.is_finite() && p.scale > 0.0) {
+            return Err(invalid(format!("scale: {} must be > 0", p.scale)));
+        }
+        if p.node_memory == 0 {
+            return Err(invalid("node_memory must be > 0".into()));
+        }
+        Ok(p)
+    }
+
+    /// The nCUBE 2.
+    pub fn ncube2() -> MachineProfile {
+        // The shipped file is checked by a test; a broken one is a build defect.
+        #[allow(
+            clippy::expect_used,
+            reason = "the shipped profile is valid; a test checks it"
+        )]
+        MachineProfile::load("ncube2").expect("the shipped ncube2 profile is valid")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shipped_profiles_load_and_bad_ones_name_the_key() {
+        for (name, _) in BUILT_IN {
+            let p = MachineProfile::load(name).unwrap();
+            assert_eq!(p.name, name);
+        }
+        assert_eq!(MachineProfile::ncube2().node_memory, 4 << 20);
+        let bad =
+            include_str!("../profiles/ncube2.toml").replace("sample = 4.5e-6", "sample = -1.0");
+        let e = MachineProfile::parse(&bad, "bad.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("costs.sample"), "{e}");
+        let e = MachineProfile::parse("name = 1", "bad.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("bad.toml"), "{e}");
+        assert!(matches!(
+            MachineProfile::load("cray"),
+            Err(ProfileError::Unknown(_))
+        ));
+    }
+}

@@ -1,0 +1,53 @@
+//! Virtual time: timed simulated runs give the reference image, are repeatable, charge every
+//! node's time to categories that add up to the frame time, and get faster with more nodes.
+
+use voxcube::fabric::sim::{self, SimConfig};
+use voxcube::profile::MachineProfile;
+use voxcube::render::render;
+use voxcube::scene::Scene;
+
+fn timed(clusters: u32, size: u32) -> SimConfig {
+    SimConfig {
+        time: Some(MachineProfile::ncube2()),
+        ..SimConfig::machine(clusters, size, 1).expect("layout")
+    }
+}
+
+#[test]
+fn timed_runs_are_exact_repeatable_and_add_up() {
+    let jobs = Scene::default_scene()
+        .and_then(Scene::load)
+        .expect("default scene");
+    let job = &jobs[0];
+    let v = &job.views[0].view;
+    let reference = render(&job.volume, v).expect("renders").pixels;
+    let mut frame = Vec::new();
+    for (clusters, size) in [(1, 1), (2, 1), (4, 1), (1, 4), (2, 2)] {
+        let run = sim::run(&job.volume, v, &timed(clusters, size)).expect("runs");
+        assert!(run.pixels == reference, "{clusters}x{size}: image differs");
+        let t = run.time.clone().expect("virtual time");
+        let again = sim::run(&job.volume, v, &timed(clusters, size))
+            .expect("runs")
+            .time
+            .expect("time");
+        assert_eq!(t, again, "timed runs repeat exactly");
+        for parts in &t.parts {
+            let total: f64 = parts.iter().sum();
+            assert!(
+                total >= t.frame * (1.0 - 1e-9),
+                "a node's categories ({total}) fall short of the frame ({})",
+                t.frame
+            );
+        }
+        frame.push(t.frame);
+        eprintln!("{clusters} clusters of {size}: {:.2} s", t.frame);
+    }
+    assert!(
+        frame[1] < frame[0] && frame[2] < frame[1],
+        "image partition gets faster with nodes: {frame:?}"
+    );
+    assert!(
+        frame[3] < frame[0],
+        "ray dataflow on 4 nodes is faster than 1: {frame:?}"
+    );
+}
