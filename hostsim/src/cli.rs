@@ -81,6 +81,30 @@ pub enum Command {
         #[arg(long, default_value = "../shared/data/sod-97x97x116.u8.binary")]
         sod: PathBuf,
     },
+    /// The paper's Tables 1-4 in simulated nCUBE 2 time, beside the paper's numbers, with
+    /// speedup and efficiency plots and the image.
+    Paper {
+        /// The folder holding SOD (sod-97x97x116.u8.binary); the built-in substitute if absent.
+        #[arg(long)]
+        data: Option<PathBuf>,
+        /// Folder for tables, plots and the image.
+        #[arg(short, long, default_value = "out/paper")]
+        out: PathBuf,
+        /// Machine profile: ncube2, modern, or a profile file.
+        #[arg(long, default_value = "ncube2")]
+        machine: String,
+    },
+    /// What accuracy costs in time: dt, voxel vs cell model, gradient distance and image size
+    /// swept on SOD; wall time, simulated nCUBE 2 time, samples, and error against a fine
+    /// reference (PSNR, max error); a table and a plot.
+    Accuracy {
+        /// The folder holding SOD; the built-in substitute if absent.
+        #[arg(long, default_value = "../shared/data")]
+        data: PathBuf,
+        /// Folder for the table and the plot.
+        #[arg(short, long, default_value = "out/accuracy")]
+        out: PathBuf,
+    },
     /// Explore schedules on the simulator: configurations (scenes with shadows and
     /// transparency, cube shapes, buffer sizes) × schedulers × seeds. Prints what was explored,
     /// deadlocks, invariant violations, differing images and the worst buffer use.
@@ -205,6 +229,30 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
     match cli.command {
         Command::Scene => {
             print!("{DEFAULT_SCENE}");
+            Ok(())
+        }
+        Command::Paper { data, out, machine } => {
+            let profile = crate::profile::MachineProfile::load(&machine)?;
+            let mut text = String::new();
+            let job = crate::paper::dataset(data.as_deref(), &mut text)?;
+            crate::paper::run(&job, &profile, &out, &mut text)?;
+            print!("{text}");
+            Ok(())
+        }
+        Command::Accuracy { data, out } => {
+            let mut notes = String::new();
+            let job = crate::paper::dataset(Some(&data), &mut notes)?;
+            let profile = crate::profile::MachineProfile::ncube2();
+            let points = crate::accuracy::sweep(&job, &profile);
+            let table = crate::accuracy::table(&points);
+            std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
+            std::fs::write(out.join("accuracy.txt"), &table)
+                .map_err(|e| format!("{}: {e}", out.display()))?;
+            crate::accuracy::plot(&out.join("accuracy.svg"), &points)?;
+            println!(
+                "{notes}{table}wrote {}/accuracy.txt and accuracy.svg",
+                out.display()
+            );
             Ok(())
         }
         Command::Bench { runs, sod } => {

@@ -8,6 +8,7 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
+pub mod accuracy;
 pub mod bench;
 pub mod budget;
 pub mod builtin;
@@ -17,6 +18,7 @@ pub mod explore;
 pub mod fabric;
 pub mod formats;
 pub mod output;
+pub mod paper;
 pub mod profile;
 pub mod render;
 pub mod report;

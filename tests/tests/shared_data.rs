@@ -144,3 +144,26 @@ fn sod_renders_identically_on_one_and_sixteen_nodes() {
         );
     }
 }
+
+#[test]
+fn the_ncube2_profile_is_calibrated_to_the_papers_one_node_time() {
+    use voxcube::fabric::sim::{self, SimConfig};
+    use voxcube::profile::MachineProfile;
+    let Some(data) = data_or_skip() else { return };
+    let mut notes = String::new();
+    let job = voxcube::paper::dataset(Some(&data), &mut notes).expect("SOD");
+    assert!(notes.is_empty(), "{notes}");
+    let cfg = SimConfig {
+        time: Some(MachineProfile::ncube2()),
+        ..SimConfig::cluster(1, 1).expect("layout")
+    };
+    let t = sim::run(&job.volume, &job.views[0].view, &cfg)
+        .expect("runs")
+        .time
+        .expect("timed");
+    assert!(
+        (t.frame - 485.24).abs() < 0.01 * 485.24,
+        "1-node SOD takes {:.2} s; the paper's is 485.24 s",
+        t.frame
+    );
+}

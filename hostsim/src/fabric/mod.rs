@@ -65,6 +65,15 @@ impl Category {
         Category::Idle,
     ];
 
+    /// Whether this is the tracer's compute (scaled by the profile's calibration), as opposed
+    /// to message handling and waiting.
+    pub fn is_compute(self) -> bool {
+        matches!(
+            self,
+            Category::Interpolate | Category::Trace | Category::SampleShade
+        )
+    }
+
     /// The paper's name for it.
     pub fn name(self) -> &'static str {
         match self {

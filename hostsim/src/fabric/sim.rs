@@ -860,8 +860,8 @@ impl Clock {
     /// Seconds for a message of `len` bytes over `hops` hops.
     fn transfer(&self, len: usize, hops: u32) -> f64 {
         let m = &self.profile.messages;
-        self.profile.scale
-            * (m.latency + len as f64 * m.per_byte + f64::from(hops.saturating_sub(1)) * m.per_hop)
+        // Message costs are the machine's own: `scale` calibrates only the tracer's compute.
+        m.latency + len as f64 * m.per_byte + f64::from(hops.saturating_sub(1)) * m.per_hop
     }
 
     /// The earliest event: a delivery, or a step of the node whose clock is earliest.
@@ -914,9 +914,18 @@ impl Clock {
         parts[Category::Read as usize] = received as f64 * m.read;
         parts[Category::Write as usize] = sent.len() as f64 * m.write;
         let mut spent = 0.0;
-        for (total, part) in self.parts[n].iter_mut().zip(parts) {
-            *total += part * scale;
-            spent += part * scale;
+        for (category, (total, part)) in Category::ALL
+            .iter()
+            .zip(self.parts[n].iter_mut().zip(parts))
+        {
+            // `scale` calibrates the tracer's compute; message handling is the machine's own.
+            let part = if category.is_compute() {
+                part * scale
+            } else {
+                part
+            };
+            *total += part;
+            spent += part;
         }
         self.now[n] += spent;
         let me = n as u16;

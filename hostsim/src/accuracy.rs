@@ -1,0 +1,265 @@
+//! `voxcube accuracy`: what accuracy costs in time. Δt (1/2, 1/3, 1/5, 1/8 cell edge), the
+//! voxel against the cell model, the gradient distance, and the image size (350×250 up to
+//! the paper's 1024×768 at Δt = 1/5) are swept on SOD. Each setting reports:
+//! - wall time on this machine (median of 3);
+//! - simulated 1-node nCUBE 2 time (the profile's costs times the counted operations);
+//! - samples traced;
+//! - error against a fine reference at the same image size (Δt = 1/16, cell model): PSNR and
+//!   maximum absolute error, in 8-bit levels.
+
+use crate::fabric::Category;
+use crate::profile::MachineProfile;
+use crate::render::render;
+use crate::scene::DatasetJob;
+use plotters::prelude::*;
+use std::fmt::Write as _;
+use std::path::Path;
+use voxcube_kernel::counters::Counters;
+use voxcube_kernel::grid::Model;
+use voxcube_kernel::view::View;
+
+/// One measured setting.
+#[derive(Clone, Debug)]
+pub struct Point {
+    /// What was varied, as a label.
+    pub label: String,
+    /// Which sweep it belongs to.
+    pub sweep: &'static str,
+    /// Median wall time, milliseconds.
+    pub wall_ms: f64,
+    /// Simulated 1-node nCUBE 2 seconds.
+    pub ncube_s: f64,
+    /// Lattice samples.
+    pub samples: u64,
+    /// PSNR against the reference, dB (infinite when identical).
+    pub psnr: f64,
+    /// Largest absolute difference in any channel, 8-bit levels.
+    pub max_error: u8,
+}
+
+/// Simulated 1-node seconds of the counted work on `profile` (compute, scaled; no messages).
+pub fn one_node_seconds(c: &Counters, profile: &MachineProfile) -> f64 {
+    let k = &profile.costs;
+    let compute = c.samples as f64 * k.sample
+        + c.interpolations as f64 * k.interpolation
+        + c.lookups as f64 * k.lookup
+        + c.refinements as f64 * k.refinement
+        + c.gradients as f64 * k.gradient
+        + c.shadings as f64 * k.shading
+        + c.crossings as f64 * k.crossing
+        + c.primary_rays as f64 * k.ray_setup;
+    let _ = Category::ALL;
+    compute * profile.scale
+}
+
+/// PSNR (dB) and maximum absolute error between two RGBA8 images of the same size.
+pub fn compare(a: &[[u8; 4]], b: &[[u8; 4]]) -> (f64, u8) {
+    let (mut se, mut max, mut n) = (0f64, 0u8, 0usize);
+    for (p, q) in a.iter().zip(b) {
+        for ch in 0..3 {
+            let d = p[ch].abs_diff(q[ch]);
+            max = max.max(d);
+            se += f64::from(d) * f64::from(d);
+            n += 1;
+        }
+    }
+    let mse = se / n.max(1) as f64;
+    let psnr = if mse == 0.0 {
+        f64::INFINITY
+    } else {
+        10.0 * (255.0f64 * 255.0 / mse).log10()
+    };
+    (psnr, max)
+}
+
+fn with(
+    view: &View,
+    job: &DatasetJob,
+    f: impl FnOnce(&mut voxcube_kernel::view::ViewSpec),
+) -> Option<View> {
+    let mut spec = view.spec().clone();
+    f(&mut spec);
+    View::new(spec, &job.volume.grid).ok()
+}
+
+fn measure(
+    job: &DatasetJob,
+    view: &View,
+    reference: &[[u8; 4]],
+    profile: &MachineProfile,
+    label: String,
+    sweep: &'static str,
+) -> Option<Point> {
+    let mut walls = Vec::new();
+    let mut last = None;
+    for _ in 0..3 {
+        let r = render(&job.volume, view).ok()?;
+        walls.push(r.wall.as_secs_f64() * 1e3);
+        last = Some(r);
+    }
+    walls.sort_by(f64::total_cmp);
+    let r = last?;
+    let (psnr, max_error) = compare(&r.pixels, reference);
+    Some(Point {
+        label,
+        sweep,
+        wall_ms: walls[1],
+        ncube_s: one_node_seconds(&r.counters, profile),
+        samples: r.counters.samples,
+        psnr,
+        max_error,
+    })
+}
+
+/// Run the sweeps on the first view of `job`; the points, in order.
+pub fn sweep(job: &DatasetJob, profile: &MachineProfile) -> Vec<Point> {
+    let base = &job.views[0].view;
+    let mut points = Vec::new();
+    let reference_of = |v: &View| {
+        with(v, job, |s| {
+            s.dt = 1.0 / 16.0;
+            s.model = Model::Cell;
+        })
+        .and_then(|r| render(&job.volume, &r).ok())
+        .map(|r| r.pixels)
+        .unwrap_or_default()
+    };
+    let reference = reference_of(base);
+    for (name, dt) in [
+        ("1/2", 0.5f32),
+        ("1/3", 1.0 / 3.0),
+        ("1/5", 0.2),
+        ("1/8", 0.125),
+    ] {
+        for model in [Model::Cell, Model::Voxel] {
+            if let Some(v) = with(base, job, |s| {
+                s.dt = dt;
+                s.model = model;
+            }) {
+                let label = format!(
+                    "dt {name}, {}",
+                    if model == Model::Cell {
+                        "cell"
+                    } else {
+                        "voxel"
+                    }
+                );
+                points.extend(measure(job, &v, &reference, profile, label, "dt and model"));
+            }
+        }
+    }
+    for p in [0.5f32, 1.0, 2.0] {
+        if let Some(v) = with(base, job, |s| s.gradient_distance = p) {
+            points.extend(measure(
+                job,
+                &v,
+                &reference,
+                profile,
+                format!("gradient distance {p}"),
+                "gradient",
+            ));
+        }
+    }
+    for (w, h, dt) in [(350u32, 250u32, 0.5f32), (700, 500, 0.5), (1024, 768, 0.2)] {
+        let dt_name = if dt == 0.5 { "1/2" } else { "1/5" };
+        if let Some(v) = with(base, job, |s| {
+            s.width = w;
+            s.height = h;
+            s.dt = dt;
+        }) {
+            let reference = reference_of(&v);
+            points.extend(measure(
+                job,
+                &v,
+                &reference,
+                profile,
+                format!("{w}x{h}, dt {dt_name}"),
+                "image size",
+            ));
+        }
+    }
+    points
+}
+
+/// The table.
+pub fn table(points: &[Point]) -> String {
+    let mut out = format!(
+        "{:<26} {:>9} {:>12} {:>10} {:>9} {:>9}\n",
+        "setting", "wall ms", "nCUBE 2 s", "samples", "PSNR dB", "max err"
+    );
+    let mut sweep = "";
+    for p in points {
+        if p.sweep != sweep {
+            sweep = p.sweep;
+            let _ = writeln!(out, "-- {sweep}");
+        }
+        let psnr = if p.psnr.is_finite() {
+            format!("{:.1}", p.psnr)
+        } else {
+            "exact".into()
+        };
+        let _ = writeln!(
+            out,
+            "{:<26} {:>9.1} {:>12.1} {:>9.2}M {:>9} {:>9}",
+            p.label,
+            p.wall_ms,
+            p.ncube_s,
+            p.samples as f64 / 1e6,
+            psnr,
+            p.max_error
+        );
+    }
+    out.push_str("reference: dt 1/16, cell model, same image size; errors in 8-bit levels\n");
+    out
+}
+
+/// Error (PSNR) against simulated nCUBE time for the Δt and model sweep.
+pub fn plot(path: &Path, points: &[Point]) -> Result<(), String> {
+    let sweep: Vec<&Point> = points
+        .iter()
+        .filter(|p| p.sweep == "dt and model" && p.psnr.is_finite())
+        .collect();
+    let (tmax, pmax) = sweep.iter().fold((1.0f64, 10.0f64), |(t, q), p| {
+        (t.max(p.ncube_s), q.max(p.psnr))
+    });
+    let root = SVGBackend::new(path, (640, 420)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(
+            "Accuracy against time on SOD (1 node, nCUBE 2)",
+            ("sans-serif", 18),
+        )
+        .margin(12)
+        .x_label_area_size(36)
+        .y_label_area_size(48)
+        .build_cartesian_2d(0f64..tmax * 1.1, 0f64..pmax * 1.1)
+        .map_err(|e| e.to_string())?;
+    chart
+        .configure_mesh()
+        .x_desc("simulated seconds")
+        .y_desc("PSNR (dB) vs dt 1/16")
+        .draw()
+        .map_err(|e| e.to_string())?;
+    for (model, color) in [("cell", BLUE), ("voxel", RED)] {
+        let line: Vec<(f64, f64)> = sweep
+            .iter()
+            .filter(|p| p.label.ends_with(model))
+            .map(|p| (p.ncube_s, p.psnr))
+            .collect();
+        chart
+            .draw_series(LineSeries::new(line.clone(), color.stroke_width(2)))
+            .map_err(|e| e.to_string())?
+            .label(format!("{model} model, dt 1/2 to 1/8"))
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], color));
+        chart
+            .draw_series(line.into_iter().map(|p| Circle::new(p, 3, color.filled())))
+            .map_err(|e| e.to_string())?;
+    }
+    chart
+        .configure_series_labels()
+        .border_style(BLACK)
+        .background_style(WHITE)
+        .draw()
+        .map_err(|e| e.to_string())?;
+    root.present().map_err(|e| e.to_string())
+}

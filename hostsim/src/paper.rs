@@ -1,0 +1,472 @@
+//! `voxcube paper`: the experiments of the paper's Tables 1–4, in simulated nCUBE 2 time, each
+//! printed beside the paper's numbers; speedup and efficiency plots; the image.
+//!
+//! Table 1 takes, for each node count, the best cluster size (as the paper's own times imply:
+//! its 64- and 128-node rows are Table 2's best columns). Table 4 folds waiting into `ntest`,
+//! because an nCUBE worker with nothing to do spins on `ntest`; the idle share is also shown.
+//!
+//! Static load balancing follows the paper. One cluster traces a regular grid of primary rays
+//! over the image plane (35×25, the image's aspect). Worker `i` reports its time `t_i` (its
+//! work and message handling, not its waiting). New slab sizes are
+//! `size[i] += (t_mean − t_i) / t_single_plane`, with `t_single_plane = Σ t_i / n_x`,
+//! rounded to whole planes, at least one each. The host computes the new cuts. The plane
+//! transfer between neighbours is charged at the profile's message rates: the planes each
+//! boundary moves, in 256-byte slab-plane messages. The simulated workers are handed their
+//! new slabs rather than receiving them as messages.
+
+use crate::fabric::sim::{self, SimConfig, SimError};
+use crate::fabric::{Category, VirtualTime};
+use crate::output::write_png;
+use crate::profile::MachineProfile;
+use crate::scene::{DatasetJob, Scene, SceneError};
+use plotters::prelude::*;
+use std::fmt::Write as _;
+use std::path::Path;
+use voxcube_kernel::msg::PLANE_CHUNK;
+use voxcube_kernel::view::{View, ViewSpec};
+
+/// The paper's Table 1: nodes, seconds.
+pub const TABLE1: [(u32, f64); 8] = [
+    (1, 485.24),
+    (2, 260.35),
+    (4, 130.19),
+    (8, 65.82),
+    (16, 32.96),
+    (32, 17.26),
+    (64, 8.90),
+    (128, 5.14),
+];
+/// The paper's Table 2: cluster sizes, then seconds at 64 and at 128 nodes.
+pub const TABLE2: [(u32, f64, f64); 5] = [
+    (16, 24.16, 12.32),
+    (8, 17.16, 8.77),
+    (4, 11.93, 6.70),
+    (2, 10.10, 5.14),
+    (1, 8.90, 6.42),
+];
+/// The paper's Table 3: cluster sizes, then balanced seconds at 64 and at 128 nodes.
+pub const TABLE3: [(u32, f64, f64); 4] = [
+    (16, 15.20, 7.94),
+    (8, 12.26, 6.56),
+    (4, 10.26, 6.04),
+    (2, 9.27, 4.75),
+];
+/// The paper's Table 4: category, mean, min, max (percent of time), on one 16-node cluster.
+pub const TABLE4: [(&str, f64, f64, f64); 6] = [
+    ("ntest", 32.82, 0.77, 46.82),
+    ("Interpolate", 31.48, 20.96, 55.55),
+    ("Trace", 9.39, 6.60, 15.55),
+    ("Voxel_Sample", 8.46, 5.60, 14.77),
+    ("nread", 1.36, 1.02, 1.76),
+    ("nwrite", 1.38, 0.83, 2.08),
+];
+
+const SOD_SCENE: &str = r#"
+[[datasets]]
+name = "sod"
+PATH
+[[datasets.views]]
+name = "paper"
+width = 350
+height = 250
+dt = 0.5
+[datasets.views.camera]
+azimuth = 45.0
+elevation = 0.0
+[[datasets.views.surfaces]]
+iso = ISO
+color = [0.95, 0.78, 0.45]
+[[datasets.views.lights]]
+type = "directional"
+direction = [0.4, -0.5, 1.0]
+frame = "camera"
+"#;
+
+/// Why the experiments could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum PaperError {
+    /// The scene did not load.
+    #[error("{0}")]
+    Scene(#[from] SceneError),
+    /// A simulated run failed.
+    #[error("{0}")]
+    Sim(#[from] SimError),
+    /// An output could not be written.
+    #[error("{0}")]
+    Write(String),
+}
+
+/// The dataset: SOD from `data` if it is there, else the built-in substitute (with a note).
+pub fn dataset(data: Option<&Path>, notes: &mut String) -> Result<DatasetJob, PaperError> {
+    let sod = data.map(|d| d.join("sod-97x97x116.u8.binary"));
+    let source = match &sod {
+        Some(p) if p.is_file() => format!(
+            "path = \"{}\"\nformat = \"raw\"\ndims = [97, 97, 116]\ntype = \"u8\"\nheader_bytes = 12",
+            p.display().to_string().replace('\\', "/")
+        ),
+        _ => {
+            let _ = writeln!(notes, "SOD not found: using the built-in molecule of the same size and character");
+            "builtin = \"molecule\"".to_string()
+        }
+    };
+    let iso = if source.starts_with("path") {
+        "50.0"
+    } else {
+        "40.0"
+    };
+    let text = SOD_SCENE.replace("PATH", &source).replace("ISO", iso);
+    Ok(Scene::parse(&text, "<paper>", Path::new("."))?
+        .load()?
+        .remove(0))
+}
+
+/// One timed run: the view on `clusters` clusters of `size`, optionally with slab `cuts`.
+pub fn timed(
+    job: &DatasetJob,
+    view: &View,
+    profile: &MachineProfile,
+    clusters: u32,
+    size: u32,
+    cuts: Option<Vec<u32>>,
+) -> Result<VirtualTime, PaperError> {
+    let Ok(base) = SimConfig::machine(clusters, size, 1) else {
+        return Err(PaperError::Write(format!(
+            "no layout of {clusters} clusters of {size}"
+        )));
+    };
+    let cfg = SimConfig {
+        time: Some(profile.clone()),
+        cuts,
+        ..base
+    };
+    let run = sim::run(&job.volume, view, &cfg)?;
+    run.time
+        .ok_or_else(|| PaperError::Write("a timed run returned no time".into()))
+}
+
+/// Worker times of a run: work and message handling, not waiting.
+fn busy(t: &VirtualTime) -> Vec<f64> {
+    t.parts
+        .iter()
+        .map(|p| p.iter().sum::<f64>() - p[Category::Idle as usize] - p[Category::Test as usize])
+        .collect()
+}
+
+/// The paper's static load balancing for one cluster of `size`: new cuts and the seconds the
+/// plane transfer costs.
+pub fn balance(
+    job: &DatasetJob,
+    view: &View,
+    profile: &MachineProfile,
+    size: u32,
+) -> Result<(Vec<u32>, f64), PaperError> {
+    let nx = job.volume.grid.dims()[0];
+    let mut spec: ViewSpec = view.spec().clone();
+    spec.width = 35;
+    spec.height = 25;
+    let probe = View::new(spec, &job.volume.grid).map_err(|e| PaperError::Write(e.to_string()))?;
+    let t = timed(job, &probe, profile, 1, size, None)?;
+    let times = busy(&t);
+    let total: f64 = times.iter().sum();
+    let mean = total / f64::from(size);
+    let single_plane = total / f64::from(nx);
+    let old = voxcube_kernel::partition::Partition::uniform(nx, size as usize)
+        .map_err(|e| PaperError::Write(e.to_string()))?;
+    let mut sizes: Vec<f64> = (0..size as usize)
+        .map(|i| {
+            let r = old.planes(i);
+            f64::from(r.end - r.start)
+                + if single_plane > 0.0 {
+                    (mean - times[i]) / single_plane
+                } else {
+                    0.0
+                }
+        })
+        .collect();
+    // Whole planes, at least one each, summing to nx.
+    for s in &mut sizes {
+        *s = s.round().max(1.0);
+    }
+    let mut whole: Vec<u32> = sizes.iter().map(|&s| s as u32).collect();
+    while whole.iter().sum::<u32>() > nx {
+        if let Some(i) = (0..whole.len())
+            .filter(|&i| whole[i] > 1)
+            .max_by_key(|&i| whole[i])
+        {
+            whole[i] -= 1;
+        }
+    }
+    while whole.iter().sum::<u32>() < nx {
+        if let Some(i) = (0..whole.len()).min_by_key(|&i| whole[i]) {
+            whole[i] += 1;
+        }
+    }
+    let mut cuts = vec![0u32];
+    for w in &whole {
+        cuts.push(cuts.last().copied().unwrap_or(0) + w);
+    }
+    // Every boundary moves |new cut - old cut| planes between neighbours, all in parallel.
+    let plane_bytes = job.volume.grid.plane_len() * job.volume.data.kind().bytes();
+    let m = &profile.messages;
+    let moved = cuts
+        .iter()
+        .zip(old.cuts())
+        .map(|(a, b)| a.abs_diff(*b))
+        .max()
+        .unwrap_or(0) as usize;
+    let messages = (moved * plane_bytes).div_ceil(PLANE_CHUNK);
+    let transfer =
+        messages as f64 * (m.latency + m.write + m.read + PLANE_CHUNK as f64 * m.per_byte);
+    Ok((cuts, transfer))
+}
+
+/// Picks one share out of a node's time by category.
+type Pick = fn(&[f64; Category::COUNT]) -> f64;
+
+/// Run every experiment; append the tables to `out`, write plots and the image to `dir`.
+pub fn run(
+    job: &DatasetJob,
+    profile: &MachineProfile,
+    dir: &Path,
+    out: &mut String,
+) -> Result<(), PaperError> {
+    let view = &job.views[0].view;
+    std::fs::create_dir_all(dir)
+        .map_err(|e| PaperError::Write(format!("{}: {e}", dir.display())))?;
+    let one = timed(job, view, profile, 1, 1, None)?;
+    let compute: f64 = Category::ALL
+        .iter()
+        .filter(|c| c.is_compute())
+        .map(|&c| one.parts[0][c as usize])
+        .sum();
+    let rest = one.frame - compute;
+    let calibrated = profile.scale * (TABLE1[0].1 - rest) / compute.max(1e-12);
+    let _ = writeln!(
+        out,
+        "Machine {}: the 1-node render takes {:.2} s with scale {} ({:.2} s uncalibrated, scale 1); the paper's 485.24 s needs scale {:.3}.\n",
+        profile.name,
+        one.frame,
+        profile.scale,
+        compute / profile.scale + rest,
+        calibrated
+    );
+    // Every shape up to 128 nodes.
+    let mut times = std::collections::BTreeMap::new();
+    for k in 0..=7u32 {
+        let p = 1u32 << k;
+        for cs in [1u32, 2, 4, 8, 16].into_iter().filter(|&c| c <= p) {
+            let t = if p == 1 {
+                one.clone()
+            } else {
+                timed(job, view, profile, p / cs, cs, None)?
+            };
+            times.insert((p, cs), t.frame);
+        }
+    }
+    let t1 = one.frame;
+    let _ = writeln!(
+        out,
+        "Table 1: times (s), speedup and efficiency with increasing nodes (best cluster size)"
+    );
+    let _ = writeln!(
+        out,
+        "{:>6} {:>9} {:>9} {:>8} {:>8} {:>9} {:>9} {:>8}",
+        "nodes", "cluster", "voxcube", "speedup", "effic.", "paper", "speedup", "effic."
+    );
+    let mut series = Vec::new();
+    for (p, paper) in TABLE1 {
+        let (cs, t) = times
+            .iter()
+            .filter(|((q, _), _)| *q == p)
+            .map(|((_, c), t)| (*c, *t))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .unwrap_or((1, t1));
+        let (speedup, eff) = (t1 / t, t1 / t / f64::from(p));
+        let (psp, peff) = (TABLE1[0].1 / paper, TABLE1[0].1 / paper / f64::from(p));
+        let flag = if (eff - peff).abs() > 0.05 { " *" } else { "" };
+        let _ = writeln!(out, "{p:>6} {cs:>9} {t:>9.2} {speedup:>8.2} {eff:>8.2} {paper:>9.2} {psp:>9.2} {peff:>8.2}{flag}");
+        series.push((f64::from(p), speedup, eff, psp, peff));
+    }
+    let _ = writeln!(
+        out,
+        "(* efficiency departs from the paper's by more than 0.05)\n"
+    );
+    let _ = writeln!(
+        out,
+        "Table 2: times (s) and efficiency with decreasing cluster size"
+    );
+    let _ = writeln!(
+        out,
+        "{:>8} {:>10} {:>7} {:>9} {:>10} {:>7} {:>9}",
+        "cluster", "64 nodes", "effic.", "paper", "128 nodes", "effic.", "paper"
+    );
+    for (cs, p64, p128) in TABLE2 {
+        let (a, b) = (times[&(64, cs)], times[&(128, cs)]);
+        let _ = writeln!(
+            out,
+            "{cs:>8} {a:>10.2} {:>7.2} {p64:>9.2} {b:>10.2} {:>7.2} {p128:>9.2}",
+            t1 / a / 64.0,
+            t1 / b / 128.0
+        );
+    }
+    let _ = writeln!(out, "\nTable 3: times (s) without and with static load balancing (balancing's plane transfer included)");
+    let _ = writeln!(
+        out,
+        "{:>8} {:>10} {:>10} {:>9} {:>11} {:>10} {:>9}",
+        "cluster", "64 std", "64 bal", "paper", "128 std", "128 bal", "paper"
+    );
+    for (cs, p64, p128) in TABLE3 {
+        let (cuts, transfer) = balance(job, view, profile, cs)?;
+        let a = timed(job, view, profile, 64 / cs, cs, Some(cuts.clone()))?.frame + transfer;
+        let b = timed(job, view, profile, 128 / cs, cs, Some(cuts.clone()))?.frame + transfer;
+        let _ = writeln!(
+            out,
+            "{cs:>8} {:>10.2} {a:>10.2} {p64:>9.2} {:>11.2} {b:>10.2} {p128:>9.2}   cuts {cuts:?}",
+            times[&(64, cs)],
+            times[&(128, cs)]
+        );
+    }
+    let sixteen = timed(job, view, profile, 1, 16, None)?;
+    let _ = writeln!(
+        out,
+        "\nTable 4: profile of one 16-node cluster, percent of the frame time ({:.2} s)",
+        sixteen.frame
+    );
+    let _ = writeln!(
+        out,
+        "{:<13} {:>7} {:>7} {:>7}   {:>7} {:>7} {:>7}",
+        "", "mean", "min", "max", "paper", "min", "max"
+    );
+    let pct = |f: &dyn Fn(&[f64; Category::COUNT]) -> f64| -> (f64, f64, f64) {
+        let v: Vec<f64> = sixteen
+            .parts
+            .iter()
+            .map(|p| 100.0 * f(p) / sixteen.frame)
+            .collect();
+        let mean = v.iter().sum::<f64>() / v.len() as f64;
+        (
+            mean,
+            v.iter().copied().fold(f64::INFINITY, f64::min),
+            v.iter().copied().fold(0.0, f64::max),
+        )
+    };
+    let rows: [(&str, Pick); 7] = [
+        ("ntest", |p| {
+            p[Category::Test as usize] + p[Category::Idle as usize]
+        }),
+        ("Interpolate", |p| p[Category::Interpolate as usize]),
+        ("Trace", |p| p[Category::Trace as usize]),
+        ("Voxel_Sample", |p| p[Category::SampleShade as usize]),
+        ("nread", |p| p[Category::Read as usize]),
+        ("nwrite", |p| p[Category::Write as usize]),
+        ("(of ntest: idle)", |p| p[Category::Idle as usize]),
+    ];
+    for (name, f) in rows.iter() {
+        let (mean, min, max) = pct(f);
+        let paper = TABLE4.iter().find(|r| r.0 == *name);
+        match paper {
+            Some((_, pm, pn, px)) => {
+                let _ = writeln!(
+                    out,
+                    "{name:<13} {mean:>7.2} {min:>7.2} {max:>7.2}   {pm:>7.2} {pn:>7.2} {px:>7.2}"
+                );
+            }
+            None => {
+                let _ = writeln!(out, "{name:<13} {mean:>7.2} {min:>7.2} {max:>7.2}");
+            }
+        }
+    }
+    plot(dir, &series)?;
+    let image = sim::run(
+        &job.volume,
+        view,
+        &SimConfig::cluster(1, 1).map_err(|e| PaperError::Write(e.to_string()))?,
+    )?;
+    let spec = view.spec();
+    let bytes: Vec<u8> = image.pixels.iter().flatten().copied().collect();
+    write_png(&dir.join("sod-paper.png"), spec.width, spec.height, &bytes)
+        .map_err(|e| PaperError::Write(e.to_string()))?;
+    std::fs::write(dir.join("tables.txt"), out.as_bytes())
+        .map_err(|e| PaperError::Write(e.to_string()))?;
+    let _ = writeln!(
+        out,
+        "\nwrote {}/tables.txt, speedup.svg, efficiency.svg, sod-paper.png",
+        dir.display()
+    );
+    Ok(())
+}
+
+/// Speedup and efficiency against nodes, voxcube beside the paper.
+fn plot(dir: &Path, series: &[(f64, f64, f64, f64, f64)]) -> Result<(), PaperError> {
+    let err = |e: String| PaperError::Write(e);
+    for (file, title, ours, paper, top) in [
+        (
+            "speedup.svg",
+            "Speedup on SOD (350x250, dt 1/2)",
+            1usize,
+            3usize,
+            130.0,
+        ),
+        (
+            "efficiency.svg",
+            "Efficiency on SOD (350x250, dt 1/2)",
+            2,
+            4,
+            1.05,
+        ),
+    ] {
+        let path = dir.join(file);
+        let root = SVGBackend::new(&path, (640, 420)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 18))
+            .margin(12)
+            .x_label_area_size(36)
+            .y_label_area_size(48)
+            .build_cartesian_2d((1f64..128f64).log_scale(), 0f64..top)
+            .map_err(|e| err(e.to_string()))?;
+        chart
+            .configure_mesh()
+            .x_desc("nodes")
+            .draw()
+            .map_err(|e| err(e.to_string()))?;
+        let pick = |i: usize| {
+            series
+                .iter()
+                .map(move |r| (r.0, [r.0, r.1, r.2, r.3, r.4][i]))
+                .collect::<Vec<_>>()
+        };
+        chart
+            .draw_series(LineSeries::new(pick(ours), BLUE.stroke_width(2)))
+            .map_err(|e| err(e.to_string()))?
+            .label("voxcube, simulated nCUBE 2")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], BLUE));
+        chart
+            .draw_series(LineSeries::new(pick(paper), RED.stroke_width(2)))
+            .map_err(|e| err(e.to_string()))?
+            .label("paper, Table 1")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], RED));
+        chart
+            .draw_series(
+                pick(ours)
+                    .into_iter()
+                    .map(|p| Circle::new(p, 3, BLUE.filled())),
+            )
+            .map_err(|e| err(e.to_string()))?;
+        chart
+            .draw_series(
+                pick(paper)
+                    .into_iter()
+                    .map(|p| Circle::new(p, 3, RED.filled())),
+            )
+            .map_err(|e| err(e.to_string()))?;
+        chart
+            .configure_series_labels()
+            .border_style(BLACK)
+            .background_style(WHITE)
+            .draw()
+            .map_err(|e| err(e.to_string()))?;
+        root.present().map_err(|e| err(e.to_string()))?;
+    }
+    Ok(())
+}
