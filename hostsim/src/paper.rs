@@ -23,6 +23,7 @@ use plotters::prelude::*;
 use std::fmt::Write as _;
 use std::path::Path;
 use voxcube_kernel::msg::PLANE_CHUNK;
+use voxcube_kernel::topology::Layout;
 use voxcube_kernel::view::{View, ViewSpec};
 
 /// The paper's Table 1: nodes, seconds.
@@ -166,7 +167,12 @@ pub fn balance(
     spec.height = 25;
     let probe = View::new(spec, &job.volume.grid).map_err(|e| PaperError::Write(e.to_string()))?;
     let t = timed(job, &probe, profile, 1, size, None)?;
-    let times = busy(&t);
+    // Times are per node id; slabs are per ring position (Gray-coded ids): map them.
+    let by_node = busy(&t);
+    let layout = Layout::new(1, size).map_err(|e| PaperError::Write(e.to_string()))?;
+    let times: Vec<f64> = (0..size as u16)
+        .map(|j| by_node[usize::from(layout.node(0, j))])
+        .collect();
     let total: f64 = times.iter().sum();
     let mean = total / f64::from(size);
     let single_plane = total / f64::from(nx);

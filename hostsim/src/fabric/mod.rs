@@ -95,7 +95,8 @@ pub struct VirtualTime {
     pub frame: f64,
     /// Seconds until the host's run ended (statistics collected).
     pub end: f64,
-    /// Per node, seconds by [`Category`].
+    /// Per node, in node-id order (not ring order: ids are Gray-coded), seconds by
+    /// [`Category`].
     pub parts: Vec<[f64; Category::COUNT]>,
 }
 
