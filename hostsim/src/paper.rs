@@ -9,7 +9,9 @@
 //! over the image plane (35×25, the image's aspect). Worker `i` reports its time `t_i` (its
 //! work and message handling, not its waiting). New slab sizes are
 //! `size[i] += (t_mean − t_i) / t_single_plane`, with `t_single_plane = Σ t_i / n_x`,
-//! rounded to whole planes, at least one each. The host computes the new cuts. The plane
+//! rounded to whole planes, at least one each. The host computes the new cuts and keeps them
+//! only if they trace the probe grid faster than the old ones (the one-shot formula can
+//! overshoot), so balancing never makes a configuration slower. The plane
 //! transfer between neighbours is charged at the profile's message rates: the planes each
 //! boundary moves, in 256-byte slab-plane messages. The simulated workers are handed their
 //! new slabs rather than receiving them as messages.
@@ -145,7 +147,8 @@ pub fn timed(
         .ok_or_else(|| PaperError::Write("a timed run returned no time".into()))
 }
 
-/// Worker times of a run: work and message handling, not waiting.
+/// Worker times of a run: the time each spent tracing the probe rays (work and message
+/// handling, not waiting).
 fn busy(t: &VirtualTime) -> Vec<f64> {
     t.parts
         .iter()
@@ -210,6 +213,12 @@ pub fn balance(
     let mut cuts = vec![0u32];
     for w in &whole {
         cuts.push(cuts.last().copied().unwrap_or(0) + w);
+    }
+    // The formula is one-shot and can overshoot where the frame is not set by how the work
+    // divides (long rings): keep the old cuts unless the new ones trace the probe faster.
+    let after = timed(job, &probe, profile, 1, size, Some(cuts.clone()))?;
+    if after.frame >= t.frame {
+        return Ok((old.cuts().to_vec(), 0.0));
     }
     // Every boundary moves |new cut - old cut| planes between neighbours, all in parallel.
     let plane_bytes = job.volume.grid.plane_len() * job.volume.data.kind().bytes();

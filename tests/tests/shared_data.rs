@@ -167,3 +167,29 @@ fn the_ncube2_profile_is_calibrated_to_the_papers_one_node_time() {
         t.frame
     );
 }
+
+#[test]
+fn load_balancing_lowers_every_table_3_time_on_sod() {
+    use voxcube::profile::MachineProfile;
+    let Some(data) = data_or_skip() else { return };
+    let mut notes = String::new();
+    let job = voxcube::paper::dataset(Some(&data), &mut notes).expect("SOD");
+    let (v, profile) = (&job.views[0].view, MachineProfile::ncube2());
+    for cs in [16u32, 8, 4, 2] {
+        let (cuts, transfer) = voxcube::paper::balance(&job, v, &profile, cs).expect("balances");
+        for nodes in [64u32, 128] {
+            let standard = voxcube::paper::timed(&job, v, &profile, nodes / cs, cs, None)
+                .expect("runs")
+                .frame;
+            let balanced =
+                voxcube::paper::timed(&job, v, &profile, nodes / cs, cs, Some(cuts.clone()))
+                    .expect("runs")
+                    .frame
+                    + transfer;
+            assert!(
+                balanced < standard,
+                "{nodes} nodes, clusters of {cs}: balanced {balanced:.2} s against {standard:.2} s"
+            );
+        }
+    }
+}

@@ -51,3 +51,29 @@ fn timed_runs_are_exact_repeatable_and_add_up() {
         "ray dataflow on 4 nodes is faster than 1: {frame:?}"
     );
 }
+
+#[test]
+fn static_load_balancing_lowers_the_time_of_an_unbalanced_cluster() {
+    // Four slabs of the default scene's molecule are far from balanced: the paper's formula
+    // (plane transfer included) must win clearly. (Table 3's claim on SOD is a data test.)
+    let jobs = Scene::default_scene()
+        .and_then(Scene::load)
+        .expect("default scene");
+    let job = &jobs[0];
+    let v = &job.views[0].view;
+    let profile = MachineProfile::ncube2();
+    let uniform = voxcube::paper::timed(job, v, &profile, 1, 4, None)
+        .expect("runs")
+        .frame;
+    let (cuts, transfer) = voxcube::paper::balance(job, v, &profile, 4).expect("balances");
+    assert_eq!(cuts.len(), 5);
+    assert!(transfer > 0.0, "planes moved, so the transfer costs time");
+    let balanced = voxcube::paper::timed(job, v, &profile, 1, 4, Some(cuts.clone()))
+        .expect("runs")
+        .frame
+        + transfer;
+    assert!(
+        balanced < 0.95 * uniform,
+        "balanced {balanced:.2} s (cuts {cuts:?}) against uniform {uniform:.2} s"
+    );
+}
