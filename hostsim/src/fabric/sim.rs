@@ -96,6 +96,8 @@ pub struct SimConfig {
     /// Virtual time on this machine profile: events run in time order (the scheduler and seed
     /// then only break ties) and every node's time is kept by category.
     pub time: Option<MachineProfile>,
+    /// A fault to inject: this node stops answering after this many of its own steps.
+    pub stop: Option<(u16, u64)>,
     /// Test-only faults, applied to every worker.
     #[cfg(feature = "mutants")]
     pub mutants: voxcube_kernel::worker::Mutants,
@@ -125,6 +127,7 @@ impl SimConfig {
             buffer_bytes: None,
             flow_control: true,
             time: None,
+            stop: None,
             #[cfg(feature = "mutants")]
             mutants: Default::default(),
         })
@@ -261,6 +264,18 @@ pub enum SimError {
         scheduler: Scheduler,
         /// The last events.
         trace: Trace,
+    },
+    /// A node stopped answering: the run cannot complete.
+    #[error("node {node} stopped answering ({waiting} messages wait unread for it); {missing} pixels are lost, in rows {rows}")]
+    Lost {
+        /// The node that stopped.
+        node: u16,
+        /// Messages waiting for it.
+        waiting: usize,
+        /// Pixels the host lacks.
+        missing: u64,
+        /// The rows they are in, summarised.
+        rows: String,
     },
     /// Far more events than the work can need: a livelock.
     #[error("no end after {events} events (seed {seed}, {scheduler})\nlast events:\n{trace}")]
@@ -486,6 +501,8 @@ fn run_typed<T: Sample>(
     };
     let (mut messages, mut bytes, mut events) = ([0u64; 9], 0u64, 0u64);
     let mut rng = SplitMix(cfg.seed);
+    let mut steps = vec![0u64; nodes];
+    let mut stopped = vec![false; nodes];
     let mut clock = cfg.time.as_ref().map(|p| Clock::new(p, nodes));
     let mut trace: VecDeque<Event> = VecDeque::with_capacity(64);
     let limit = 10_000_000 + 4_000 * pixels as u64 * nodes as u64;
@@ -512,6 +529,24 @@ fn run_typed<T: Sample>(
         }
         let choices = net.inflight.len() + active.len();
         if choices == 0 {
+            if let Some(n) = stopped.iter().position(|&s| s) {
+                let waiting = mailboxes[n]
+                    .by_class
+                    .iter()
+                    .map(VecDeque::len)
+                    .sum::<usize>()
+                    + net
+                        .inflight
+                        .iter()
+                        .filter(|e| e.to == Dest::Node(n as u16))
+                        .count();
+                return Err(SimError::Lost {
+                    node: n as u16,
+                    waiting,
+                    missing: pixels as u64 - host.received,
+                    rows: missing_rows(&host.image, view.spec().width),
+                });
+            }
             let unfinished: Vec<u16> = workers
                 .iter()
                 .filter(|w| !w.pixels_final())
@@ -590,7 +625,7 @@ fn run_typed<T: Sample>(
                             if let Some(clock) = &mut clock {
                                 clock.wake(n, env.arrival);
                             }
-                            if !is_active[n] {
+                            if !is_active[n] && !stopped[n] {
                                 is_active[n] = true;
                                 active.push(n);
                             }
@@ -600,6 +635,17 @@ fn run_typed<T: Sample>(
             }
             Choice::Step(i) => {
                 let n = active[i];
+                steps[n] += 1;
+                if cfg
+                    .stop
+                    .is_some_and(|(node, after)| usize::from(node) == n && steps[n] > after)
+                {
+                    // The faulty node: it takes no more steps and reads nothing.
+                    active.swap_remove(i);
+                    is_active[n] = false;
+                    stopped[n] = true;
+                    continue;
+                }
                 let pending = mailboxes[n]
                     .by_class
                     .iter()
@@ -973,4 +1019,35 @@ impl Clock {
             parts,
         }
     }
+}
+
+/// The image rows with missing pixels, summarised as ranges.
+fn missing_rows(image: &[Option<[u8; 4]>], width: u32) -> String {
+    let width = width.max(1) as usize;
+    let rows: Vec<usize> = image
+        .chunks(width)
+        .enumerate()
+        .filter(|(_, r)| r.iter().any(Option::is_none))
+        .map(|(i, _)| i)
+        .collect();
+    let mut out: Vec<String> = Vec::new();
+    let mut i = 0;
+    while i < rows.len() {
+        let start = rows[i];
+        while i + 1 < rows.len() && rows[i + 1] == rows[i] + 1 {
+            i += 1;
+        }
+        out.push(if rows[i] == start {
+            start.to_string()
+        } else {
+            format!("{start}-{}", rows[i])
+        });
+        i += 1;
+    }
+    if out.len() > 12 {
+        let n = out.len();
+        out.truncate(12);
+        out.push(format!("... ({n} runs in all)"));
+    }
+    out.join(", ")
 }
