@@ -151,6 +151,9 @@ pub enum FabricArg {
     Sim,
     /// OS threads (one per core), for wall-clock speed.
     Threads,
+    /// MPI: run under `mpirun -np <nodes + 1>` (built with the `mpi` feature).
+    #[cfg(feature = "mpi")]
+    Mpi,
 }
 
 /// `--machine` values.
@@ -198,6 +201,8 @@ fn machine(
         Some(FabricArg::Direct) => Fabric::Direct,
         Some(FabricArg::Sim) => Fabric::Sim,
         Some(FabricArg::Threads) => Fabric::Threads,
+        #[cfg(feature = "mpi")]
+        Some(FabricArg::Mpi) => Fabric::Mpi,
         None if n == 1 => Fabric::Direct,
         None => Fabric::Sim,
     };
@@ -336,6 +341,30 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                     plan.push((job, v, m));
                 }
             }
+            // The universe finalises MPI when dropped, at the end of this command on every rank.
+            #[cfg(feature = "mpi")]
+            let mpi_universe = mpi_start(&plan)?;
+            #[cfg(feature = "mpi")]
+            let mpi_world = mpi_universe.as_ref().map(|u| u.world());
+            #[cfg(feature = "mpi")]
+            if let Some(world) = &mpi_world {
+                use mpi::topology::Communicator;
+                if world.rank() != 0 {
+                    // A node rank: serve every view's node, write nothing.
+                    for (job, v, machine) in &plan {
+                        if let Err(e) = mpi_serve(world, &job.volume, &v.view, machine) {
+                            eprintln!(
+                                "voxcube: error: rank {}: {}/{}: {e}",
+                                world.rank(),
+                                job.name,
+                                v.name
+                            );
+                            world.abort(1);
+                        }
+                    }
+                    return Ok(());
+                }
+            }
             std::fs::create_dir_all(&out)
                 .map_err(|e| format!("{}: cannot create folder: {e}", out.display()))?;
             let mut views = Vec::new();
@@ -361,8 +390,16 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                     }
                     bar.set_position(done);
                 };
-                let rendered = render_on_with_progress(&job.volume, &v.view, &machine, &progress)
-                    .map_err(|e| format!("{}/{}: {e}", job.name, v.name))?;
+                let rendered = match machine.fabric {
+                    #[cfg(feature = "mpi")]
+                    Fabric::Mpi => {
+                        let world = mpi_world.as_ref().ok_or("MPI is not initialised")?;
+                        mpi_host(world, &job.volume, &v.view, &machine)
+                            .map_err(|e| format!("{}/{}: {e}", job.name, v.name))?
+                    }
+                    _ => render_on_with_progress(&job.volume, &v.view, &machine, &progress)
+                        .map_err(|e| format!("{}/{}: {e}", job.name, v.name))?,
+                };
                 bar.finish_and_clear();
                 let image = out.join(format!("{}-{}.png", job.name, v.name));
                 write_png(&image, rendered.width, rendered.height, &rendered.bytes())?;
@@ -383,6 +420,69 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 write_atomic(&path, json.as_bytes())?;
             }
             Ok(())
+        }
+    }
+}
+
+#[cfg(feature = "mpi")]
+fn mpi_start(
+    plan: &[(&crate::scene::DatasetJob, &ViewJob, Machine)],
+) -> Result<Option<mpi::environment::Universe>, String> {
+    use mpi::topology::Communicator;
+    if !plan.iter().any(|(_, _, m)| m.fabric == Fabric::Mpi) {
+        return Ok(None);
+    }
+    if plan.iter().any(|(_, _, m)| m.fabric != Fabric::Mpi) {
+        return Err("with --fabric mpi every view renders on MPI".into());
+    }
+    let universe =
+        mpi::initialize().ok_or("MPI could not be initialised (is this run under mpirun?)")?;
+    let world = universe.world();
+    for (job, v, m) in plan {
+        if world.size() as u32 != m.nodes + 1 {
+            return Err(format!(
+                "{}/{}: {} nodes need {} MPI ranks (the host and one per node): mpirun -np {}; this run has {}",
+                job.name,
+                v.name,
+                m.nodes,
+                m.nodes + 1,
+                m.nodes + 1,
+                world.size()
+            ));
+        }
+    }
+    Ok(Some(universe))
+}
+
+#[cfg(feature = "mpi")]
+fn mpi_serve(
+    world: &mpi::topology::SimpleCommunicator,
+    volume: &crate::dataset::Volume,
+    view: &voxcube_kernel::view::View,
+    machine: &Machine,
+) -> Result<(), Box<dyn std::error::Error>> {
+    Ok(crate::fabric::mpi::serve(
+        world,
+        volume,
+        view,
+        &machine.sim_config()?,
+    )?)
+}
+
+#[cfg(feature = "mpi")]
+fn mpi_host(
+    world: &mpi::topology::SimpleCommunicator,
+    volume: &crate::dataset::Volume,
+    view: &voxcube_kernel::view::View,
+    machine: &Machine,
+) -> Result<crate::render::Rendered, Box<dyn std::error::Error>> {
+    use mpi::topology::Communicator;
+    match crate::fabric::mpi::host(world, volume, view, &machine.sim_config()?) {
+        Ok(run) => Ok(crate::render::Rendered::from_run(view, run)),
+        Err(e) => {
+            eprintln!("voxcube: error: {e}");
+            // Stop every rank: nothing may hang on a lost node.
+            world.abort(1)
         }
     }
 }

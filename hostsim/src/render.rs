@@ -30,6 +30,8 @@ pub enum Fabric {
     Sim,
     /// OS threads, for wall-clock speed.
     Threads,
+    /// MPI ranks: rank 0 the host, rank r node r - 1 (cargo feature `mpi`).
+    Mpi,
 }
 
 impl Fabric {
@@ -39,6 +41,7 @@ impl Fabric {
             Fabric::Direct => "direct",
             Fabric::Sim => "sim",
             Fabric::Threads => "threads",
+            Fabric::Mpi => "mpi",
         }
     }
 }
@@ -88,7 +91,8 @@ impl Machine {
         self.nodes / self.clusters.max(1)
     }
 
-    fn sim_config(&self) -> Result<SimConfig, LayoutError> {
+    /// The simulator configuration for this machine (also the shape the other fabrics use).
+    pub fn sim_config(&self) -> Result<SimConfig, LayoutError> {
         Ok(SimConfig {
             generation: self.generation,
             buffer_bytes: self.buffer_bytes,
@@ -148,6 +152,19 @@ pub struct Rendered {
 }
 
 impl Rendered {
+    /// The result of a distributed run of `view`.
+    pub fn from_run(view: &View, run: Distributed) -> Rendered {
+        let spec = view.spec();
+        Rendered {
+            width: spec.width,
+            height: spec.height,
+            pixels: run.pixels.clone(),
+            counters: run.counters(),
+            wall: run.wall,
+            distributed: Some(run),
+        }
+    }
+
     /// The pixels as one RGBA8 byte buffer.
     pub fn bytes(&self) -> Vec<u8> {
         self.pixels.iter().flatten().copied().collect()
@@ -243,6 +260,9 @@ pub fn render_on_with_progress(
     preflight(volume, view, machine)?;
     match machine.fabric {
         Fabric::Direct => Ok(render_direct(volume, view, progress)?),
+        Fabric::Mpi => Err(RenderError::Machine(
+            "the MPI fabric renders through `voxcube render --fabric mpi` under mpirun".into(),
+        )),
         Fabric::Sim | Fabric::Threads => {
             let cfg = machine.sim_config()?;
             let run = match machine.fabric {
@@ -263,15 +283,7 @@ pub fn render_on_with_progress(
                     available: machine.profile.node_memory,
                 });
             }
-            let spec = view.spec();
-            Ok(Rendered {
-                width: spec.width,
-                height: spec.height,
-                pixels: run.pixels.clone(),
-                counters: run.counters(),
-                wall: run.wall,
-                distributed: Some(run),
-            })
+            Ok(Rendered::from_run(view, run))
         }
     }
 }

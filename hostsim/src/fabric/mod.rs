@@ -1,6 +1,8 @@
 //! Fabrics: what carries kernel messages between nodes and to the host. `sim` is the
 //! deterministic single-threaded reference; `threads` runs the same workers on OS threads.
 
+#[cfg(feature = "mpi")]
+pub mod mpi;
 pub mod sim;
 pub mod threads;
 

@@ -1022,7 +1022,7 @@ impl Clock {
 }
 
 /// The image rows with missing pixels, summarised as ranges.
-fn missing_rows(image: &[Option<[u8; 4]>], width: u32) -> String {
+pub fn missing_rows(image: &[Option<[u8; 4]>], width: u32) -> String {
     let width = width.max(1) as usize;
     let rows: Vec<usize> = image
         .chunks(width)

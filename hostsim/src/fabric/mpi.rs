@@ -1,0 +1,406 @@
+//! The MPI fabric (cargo feature `mpi`): rank 0 is the host, rank `r` runs node `r − 1`, each
+//! with the same `Worker` behind an MPI [`Port`]. Launch with `mpirun -np <P+1>`.
+//!
+//! Sends are standard-mode MPI sends of at most a few hundred bytes, far below Open MPI's
+//! eager limit. So they complete locally without waiting for the receiver; ack-counter flow
+//! control bounds how many are outstanding, exactly as on the other fabrics. Each node keeps
+//! its received messages in per-class queues with the simulator's byte capacity: exceeding it
+//! would be an error, never silent.
+//!
+//! Faults: every node sends the host a heartbeat every [`HEARTBEAT`]. A node the host has not
+//! heard from for [`TIMEOUT`], before it reported, is declared lost. The host names it and the
+//! pixels it lacks, and the run fails (the caller aborts the job, so no rank hangs). A rank that
+//! dies outright is caught by `mpirun` itself, which ends the whole job with an error. The test
+//! hook `VOXCUBE_MPI_STOP=<rank>:<milliseconds>[:exit]` makes a rank hang (or die) mid-render.
+
+use super::{Distributed, NodeReport};
+use crate::budget::{NodeMemory, CODE_AND_STACK};
+use crate::dataset::{Volume, VolumeData};
+use crate::fabric::sim::{SimConfig, SimError, SimWorker};
+use mpi::datatype::Equivalence;
+use mpi::point_to_point::{Destination, Source};
+use mpi::topology::{Communicator, SimpleCommunicator};
+use std::collections::VecDeque;
+use std::time::{Duration, Instant};
+use voxcube_kernel::flow::{self, Class, FlowControl};
+use voxcube_kernel::msg::{Msg, MAX_MSG_LEN};
+use voxcube_kernel::partition::Partition;
+use voxcube_kernel::port::{Dest, Port};
+use voxcube_kernel::sample::Sample;
+use voxcube_kernel::slab::{stored_planes, Slab};
+use voxcube_kernel::stats::NodeStats;
+use voxcube_kernel::view::View;
+use voxcube_kernel::worker::{Place, Progress};
+
+/// Tag of kernel messages.
+const TAG_MSG: i32 = 1;
+/// Tag of heartbeats.
+const TAG_BEAT: i32 = 2;
+/// How often a node tells the host it is alive.
+pub const HEARTBEAT: Duration = Duration::from_millis(250);
+/// How long the host waits for a node before declaring it lost.
+pub const TIMEOUT: Duration = Duration::from_secs(3);
+
+struct MpiPort<'w> {
+    world: &'w SimpleCommunicator,
+    node: u16,
+    local: [VecDeque<(Dest, Msg)>; 7],
+    used: usize,
+    peak: usize,
+    capacity: usize,
+    overflow: bool,
+}
+
+impl MpiPort<'_> {
+    /// Move every arrived kernel message into the class queues.
+    fn pump(&mut self) -> Result<(), SimError> {
+        let mut buf = [0u8; MAX_MSG_LEN];
+        while let Some((message, status)) = self
+            .world
+            .any_process()
+            .immediate_matched_probe_with_tag(TAG_MSG)
+        {
+            let from = status.source_rank();
+            let len = status.count(u8::equivalent_datatype()) as usize;
+            let status = message.matched_receive_into(&mut buf[..]);
+            let _ = status;
+            let msg =
+                Msg::decode(&buf[..len.min(MAX_MSG_LEN)]).map_err(|error| SimError::Decode {
+                    from: from as u16,
+                    error,
+                })?;
+            let source = if from == 0 {
+                Dest::Host
+            } else {
+                Dest::Node((from - 1) as u16)
+            };
+            self.used += msg.kind().encoded_len();
+            self.peak = self.peak.max(self.used);
+            self.overflow |= self.used > self.capacity;
+            self.local[msg.class().index()].push_back((source, msg));
+        }
+        Ok(())
+    }
+}
+
+impl Port for MpiPort<'_> {
+    fn try_send(&mut self, to: Dest, msg: Msg) -> Result<(), Msg> {
+        let rank = match to {
+            Dest::Host => 0,
+            Dest::Node(n) => i32::from(n) + 1,
+        };
+        let mut buf = [0u8; MAX_MSG_LEN];
+        let len = msg.encode(&mut buf);
+        self.world
+            .process_at_rank(rank)
+            .send_with_tag(&buf[..len], TAG_MSG);
+        Ok(())
+    }
+
+    fn peek(&mut self, class: Class) -> Option<&Msg> {
+        self.local[class.index()].front().map(|(_, m)| m)
+    }
+
+    fn try_recv(&mut self, class: Class) -> Option<(Dest, Msg)> {
+        let (from, msg) = self.local[class.index()].pop_front()?;
+        self.used = self.used.saturating_sub(msg.kind().encoded_len());
+        Some((from, msg))
+    }
+
+    fn pending(&self) -> usize {
+        self.local.iter().map(VecDeque::len).sum()
+    }
+}
+
+/// The test hook: `VOXCUBE_MPI_STOP=<rank>:<ms>[:exit]` stops that rank after `ms`
+/// milliseconds, hanging (stops answering) or, with `:exit`, exiting at once (dies).
+fn stop_hook(rank: i32) -> Option<(Duration, bool)> {
+    let spec = std::env::var("VOXCUBE_MPI_STOP").ok()?;
+    let mut parts = spec.split(':');
+    let r: i32 = parts.next()?.trim().parse().ok()?;
+    let ms: u64 = parts.next()?.trim().parse().ok()?;
+    let die = parts.next().is_some_and(|p| p.trim() == "exit");
+    (r == rank).then_some((Duration::from_millis(ms), die))
+}
+
+fn flow_for(cfg: &SimConfig, view: &View) -> Result<(FlowControl, usize), SimError> {
+    let size = usize::from(cfg.layout.size());
+    let capacity = cfg.buffer();
+    let mut flow = FlowControl::for_buffer(capacity, size);
+    flow.enabled = cfg.flow_control;
+    let needed = flow::min_i_max(view.effects().shadow_lights);
+    if cfg.flow_control && size > 1 && usize::from(flow.i_max) < needed {
+        return Err(SimError::Buffer {
+            bytes: capacity,
+            size,
+            i_max: usize::from(flow.i_max),
+            needed,
+            min_bytes: flow::buffer_bytes(size, needed),
+        });
+    }
+    Ok((flow, capacity))
+}
+
+/// On a node rank: run this rank's worker for `view` until it has reported to the host.
+pub fn serve(
+    world: &SimpleCommunicator,
+    volume: &Volume,
+    view: &View,
+    cfg: &SimConfig,
+) -> Result<(), SimError> {
+    match &volume.data {
+        VolumeData::U8(d) => serve_typed(world, volume, d, view, cfg),
+        VolumeData::U16(d) => serve_typed(world, volume, d, view, cfg),
+        VolumeData::F32(d) => serve_typed(world, volume, d, view, cfg),
+    }
+}
+
+fn serve_typed<T: Sample>(
+    world: &SimpleCommunicator,
+    volume: &Volume,
+    data: &[T],
+    view: &View,
+    cfg: &SimConfig,
+) -> Result<(), SimError> {
+    let grid = volume.grid;
+    let layout = cfg.layout;
+    let rank = world.rank();
+    let node = (rank - 1) as u16;
+    let partition = Partition::uniform(grid.dims()[0], usize::from(layout.size()))?;
+    let (flow, capacity) = flow_for(cfg, view)?;
+    let (cluster, position) = layout.place(node);
+    let j = usize::from(position);
+    let stored = stored_planes(&grid, partition.planes(j), view.ghost_planes());
+    let plane = grid.plane_len();
+    // This node's slab only.
+    let slab = Slab::new(
+        grid,
+        partition.planes(j),
+        view.ghost_planes(),
+        &data[stored.start as usize * plane..stored.end as usize * plane],
+    )?;
+    let mut worker = Box::new(SimWorker::new(
+        view,
+        slab,
+        &partition,
+        Place {
+            layout,
+            cluster,
+            position,
+        },
+        cfg.generation,
+        flow,
+    )?);
+    let mut port = MpiPort {
+        world,
+        node,
+        local: Default::default(),
+        used: 0,
+        peak: 0,
+        capacity,
+        overflow: false,
+    };
+    let start = Instant::now();
+    let stop = stop_hook(rank);
+    let mut beat = Instant::now();
+    let host = world.process_at_rank(0);
+    host.send_with_tag(&[0u8][..], TAG_BEAT);
+    while !worker.has_reported() || port.pending() > 0 {
+        if let Some((after, die)) = stop {
+            if start.elapsed() >= after {
+                if die {
+                    // The test hook: die, as a crashed node would.
+                    std::process::exit(3);
+                }
+                // The test hook: stop answering, as a hung node would.
+                loop {
+                    std::thread::sleep(Duration::from_secs(1));
+                }
+            }
+        }
+        port.pump()?;
+        if port.overflow {
+            return Err(SimError::Buffer {
+                bytes: capacity,
+                size: usize::from(layout.size()),
+                i_max: usize::from(flow.i_max),
+                needed: 0,
+                min_bytes: port.peak,
+            });
+        }
+        let progress = worker.poll(&mut port);
+        if beat.elapsed() >= HEARTBEAT {
+            host.send_with_tag(&[0u8][..], TAG_BEAT);
+            beat = Instant::now();
+        }
+        if progress == Progress::Idle {
+            std::thread::sleep(Duration::from_micros(20));
+        }
+    }
+    let _ = port.node;
+    Ok(())
+}
+
+/// On rank 0: be the host for `view`: collect pixels, tokens and statistics; declare lost any
+/// node not heard from for [`TIMEOUT`].
+pub fn host(
+    world: &SimpleCommunicator,
+    volume: &Volume,
+    view: &View,
+    cfg: &SimConfig,
+) -> Result<Distributed, SimError> {
+    let start = Instant::now();
+    let layout = cfg.layout;
+    let nodes = layout.nodes() as usize;
+    let pixels = view.pixel_count() as usize;
+    let (flow, capacity) = flow_for(cfg, view)?;
+    let mut image: Vec<Option<[u8; 4]>> = vec![None; pixels];
+    let mut received = 0u64;
+    let mut tokens = vec![false; usize::from(layout.clusters())];
+    let mut reports: Vec<Option<NodeStats>> = vec![None; nodes];
+    let mut heard = vec![Instant::now(); nodes];
+    let mut collecting = false;
+    let mut buf = [0u8; MAX_MSG_LEN];
+    let invariant = |what: String| SimError::Invariant {
+        what,
+        events: 0,
+        seed: 0,
+        scheduler: crate::fabric::sim::Scheduler::Uniform,
+        trace: Default::default(),
+    };
+    loop {
+        if reports.iter().all(Option::is_some)
+            && received >= reports.iter().flatten().map(|s| s.pixels_sent).sum()
+        {
+            break;
+        }
+        let mut any = false;
+        while let Some((message, status)) = world
+            .any_process()
+            .immediate_matched_probe_with_tag(TAG_BEAT)
+        {
+            let mut beat = [0u8; 1];
+            message.matched_receive_into(&mut beat[..]);
+            if let Some(h) = heard.get_mut((status.source_rank() - 1) as usize) {
+                *h = Instant::now();
+            }
+            any = true;
+        }
+        while let Some((message, status)) = world
+            .any_process()
+            .immediate_matched_probe_with_tag(TAG_MSG)
+        {
+            let from = status.source_rank();
+            let len = status.count(u8::equivalent_datatype()) as usize;
+            message.matched_receive_into(&mut buf[..]);
+            if let Some(h) = heard.get_mut((from - 1) as usize) {
+                *h = Instant::now();
+            }
+            any = true;
+            match Msg::decode(&buf[..len.min(MAX_MSG_LEN)]).map_err(|error| SimError::Decode {
+                from: from as u16,
+                error,
+            })? {
+                Msg::Pixels(set) => {
+                    for &(pixel, rgba) in set.entries() {
+                        match image.get_mut(pixel as usize) {
+                            Some(slot @ None) => *slot = Some(rgba),
+                            _ => {
+                                return Err(invariant(format!(
+                                    "pixel {pixel} reached the host twice or is out of range"
+                                )))
+                            }
+                        }
+                        received += 1;
+                    }
+                }
+                Msg::Token { cluster } => match tokens.get_mut(usize::from(cluster)) {
+                    Some(t @ false) => *t = true,
+                    _ => return Err(invariant(format!("a second token of cluster {cluster}"))),
+                },
+                Msg::Stats(s) => match reports.get_mut(usize::from(s.node)) {
+                    Some(r @ None) if collecting => *r = Some(s),
+                    _ => {
+                        return Err(invariant(format!(
+                            "an unexpected report from node {}",
+                            s.node
+                        )))
+                    }
+                },
+                other => {
+                    return Err(invariant(format!(
+                        "the host got an unexpected {:?}",
+                        other.kind()
+                    )))
+                }
+            }
+        }
+        if !collecting && tokens.iter().all(|&t| t) {
+            collecting = true;
+            let mut out = [0u8; MAX_MSG_LEN];
+            let len = Msg::Collect.encode(&mut out);
+            for n in 0..nodes {
+                world
+                    .process_at_rank(n as i32 + 1)
+                    .send_with_tag(&out[..len], TAG_MSG);
+            }
+        }
+        if let Some(n) = (0..nodes).find(|&n| reports[n].is_none() && heard[n].elapsed() > TIMEOUT)
+        {
+            let missing: Vec<Option<[u8; 4]>> = image.clone();
+            return Err(SimError::Lost {
+                node: n as u16,
+                waiting: 0,
+                missing: pixels as u64 - received,
+                rows: crate::fabric::sim::missing_rows(&missing, view.spec().width),
+            });
+        }
+        if !any {
+            std::thread::sleep(Duration::from_micros(50));
+        }
+    }
+    let grid = volume.grid;
+    let partition = Partition::uniform(grid.dims()[0], usize::from(layout.size()))?;
+    let plane = grid.plane_len();
+    let nodes: Vec<NodeReport> = reports
+        .into_iter()
+        .enumerate()
+        .map(|(n, stats)| {
+            let (cluster, position) = layout.place(n as u16);
+            let j = usize::from(position);
+            let stored = stored_planes(&grid, partition.planes(j), view.ghost_planes());
+            NodeReport {
+                cluster,
+                position,
+                planes: partition.planes(j),
+                memory: NodeMemory {
+                    slab: (stored.end - stored.start) as usize * plane * volume.data.kind().bytes(),
+                    buffer: capacity,
+                    worker: crate::budget::worker_bytes(),
+                    allowance: CODE_AND_STACK,
+                },
+                stored,
+                stats: stats.unwrap_or_default(),
+                peak_buffer: 0,
+                busy: Duration::ZERO,
+            }
+        })
+        .collect();
+    let mut messages = [0u64; 9];
+    for n in &nodes {
+        for (k, s) in n.stats.sent.iter().enumerate() {
+            messages[k] += s;
+        }
+    }
+    Ok(Distributed {
+        pixels: image.into_iter().map(Option::unwrap_or_default).collect(),
+        nodes,
+        messages,
+        bytes: 0,
+        events: 0,
+        buffer_capacity: capacity,
+        i_max: flow.i_max,
+        wall: start.elapsed(),
+        time: None,
+    })
+}

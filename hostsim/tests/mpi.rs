@@ -1,0 +1,124 @@
+//! The MPI fabric, under `mpirun` on loopback (`cargo test -p voxcube --features mpi --test mpi`;
+//! needs Open MPI). The image equals the simulator's bit for bit; a rank that hangs or dies
+//! mid-render ends the run within seconds with an error, never a hang.
+#![cfg(feature = "mpi")]
+
+use std::path::Path;
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+fn sha_of(report: &Path) -> Vec<String> {
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(report).expect("report")).expect("json");
+    json["views"]
+        .as_array()
+        .expect("views")
+        .iter()
+        .map(|v| v["pixels_sha256"].as_str().unwrap_or("").to_string())
+        .collect()
+}
+
+fn mpirun(ranks: u32, args: &[&str], env: Option<(&str, &str)>) -> std::process::Output {
+    let mut cmd = Command::new("mpirun");
+    cmd.args([
+        "--allow-run-as-root",
+        "--oversubscribe",
+        "-np",
+        &ranks.to_string(),
+    ]);
+    if let Some((k, v)) = env {
+        cmd.env(k, v).args(["-x", k]);
+    }
+    cmd.arg(env!("CARGO_BIN_EXE_voxcube"))
+        .args(args)
+        .output()
+        .expect("mpirun runs (install Open MPI)")
+}
+
+fn scenes() -> Vec<String> {
+    let mut s = vec![String::new()];
+    let sod = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/sod.toml");
+    if Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../shared/data/sod-97x97x116.u8.binary")
+        .is_file()
+    {
+        s.push(sod.display().to_string());
+    } else {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "CI is set but the shared data is missing"
+        );
+    }
+    s
+}
+
+#[test]
+fn mpi_images_equal_the_simulator_s() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    for scene in scenes() {
+        for (nodes, clusters) in [(4u32, 1u32), (4, 2), (8, 1), (8, 2)] {
+            let (n, m) = (nodes.to_string(), clusters.to_string());
+            let mut common = vec!["render", "--nodes", &n, "--clusters", &m, "-q"];
+            if !scene.is_empty() {
+                common.insert(1, &scene);
+            }
+            let mpi_report = dir.path().join("mpi.json");
+            let mut args = common.clone();
+            args.extend(["--fabric", "mpi", "-o"]);
+            let out_dir = dir.path().join("mpi").display().to_string();
+            let report = mpi_report.display().to_string();
+            args.extend([out_dir.as_str(), "--report", report.as_str()]);
+            let out = mpirun(nodes + 1, &args, None);
+            assert!(
+                out.status.success(),
+                "{scene} {nodes}/{clusters}: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            let sim_report = dir.path().join("sim.json");
+            let sim = Command::new(env!("CARGO_BIN_EXE_voxcube"))
+                .args(&common)
+                .args(["--fabric", "sim", "-o"])
+                .arg(dir.path().join("sim"))
+                .arg("--report")
+                .arg(&sim_report)
+                .output()
+                .expect("runs");
+            assert!(
+                sim.status.success(),
+                "{}",
+                String::from_utf8_lossy(&sim.stderr)
+            );
+            assert_eq!(
+                sha_of(&mpi_report),
+                sha_of(&sim_report),
+                "{scene} on {nodes} nodes in {clusters} clusters"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_rank_that_hangs_or_dies_ends_the_run_within_seconds() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out_dir = dir.path().join("out").display().to_string();
+    for (hook, expect) in [("2:200", "stopped answering"), ("3:200:exit", "")] {
+        let start = Instant::now();
+        let out = mpirun(
+            5,
+            &["render", "--fabric", "mpi", "--nodes", "4", "-o", &out_dir],
+            Some(("VOXCUBE_MPI_STOP", hook)),
+        );
+        let took = start.elapsed();
+        assert!(!out.status.success(), "{hook}: the run must fail");
+        assert!(took < Duration::from_secs(30), "{hook}: took {took:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(expect), "{hook}: {err}");
+        if !expect.is_empty() {
+            assert!(err.contains("pixels are lost"), "{err}");
+        }
+        assert!(
+            !Path::new(&out_dir).join("molecule-paper.png").exists(),
+            "{hook}: no image from a failed run"
+        );
+    }
+}
