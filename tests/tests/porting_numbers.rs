@@ -1,0 +1,45 @@
+//! The figures PORTING.md quotes, recomputed so the document cannot drift from the code.
+
+use voxcube_kernel::flow;
+
+#[test]
+fn porting_md_memory_map_figures_hold() {
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../PORTING.md"))
+        .expect("PORTING.md");
+    let buffer = flow::buffer_bytes(16, 8);
+    assert!(
+        text.contains(&format!("{buffer} bytes")),
+        "PORTING.md must quote the 16-node, i_max 8 receive buffer: {buffer} bytes"
+    );
+    let worker = voxcube::budget::worker_bytes();
+    assert!(
+        text.contains(&format!("{worker} bytes")),
+        "PORTING.md must quote the simulator worker's size: {worker} bytes"
+    );
+}
+
+#[test]
+fn porting_md_slab_figure_holds() {
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../PORTING.md"))
+        .expect("PORTING.md");
+    let grid =
+        voxcube_kernel::grid::Grid::new([97, 97, 116], voxcube_kernel::Vec3::ONE).expect("grid");
+    let slab = voxcube::budget::largest_node(&grid, 1, 16, 3, 0)
+        .expect("fits")
+        .slab;
+    let planes = slab / (97 * 116);
+    let figure = format!(
+        "{planes} planes, {} bytes",
+        slab.to_string()
+            .as_bytes()
+            .rchunks(3)
+            .rev()
+            .map(|c| std::str::from_utf8(c).unwrap_or(""))
+            .collect::<Vec<_>>()
+            .join(",")
+    );
+    assert!(
+        text.contains(&figure),
+        "PORTING.md must quote SOD's largest 16-node slab: {figure}"
+    );
+}
