@@ -1,6 +1,7 @@
 //! Fabrics: what carries kernel messages between nodes and to the host. `sim` is the
 //! deterministic single-threaded reference; `threads` runs the same workers on OS threads.
 
+pub mod host;
 #[cfg(feature = "mpi")]
 pub mod mpi;
 pub mod sim;
@@ -162,4 +163,28 @@ impl Distributed {
         }
         out
     }
+}
+
+/// Flow control for `cfg`'s receive buffers, and their capacity; refused when the buffer
+/// leaves no ray room to start, naming the smallest that works.
+pub fn flow_for(
+    cfg: &sim::SimConfig,
+    view: &voxcube_kernel::view::View,
+) -> Result<(voxcube_kernel::flow::FlowControl, usize), sim::SimError> {
+    use voxcube_kernel::flow;
+    let size = usize::from(cfg.layout.size());
+    let capacity = cfg.buffer();
+    let mut control = flow::FlowControl::for_buffer(capacity, size);
+    control.enabled = cfg.flow_control;
+    let needed = flow::min_i_max(view.effects().shadow_lights);
+    if cfg.flow_control && size > 1 && usize::from(control.i_max) < needed {
+        return Err(sim::SimError::Buffer {
+            bytes: capacity,
+            size,
+            i_max: usize::from(control.i_max),
+            needed,
+            min_bytes: flow::buffer_bytes(size, needed),
+        });
+    }
+    Ok((control, capacity))
 }

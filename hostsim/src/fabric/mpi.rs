@@ -13,6 +13,7 @@
 //! dies outright is caught by `mpirun` itself, which ends the whole job with an error. The test
 //! hook `VOXCUBE_MPI_STOP=<rank>:<milliseconds>[:exit]` makes a rank hang (or die) mid-render.
 
+use super::host::Host;
 use super::{Distributed, NodeReport};
 use crate::budget::{NodeMemory, CODE_AND_STACK};
 use crate::dataset::{Volume, VolumeData};
@@ -22,13 +23,12 @@ use mpi::point_to_point::{Destination, Source};
 use mpi::topology::{Communicator, SimpleCommunicator};
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
-use voxcube_kernel::flow::{self, Class, FlowControl};
+use voxcube_kernel::flow::Class;
 use voxcube_kernel::msg::{Msg, MAX_MSG_LEN};
 use voxcube_kernel::partition::Partition;
 use voxcube_kernel::port::{Dest, Port};
 use voxcube_kernel::sample::Sample;
 use voxcube_kernel::slab::{stored_planes, Slab};
-use voxcube_kernel::stats::NodeStats;
 use voxcube_kernel::view::View;
 use voxcube_kernel::worker::{Place, Progress};
 
@@ -123,24 +123,6 @@ fn stop_hook(rank: i32) -> Option<(Duration, bool)> {
     (r == rank).then_some((Duration::from_millis(ms), die))
 }
 
-fn flow_for(cfg: &SimConfig, view: &View) -> Result<(FlowControl, usize), SimError> {
-    let size = usize::from(cfg.layout.size());
-    let capacity = cfg.buffer();
-    let mut flow = FlowControl::for_buffer(capacity, size);
-    flow.enabled = cfg.flow_control;
-    let needed = flow::min_i_max(view.effects().shadow_lights);
-    if cfg.flow_control && size > 1 && usize::from(flow.i_max) < needed {
-        return Err(SimError::Buffer {
-            bytes: capacity,
-            size,
-            i_max: usize::from(flow.i_max),
-            needed,
-            min_bytes: flow::buffer_bytes(size, needed),
-        });
-    }
-    Ok((flow, capacity))
-}
-
 /// On a node rank: run this rank's worker for `view` until it has reported to the host.
 pub fn serve(
     world: &SimpleCommunicator,
@@ -167,7 +149,7 @@ fn serve_typed<T: Sample>(
     let rank = world.rank();
     let node = (rank - 1) as u16;
     let partition = Partition::uniform(grid.dims()[0], usize::from(layout.size()))?;
-    let (flow, capacity) = flow_for(cfg, view)?;
+    let (flow, capacity) = super::flow_for(cfg, view)?;
     let (cluster, position) = layout.place(node);
     let j = usize::from(position);
     let stored = stored_planes(&grid, partition.planes(j), view.ghost_planes());
@@ -253,27 +235,23 @@ pub fn host(
     let layout = cfg.layout;
     let nodes = layout.nodes() as usize;
     let pixels = view.pixel_count() as usize;
-    let (flow, capacity) = flow_for(cfg, view)?;
-    let mut image: Vec<Option<[u8; 4]>> = vec![None; pixels];
-    let mut received = 0u64;
-    let mut tokens = vec![false; usize::from(layout.clusters())];
-    let mut reports: Vec<Option<NodeStats>> = vec![None; nodes];
+    let (flow, capacity) = super::flow_for(cfg, view)?;
+    let mut host = Host::new(
+        pixels,
+        view.spec().width,
+        usize::from(layout.clusters()),
+        nodes,
+    );
     let mut heard = vec![Instant::now(); nodes];
-    let mut collecting = false;
     let mut buf = [0u8; MAX_MSG_LEN];
-    let invariant = |what: String| SimError::Invariant {
+    let failed = |what: String| SimError::Invariant {
         what,
         events: 0,
         seed: 0,
         scheduler: crate::fabric::sim::Scheduler::Uniform,
         trace: Default::default(),
     };
-    loop {
-        if reports.iter().all(Option::is_some)
-            && received >= reports.iter().flatten().map(|s| s.pixels_sent).sum()
-        {
-            break;
-        }
+    while !host.done() {
         let mut any = false;
         while let Some((message, status)) = world
             .any_process()
@@ -297,68 +275,34 @@ pub fn host(
                 *h = Instant::now();
             }
             any = true;
-            match Msg::decode(&buf[..len.min(MAX_MSG_LEN)]).map_err(|error| SimError::Decode {
-                from: from as u16,
-                error,
-            })? {
-                Msg::Pixels(set) => {
-                    for &(pixel, rgba) in set.entries() {
-                        match image.get_mut(pixel as usize) {
-                            Some(slot @ None) => *slot = Some(rgba),
-                            _ => {
-                                return Err(invariant(format!(
-                                    "pixel {pixel} reached the host twice or is out of range"
-                                )))
-                            }
-                        }
-                        received += 1;
-                    }
-                }
-                Msg::Token { cluster } => match tokens.get_mut(usize::from(cluster)) {
-                    Some(t @ false) => *t = true,
-                    _ => return Err(invariant(format!("a second token of cluster {cluster}"))),
-                },
-                Msg::Stats(s) => match reports.get_mut(usize::from(s.node)) {
-                    Some(r @ None) if collecting => *r = Some(s),
-                    _ => {
-                        return Err(invariant(format!(
-                            "an unexpected report from node {}",
-                            s.node
-                        )))
-                    }
-                },
-                other => {
-                    return Err(invariant(format!(
-                        "the host got an unexpected {:?}",
-                        other.kind()
-                    )))
+            let msg =
+                Msg::decode(&buf[..len.min(MAX_MSG_LEN)]).map_err(|error| SimError::Decode {
+                    from: from as u16,
+                    error,
+                })?;
+            if host.receive(msg).map_err(failed)? {
+                let mut out = [0u8; MAX_MSG_LEN];
+                let len = Msg::Collect.encode(&mut out);
+                for n in 0..nodes {
+                    world
+                        .process_at_rank(n as i32 + 1)
+                        .send_with_tag(&out[..len], TAG_MSG);
                 }
             }
         }
-        if !collecting && tokens.iter().all(|&t| t) {
-            collecting = true;
-            let mut out = [0u8; MAX_MSG_LEN];
-            let len = Msg::Collect.encode(&mut out);
-            for n in 0..nodes {
-                world
-                    .process_at_rank(n as i32 + 1)
-                    .send_with_tag(&out[..len], TAG_MSG);
-            }
-        }
-        if let Some(n) = (0..nodes).find(|&n| reports[n].is_none() && heard[n].elapsed() > TIMEOUT)
-        {
-            let missing: Vec<Option<[u8; 4]>> = image.clone();
+        if let Some(n) = (0..nodes).find(|&n| !host.has_report(n) && heard[n].elapsed() > TIMEOUT) {
             return Err(SimError::Lost {
                 node: n as u16,
                 waiting: 0,
-                missing: pixels as u64 - received,
-                rows: crate::fabric::sim::missing_rows(&missing, view.spec().width),
+                missing: host.missing(),
+                rows: host.missing_rows(),
             });
         }
         if !any {
             std::thread::sleep(Duration::from_micros(50));
         }
     }
+    let (image, reports) = host.finish().map_err(failed)?;
     let grid = volume.grid;
     let partition = Partition::uniform(grid.dims()[0], usize::from(layout.size()))?;
     let plane = grid.plane_len();
@@ -380,7 +324,7 @@ pub fn host(
                     allowance: CODE_AND_STACK,
                 },
                 stored,
-                stats: stats.unwrap_or_default(),
+                stats,
                 peak_buffer: 0,
                 busy: Duration::ZERO,
             }
@@ -393,7 +337,7 @@ pub fn host(
         }
     }
     Ok(Distributed {
-        pixels: image.into_iter().map(Option::unwrap_or_default).collect(),
+        pixels: image,
         nodes,
         messages,
         bytes: 0,

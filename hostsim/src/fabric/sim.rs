@@ -20,6 +20,7 @@
 //! deadlock); a run far longer than its work can need is stopped by a watchdog (a livelock).
 //! Either way the error carries the seed and the last events.
 
+use super::host::Host;
 use super::{Category, VirtualTime};
 use super::{Distributed, NodeReport};
 use crate::budget::{NodeMemory, CODE_AND_STACK};
@@ -30,7 +31,7 @@ use std::collections::VecDeque;
 use std::fmt;
 use std::time::{Duration, Instant};
 use voxcube_kernel::counters::Counters;
-use voxcube_kernel::flow::{self, Class, FlowControl, CLASSES};
+use voxcube_kernel::flow::{self, Class, CLASSES};
 use voxcube_kernel::msg::{DecodeError, Msg, MsgKind, MAX_MSG_LEN};
 use voxcube_kernel::partition::{Partition, PartitionError};
 use voxcube_kernel::port::{Dest, Port};
@@ -404,14 +405,6 @@ pub fn run_with_progress(
     }
 }
 
-struct Host {
-    image: Vec<Option<[u8; 4]>>,
-    received: u64,
-    tokens: Vec<bool>,
-    reports: Vec<Option<voxcube_kernel::stats::NodeStats>>,
-    collecting: bool,
-}
-
 fn run_typed<T: Sample>(
     volume: &Volume,
     data: &[T],
@@ -428,19 +421,7 @@ fn run_typed<T: Sample>(
         Some(cuts) => Partition::new(cuts, nx)?,
         None => Partition::uniform(nx, size)?,
     };
-    let capacity = cfg.buffer();
-    let mut flow = FlowControl::for_buffer(capacity, size);
-    flow.enabled = cfg.flow_control;
-    let needed = flow::min_i_max(view.effects().shadow_lights);
-    if cfg.flow_control && size > 1 && usize::from(flow.i_max) < needed {
-        return Err(SimError::Buffer {
-            bytes: capacity,
-            size,
-            i_max: usize::from(flow.i_max),
-            needed,
-            min_bytes: flow::buffer_bytes(size, needed),
-        });
-    }
+    let (flow, capacity) = super::flow_for(cfg, view)?;
     let ghost = view.ghost_planes();
     let plane = grid.plane_len();
     // Each ring position loads only its slab (the same for every cluster, so shared here).
@@ -492,13 +473,12 @@ fn run_typed<T: Sample>(
     let mut active: Vec<usize> = (0..nodes).collect();
     let mut is_active = vec![true; nodes];
     let pixels = view.pixel_count() as usize;
-    let mut host = Host {
-        image: vec![None; pixels],
-        received: 0,
-        tokens: vec![false; usize::from(layout.clusters())],
-        reports: vec![None; nodes],
-        collecting: false,
-    };
+    let mut host = Host::new(
+        pixels,
+        view.spec().width,
+        usize::from(layout.clusters()),
+        nodes,
+    );
     let (mut messages, mut bytes, mut events) = ([0u64; 9], 0u64, 0u64);
     let mut rng = SplitMix(cfg.seed);
     let mut steps = vec![0u64; nodes];
@@ -521,11 +501,8 @@ fn run_typed<T: Sample>(
     };
     loop {
         // The host ends once it has every report and every pixel the reports say were sent.
-        if host.reports.iter().all(Option::is_some) {
-            let sent: u64 = host.reports.iter().flatten().map(|s| s.pixels_sent).sum();
-            if host.received >= sent {
-                break;
-            }
+        if host.done() {
+            break;
         }
         let choices = net.inflight.len() + active.len();
         if choices == 0 {
@@ -543,8 +520,8 @@ fn run_typed<T: Sample>(
                 return Err(SimError::Lost {
                     node: n as u16,
                     waiting,
-                    missing: pixels as u64 - host.received,
-                    rows: missing_rows(&host.image, view.spec().width),
+                    missing: host.missing(),
+                    rows: host.missing_rows(),
                 });
             }
             let unfinished: Vec<u16> = workers
@@ -554,9 +531,9 @@ fn run_typed<T: Sample>(
                 .collect();
             return Err(SimError::Deadlock {
                 events,
-                missing: pixels as u64 - host.received,
-                tokens: host.tokens.iter().filter(|&&t| t).count() as u32,
-                reports: host.reports.iter().filter(|r| r.is_some()).count(),
+                missing: host.missing(),
+                tokens: host.tokens(),
+                reports: host.reports(),
                 nodes,
                 unfinished,
                 seed: cfg.seed,
@@ -600,14 +577,13 @@ fn run_typed<T: Sample>(
                         if let Some(clock) = &mut clock {
                             clock.host_receives(env.arrival, &msg);
                         }
-                        if let Err(what) = host_receive(&mut host, msg, &layout) {
-                            return Err(fail(what, events, &trace));
-                        }
-                        progress(host.received);
-                        if !host.collecting && host.tokens.iter().all(|&t| t) {
+                        let collect = host
+                            .receive(msg)
+                            .map_err(|what| fail(what, events, &trace))?;
+                        progress(host.received());
+                        if collect {
                             // Every cluster's token: every pixel is final (some may still be
                             // on their way here); ask every worker for its statistics.
-                            host.collecting = true;
                             for n in 0..nodes as u16 {
                                 net.push(None, Dest::Node(n), &Msg::Collect);
                                 if let (Some(clock), Some(env)) = (&clock, net.inflight.last_mut())
@@ -725,12 +701,6 @@ fn run_typed<T: Sample>(
             net.inflight.len()
         )));
     }
-    if host.received != pixels as u64 {
-        return Err(end_fail(format!(
-            "the host ended with {} of {pixels} pixels",
-            host.received
-        )));
-    }
     for w in &workers {
         if w.max_unacked() != 0 {
             return Err(end_fail(format!(
@@ -746,8 +716,8 @@ fn run_typed<T: Sample>(
             )));
         }
     }
-    let nodes = host
-        .reports
+    let (image, stats) = host.finish().map_err(end_fail)?;
+    let nodes = stats
         .into_iter()
         .zip(reports)
         .zip(&net.peak)
@@ -763,7 +733,7 @@ fn run_typed<T: Sample>(
                 },
                 planes,
                 stored,
-                stats: stats.unwrap_or_default(),
+                stats,
                 peak_buffer: peak,
                 busy: Duration::ZERO,
             },
@@ -772,11 +742,7 @@ fn run_typed<T: Sample>(
     let time = clock.map(Clock::finish);
     Ok(Distributed {
         time,
-        pixels: host
-            .image
-            .into_iter()
-            .map(|p| p.unwrap_or_default())
-            .collect(),
+        pixels: image,
         nodes,
         messages,
         bytes,
@@ -785,48 +751,6 @@ fn run_typed<T: Sample>(
         i_max: flow.i_max,
         wall: start.elapsed(),
     })
-}
-
-fn host_receive(host: &mut Host, msg: Msg, layout: &Layout) -> Result<(), String> {
-    match msg {
-        Msg::Pixels(set) => {
-            for &(pixel, rgba) in set.entries() {
-                match host.image.get_mut(pixel as usize) {
-                    Some(slot @ None) => *slot = Some(rgba),
-                    Some(Some(_)) => return Err(format!("pixel {pixel} reached the host twice")),
-                    None => return Err(format!("pixel {pixel} is outside the image")),
-                }
-                host.received += 1;
-            }
-            Ok(())
-        }
-        Msg::Token { cluster } => match host.tokens.get_mut(usize::from(cluster)) {
-            Some(t @ false) => {
-                *t = true;
-                Ok(())
-            }
-            _ => Err(format!("a second or unknown token of cluster {cluster}")),
-        },
-        Msg::Stats(stats) => {
-            if !host.collecting {
-                return Err(format!(
-                    "node {} reported before the host asked",
-                    stats.node
-                ));
-            }
-            match host.reports.get_mut(usize::from(stats.node)) {
-                Some(r @ None) if u32::from(stats.node) < layout.nodes() => {
-                    *r = Some(stats);
-                    Ok(())
-                }
-                _ => Err(format!(
-                    "a second or unknown report from node {}",
-                    stats.node
-                )),
-            }
-        }
-        other => Err(format!("the host got an unexpected {:?}", other.kind())),
-    }
 }
 
 enum Choice {

@@ -10,6 +10,7 @@
 //! Scheduling is up to the OS, so runs are not repeatable event for event. Images still are,
 //! bit for bit: nothing the image depends on depends on order.
 
+use super::host::Host;
 use super::{Distributed, NodeReport};
 use crate::budget::{NodeMemory, CODE_AND_STACK};
 use crate::dataset::{Volume, VolumeData};
@@ -19,7 +20,7 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc;
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
-use voxcube_kernel::flow::{self, Class, FlowControl};
+use voxcube_kernel::flow::Class;
 use voxcube_kernel::msg::Msg;
 use voxcube_kernel::partition::Partition;
 use voxcube_kernel::port::{Dest, Port};
@@ -202,19 +203,7 @@ fn run_typed<T: Sample + Sync>(
         Some(cuts) => Partition::new(cuts, grid.dims()[0])?,
         None => Partition::uniform(grid.dims()[0], size)?,
     };
-    let capacity = cfg.buffer();
-    let mut flow = FlowControl::for_buffer(capacity, size);
-    flow.enabled = cfg.flow_control;
-    let needed = flow::min_i_max(view.effects().shadow_lights);
-    if cfg.flow_control && size > 1 && usize::from(flow.i_max) < needed {
-        return Err(SimError::Buffer {
-            bytes: capacity,
-            size,
-            i_max: usize::from(flow.i_max),
-            needed,
-            min_bytes: flow::buffer_bytes(size, needed),
-        });
-    }
+    let (flow, capacity) = super::flow_for(cfg, view)?;
     let ghost = view.ghost_planes();
     let plane = grid.plane_len();
     let stored: Vec<_> = (0..size)
@@ -311,6 +300,7 @@ fn run_typed<T: Sample + Sync>(
             &buffers,
             capacity,
             pixels,
+            view.spec().width,
             nodes,
             usize::from(layout.clusters()),
             progress,
@@ -373,91 +363,42 @@ fn run_typed<T: Sample + Sync>(
 type HostResult = Result<(Vec<[u8; 4]>, Vec<NodeStats>), SimError>;
 
 /// The host: pixels and tokens in, then statistics; returns the image and the reports.
+#[allow(clippy::too_many_arguments, reason = "one call site: the run's shape")]
 fn host(
     rx: &mpsc::Receiver<Msg>,
     buffers: &[Buffer],
     capacity: usize,
     pixels: usize,
+    width: u32,
     nodes: usize,
     clusters: usize,
     progress: &dyn Fn(u64),
 ) -> HostResult {
-    let stalled = |what: String| SimError::Invariant {
+    let failed = |what: String| SimError::Invariant {
         what,
         events: 0,
         seed: 0,
         scheduler: crate::fabric::sim::Scheduler::Uniform,
         trace: Default::default(),
     };
-    let mut image: Vec<Option<[u8; 4]>> = vec![None; pixels];
-    let (mut received, mut tokens, mut collecting) = (0usize, vec![false; clusters], false);
-    let mut reports: Vec<Option<NodeStats>> = vec![None; nodes];
-    loop {
-        if reports.iter().all(Option::is_some) {
-            let sent: u64 = reports.iter().flatten().map(|s| s.pixels_sent).sum();
-            if received as u64 >= sent {
-                break;
-            }
-        }
+    let mut host = Host::new(pixels, width, clusters, nodes);
+    while !host.done() {
         let msg = rx.recv_timeout(STALL).map_err(|_| {
-            stalled(format!(
-                "threads stalled: no message for {STALL:?}; {received} of {pixels} pixels"
+            failed(format!(
+                "threads stalled: no message for {STALL:?}; {} of {pixels} pixels",
+                host.received()
             ))
         })?;
-        match msg {
-            Msg::Pixels(set) => {
-                for &(pixel, rgba) in set.entries() {
-                    match image.get_mut(pixel as usize) {
-                        Some(slot @ None) => *slot = Some(rgba),
-                        _ => {
-                            return Err(stalled(format!(
-                                "pixel {pixel} reached the host twice or is out of range"
-                            )))
-                        }
-                    }
-                    received += 1;
-                }
-                progress(received as u64);
-            }
-            Msg::Token { cluster } => match tokens.get_mut(usize::from(cluster)) {
-                Some(t @ false) => *t = true,
-                _ => return Err(stalled(format!("a second token of cluster {cluster}"))),
-            },
-            Msg::Stats(s) => match reports.get_mut(usize::from(s.node)) {
-                Some(r @ None) if collecting => *r = Some(s),
-                _ => {
-                    return Err(stalled(format!(
-                        "an unexpected report from node {}",
-                        s.node
-                    )))
-                }
-            },
-            other => {
-                return Err(stalled(format!(
-                    "the host got an unexpected {:?}",
-                    other.kind()
-                )))
-            }
-        }
-        if !collecting && tokens.iter().all(|&t| t) {
-            collecting = true;
+        if host.receive(msg).map_err(failed)? {
             for b in buffers {
                 // The control reserve of every buffer has room for this request.
                 if !b.reserve(Msg::Collect.kind().encoded_len(), capacity) {
-                    return Err(stalled("no room for the host's request".into()));
+                    return Err(failed("no room for the host's request".into()));
                 }
                 b.push(Dest::Host, Msg::Collect);
             }
         }
+        progress(host.received());
     }
-    if received != pixels {
-        return Err(stalled(format!(
-            "the host ended with {received} of {pixels} pixels"
-        )));
-    }
-    let reports = reports.into_iter().flatten().collect();
-    Ok((
-        image.into_iter().map(Option::unwrap_or_default).collect(),
-        reports,
-    ))
+    host.finish().map_err(failed)
 }
