@@ -7,10 +7,15 @@ pub mod mpi;
 pub mod sim;
 pub mod threads;
 
+use crate::budget::{worker_bytes, NodeMemory, CODE_AND_STACK};
 use std::ops::Range;
 use std::time::Duration;
 use voxcube_kernel::counters::Counters;
+use voxcube_kernel::grid::Grid;
+use voxcube_kernel::partition::Partition;
+use voxcube_kernel::slab::stored_planes;
 use voxcube_kernel::stats::NodeStats;
+use voxcube_kernel::topology::Layout;
 
 /// One node of a distributed run.
 #[derive(Clone, Debug, PartialEq)]
@@ -29,10 +34,62 @@ pub struct NodeReport {
     pub peak_buffer: usize,
     /// Its measured memory high-water mark: slab, receive buffer at its peak, worker state,
     /// code and stack.
-    pub memory: crate::budget::NodeMemory,
+    pub memory: NodeMemory,
     /// Wall time it spent in busy polls (threads fabric; zero in the simulator, whose time is
     /// not wall time).
     pub busy: Duration,
+}
+
+impl NodeReport {
+    /// The report of `node` of `layout`, whose slabs are `partition`'s planes of `grid` with
+    /// `ghost` planes each side: its place, planes, memory (samples of `sample_bytes`, the
+    /// receive buffer at its `peak`), statistics and busy time.
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "the facts of one node, from the fabric that ran it"
+    )]
+    pub fn new(
+        layout: Layout,
+        partition: &Partition,
+        grid: &Grid,
+        ghost: u32,
+        sample_bytes: usize,
+        node: u16,
+        stats: NodeStats,
+        peak: usize,
+        busy: Duration,
+    ) -> NodeReport {
+        let (cluster, position) = layout.place(node);
+        let planes = partition.planes(usize::from(position));
+        let stored = stored_planes(grid, planes.clone(), ghost);
+        let memory = NodeMemory {
+            slab: (stored.end - stored.start) as usize * grid.plane_len() * sample_bytes,
+            buffer: peak,
+            worker: worker_bytes(),
+            allowance: CODE_AND_STACK,
+        };
+        NodeReport {
+            cluster,
+            position,
+            planes,
+            stored,
+            stats,
+            peak_buffer: peak,
+            memory,
+            busy,
+        }
+    }
+}
+
+/// Messages sent, by kind, summed over `nodes`' reports.
+pub fn sent_by_kind(nodes: &[NodeReport]) -> [u64; 9] {
+    let mut messages = [0u64; 9];
+    for n in nodes {
+        for (total, sent) in messages.iter_mut().zip(n.stats.sent) {
+            *total += sent;
+        }
+    }
+    messages
 }
 
 /// Where a node's virtual time went (the paper's Table 4 categories, plus idle).

@@ -15,7 +15,6 @@
 
 use super::host::Host;
 use super::{Distributed, NodeReport};
-use crate::budget::{NodeMemory, CODE_AND_STACK};
 use crate::dataset::{Volume, VolumeData};
 use crate::fabric::sim::{SimConfig, SimError, SimWorker};
 use mpi::datatype::Equivalence;
@@ -305,37 +304,25 @@ pub fn host(
     let (image, reports) = host.finish().map_err(failed)?;
     let grid = volume.grid;
     let partition = Partition::uniform(grid.dims()[0], usize::from(layout.size()))?;
-    let plane = grid.plane_len();
+    let sample_bytes = volume.data.kind().bytes();
     let nodes: Vec<NodeReport> = reports
         .into_iter()
         .enumerate()
         .map(|(n, stats)| {
-            let (cluster, position) = layout.place(n as u16);
-            let j = usize::from(position);
-            let stored = stored_planes(&grid, partition.planes(j), view.ghost_planes());
-            NodeReport {
-                cluster,
-                position,
-                planes: partition.planes(j),
-                memory: NodeMemory {
-                    slab: (stored.end - stored.start) as usize * plane * volume.data.kind().bytes(),
-                    buffer: capacity,
-                    worker: crate::budget::worker_bytes(),
-                    allowance: CODE_AND_STACK,
-                },
-                stored,
+            NodeReport::new(
+                layout,
+                &partition,
+                &grid,
+                view.ghost_planes(),
+                sample_bytes,
+                n as u16,
                 stats,
-                peak_buffer: 0,
-                busy: Duration::ZERO,
-            }
+                capacity,
+                Duration::ZERO,
+            )
         })
         .collect();
-    let mut messages = [0u64; 9];
-    for n in &nodes {
-        for (k, s) in n.stats.sent.iter().enumerate() {
-            messages[k] += s;
-        }
-    }
+    let messages = super::sent_by_kind(&nodes);
     Ok(Distributed {
         pixels: image,
         nodes,

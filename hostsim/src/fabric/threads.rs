@@ -12,7 +12,6 @@
 
 use super::host::Host;
 use super::{Distributed, NodeReport};
-use crate::budget::{NodeMemory, CODE_AND_STACK};
 use crate::dataset::{Volume, VolumeData};
 use crate::fabric::sim::{SimConfig, SimError, SimWorker};
 use std::collections::VecDeque;
@@ -317,36 +316,25 @@ fn run_typed<T: Sample + Sync>(
         result
     });
     let (image, reports) = outcome?;
-    let nodes = reports
+    let nodes: Vec<NodeReport> = reports
         .into_iter()
         .enumerate()
         .map(|(n, stats)| {
-            let (cluster, position) = layout.place(n as u16);
-            let j = usize::from(position);
             let peak = buffers[n].peak.load(Ordering::Relaxed);
-            NodeReport {
-                cluster,
-                position,
-                planes: partition.planes(j),
-                stored: stored[j].clone(),
-                memory: NodeMemory {
-                    slab: (stored[j].end - stored[j].start) as usize * plane * size_of::<T>(),
-                    buffer: peak,
-                    worker: size_of::<SimWorker<'_, T>>(),
-                    allowance: CODE_AND_STACK,
-                },
+            NodeReport::new(
+                layout,
+                &partition,
+                &grid,
+                ghost,
+                size_of::<T>(),
+                n as u16,
                 stats,
-                peak_buffer: peak,
-                busy: busy[n],
-            }
+                peak,
+                busy[n],
+            )
         })
-        .collect::<Vec<_>>();
-    let mut messages = [0u64; 9];
-    for n in &nodes {
-        for (k, s) in n.stats.sent.iter().enumerate() {
-            messages[k] += s;
-        }
-    }
+        .collect();
+    let messages = super::sent_by_kind(&nodes);
     Ok(Distributed {
         pixels: image,
         nodes,
