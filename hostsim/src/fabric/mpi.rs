@@ -7,6 +7,9 @@
 //! its received messages in per-class queues with the simulator's byte capacity: exceeding it
 //! would be an error, never silent.
 //!
+//! Views run one after another; a barrier ends each, so no message of the next view reaches a
+//! host still ending this one.
+//!
 //! Faults: every node sends the host a heartbeat every [`HEARTBEAT`]. A node the host has not
 //! heard from for [`TIMEOUT`], before it reported, is declared lost. The host names it and the
 //! pixels it lacks, and the run fails (the caller aborts the job, so no rank hangs). A rank that
@@ -17,6 +20,7 @@ use super::host::Host;
 use super::{Distributed, NodeReport};
 use crate::dataset::{Volume, VolumeData};
 use crate::fabric::sim::{SimConfig, SimError, SimWorker};
+use mpi::collective::CommunicatorCollectives;
 use mpi::datatype::Equivalence;
 use mpi::point_to_point::{Destination, Source};
 use mpi::topology::{Communicator, SimpleCommunicator};
@@ -160,6 +164,8 @@ fn serve_typed<T: Sample>(
         view.ghost_planes(),
         &data[stored.start as usize * plane..stored.end as usize * plane],
     )?;
+    let block_store = super::block_storage(&slab, cfg.skip);
+    let slab = super::with_blocks(slab, &block_store);
     let mut worker = Box::new(SimWorker::new(
         view,
         slab,
@@ -219,6 +225,8 @@ fn serve_typed<T: Sample>(
         }
     }
     let _ = port.node;
+    // Views are separated: no node starts the next view before the host has ended this one.
+    world.barrier();
     Ok(())
 }
 
@@ -302,6 +310,8 @@ pub fn host(
         }
     }
     let (image, reports) = host.finish().map_err(failed)?;
+    // Views are separated: every node waits here until the host has ended this view.
+    world.barrier();
     let grid = volume.grid;
     let partition = Partition::uniform(grid.dims()[0], usize::from(layout.size()))?;
     let sample_bytes = volume.data.kind().bytes();
