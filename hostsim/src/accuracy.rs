@@ -1,7 +1,8 @@
 //! `voxcube accuracy`: what accuracy costs in time. Δt (1/2, 1/3, 1/5, 1/8 cell edge), the
 //! voxel against the cell model, the gradient distance, and the image size (350×250 up to
 //! the paper's 1024×768 at Δt = 1/5) are swept on SOD. Each setting reports:
-//! - wall time on this machine (median of 3);
+//! - wall time on this machine (median of 3), without empty-space skipping, like the paper's
+//!   tracer;
 //! - simulated 1-node nCUBE 2 time (the profile's costs times the counted operations);
 //! - samples traced;
 //! - error against a fine reference at the same image size (Δt = 1/16, cell model): PSNR and
@@ -9,7 +10,7 @@
 
 use crate::fabric::Category;
 use crate::profile::MachineProfile;
-use crate::render::render;
+use crate::render::render_skipping;
 use crate::scene::DatasetJob;
 use plotters::prelude::*;
 use std::fmt::Write as _;
@@ -93,7 +94,7 @@ fn measure(
     let mut walls = Vec::new();
     let mut last = None;
     for _ in 0..3 {
-        let r = render(&job.volume, view).ok()?;
+        let r = render_skipping(&job.volume, view, false).ok()?;
         walls.push(r.wall.as_secs_f64() * 1e3);
         last = Some(r);
     }
@@ -120,7 +121,7 @@ pub fn sweep(job: &DatasetJob, profile: &MachineProfile) -> Vec<Point> {
             s.dt = 1.0 / 16.0;
             s.model = Model::Cell;
         })
-        .and_then(|r| render(&job.volume, &r).ok())
+        .and_then(|r| render_skipping(&job.volume, &r, false).ok())
         .map(|r| r.pixels)
         .unwrap_or_default()
     };

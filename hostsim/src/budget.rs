@@ -42,10 +42,15 @@ pub fn worker_bytes() -> usize {
     size_of::<SimWorker<'static, u8>>()
 }
 
+/// Bytes of the min/max blocks a slab storing planes `stored` of `grid` keeps.
+pub fn block_bytes(grid: &Grid, stored: std::ops::Range<u32>) -> usize {
+    voxcube_kernel::blocks::extent_for(grid, stored).2 * size_of::<voxcube_kernel::blocks::Range>()
+}
+
 /// One node's memory, by part.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct NodeMemory {
-    /// Owned and ghost planes.
+    /// Owned and ghost planes, with their min/max blocks for empty-space skipping.
     pub slab: usize,
     /// Receive buffer (its capacity, or its measured peak).
     pub buffer: usize,
@@ -112,7 +117,7 @@ pub fn largest_node(
     let slab = (0..cluster_size as usize)
         .map(|j| {
             let s = stored_planes(grid, partition.planes(j), ghost);
-            (s.end - s.start) as usize * grid.plane_len() * sample_bytes
+            (s.end - s.start) as usize * grid.plane_len() * sample_bytes + block_bytes(grid, s)
         })
         .max()?;
     Some(NodeMemory {

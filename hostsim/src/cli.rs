@@ -68,6 +68,9 @@ pub enum Command {
         /// OS threads of the threads fabric (0: one per core, the measured best here).
         #[arg(long, default_value_t = 0)]
         threads: usize,
+        /// Do not skip empty space (a debug option: it changes no pixel, only the time).
+        #[arg(long)]
+        no_skip: bool,
     },
     /// Print the built-in default scene: a complete, commented example of the format.
     Scene,
@@ -315,6 +318,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             buffer,
             machine: profile,
             threads,
+            no_skip,
         } => {
             let (scene, name) = match &scene {
                 Some(path) => (Scene::from_file(path)?, path.display().to_string()),
@@ -331,6 +335,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                     let mut m = machine(v, nodes, clusters, fabric, seed, generation, buffer)
                         .map_err(|e| format!("{}/{}: {e}", job.name, v.name))?;
                     m.threads = threads;
+                    m.skip = !no_skip;
                     m.profile = match profile {
                         ProfileArg::Ncube2 => NCUBE2,
                         ProfileArg::Modern => MODERN,

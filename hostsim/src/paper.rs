@@ -137,9 +137,11 @@ pub fn timed(
             "no layout of {clusters} clusters of {size}"
         )));
     };
+    // The paper's tracer had no acceleration: model it without empty-space skipping.
     let cfg = SimConfig {
         time: Some(profile.clone()),
         cuts,
+        skip: false,
         ..base
     };
     let run = sim::run(&job.volume, view, &cfg)?;

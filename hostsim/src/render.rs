@@ -67,6 +67,8 @@ pub struct Machine {
     pub profile: Profile,
     /// OS threads for the threads fabric (0: one per core).
     pub threads: usize,
+    /// Skip provably empty samples (changes no pixel; off to compare or to debug).
+    pub skip: bool,
 }
 
 impl Machine {
@@ -83,6 +85,7 @@ impl Machine {
             flow_control: true,
             profile: NCUBE2,
             threads: 0,
+            skip: true,
         }
     }
 
@@ -97,6 +100,7 @@ impl Machine {
             generation: self.generation,
             buffer_bytes: self.buffer_bytes,
             flow_control: self.flow_control,
+            skip: self.skip,
             ..SimConfig::machine(self.clusters, self.cluster_size(), self.seed)?
         })
     }
@@ -174,20 +178,26 @@ impl Rendered {
 /// Told how many pixels are done, as a render goes.
 pub type OnProgress<'a> = &'a dyn Fn(u64);
 
-/// Render `view` of `volume` directly, on one node.
+/// Render `view` of `volume` directly, on one node, skipping empty space.
 pub fn render(volume: &Volume, view: &View) -> Result<Rendered, SlabError> {
-    render_direct(volume, view, &|_| {})
+    render_direct(volume, view, true, &|_| {})
+}
+
+/// [`render`], with empty-space skipping on or off.
+pub fn render_skipping(volume: &Volume, view: &View, skip: bool) -> Result<Rendered, SlabError> {
+    render_direct(volume, view, skip, &|_| {})
 }
 
 fn render_direct(
     volume: &Volume,
     view: &View,
+    skip: bool,
     progress: OnProgress<'_>,
 ) -> Result<Rendered, SlabError> {
     match &volume.data {
-        VolumeData::U8(d) => render_typed(volume, d, view, progress),
-        VolumeData::U16(d) => render_typed(volume, d, view, progress),
-        VolumeData::F32(d) => render_typed(volume, d, view, progress),
+        VolumeData::U8(d) => render_typed(volume, d, view, skip, progress),
+        VolumeData::U16(d) => render_typed(volume, d, view, skip, progress),
+        VolumeData::F32(d) => render_typed(volume, d, view, skip, progress),
     }
 }
 
@@ -259,7 +269,7 @@ pub fn render_on_with_progress(
 ) -> Result<Rendered, RenderError> {
     preflight(volume, view, machine)?;
     match machine.fabric {
-        Fabric::Direct => Ok(render_direct(volume, view, progress)?),
+        Fabric::Direct => Ok(render_direct(volume, view, machine.skip, progress)?),
         Fabric::Mpi => Err(RenderError::Machine(
             "the MPI fabric renders through `voxcube render --fabric mpi` under mpirun".into(),
         )),
@@ -292,9 +302,12 @@ fn render_typed<T: Sample>(
     volume: &Volume,
     data: &[T],
     view: &View,
+    skip: bool,
     progress: OnProgress<'_>,
 ) -> Result<Rendered, SlabError> {
     let slab = Slab::whole(volume.grid, data)?;
+    let block_store = crate::fabric::block_storage(&slab, skip);
+    let slab = crate::fabric::with_blocks(slab, &block_store);
     let start = Instant::now();
     let mut counters = Counters::default();
     let n = view.pixel_count();

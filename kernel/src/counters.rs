@@ -14,6 +14,8 @@ pub struct Counters {
     pub shadow_rays: u64,
     /// Lattice samples taken (one field value each).
     pub samples: u64,
+    /// Lattice samples skipped as provably empty (min/max blocks).
+    pub skipped: u64,
     /// Trilinear interpolations (cell model), for any purpose.
     pub interpolations: u64,
     /// Nearest-node lookups (voxel model), for any purpose.
@@ -44,6 +46,7 @@ impl Counters {
             transparency_rays,
             shadow_rays,
             samples,
+            skipped,
             interpolations,
             lookups,
             refinements,
@@ -59,6 +62,7 @@ impl Counters {
         self.transparency_rays = self.transparency_rays.saturating_add(transparency_rays);
         self.shadow_rays = self.shadow_rays.saturating_add(shadow_rays);
         self.samples = self.samples.saturating_add(samples);
+        self.skipped = self.skipped.saturating_add(skipped);
         self.interpolations = self.interpolations.saturating_add(interpolations);
         self.lookups = self.lookups.saturating_add(lookups);
         self.refinements = self.refinements.saturating_add(refinements);

@@ -23,6 +23,7 @@
     reason = "`!(x > limit)` is the kernel's NaN-catching idiom: it is true for NaN, `x <= limit` is not"
 )]
 
+pub mod blocks;
 pub mod camera;
 pub mod counters;
 pub mod field;

@@ -54,6 +54,9 @@ pub struct RayState {
     pub prev: f32,
     /// Whether `prev` holds a sample of this ray.
     pub primed: bool,
+    /// Whether `prev` was skipped: its value is unknown but below every iso value (it is
+    /// evaluated again, exactly, before it is needed).
+    pub prev_stale: bool,
     /// Surfaces (bit per index) already reported on the segment ending at sample `k`.
     pub done_here: u16,
     /// Transparency rays between the primary ray and this one.
@@ -85,6 +88,7 @@ impl RayState {
             k,
             prev: 0.0,
             primed: false,
+            prev_stale: false,
             done_here: 0,
             depth: 0,
             weight: 1.0,
@@ -140,6 +144,31 @@ pub fn march<T: Sample>(
         let plane = grid.owner_plane(p.x, spec.model);
         if !slab.owns(plane) {
             return Stop::Leave { plane };
+        }
+        if let Some(blocks) = slab.blocks() {
+            if view.skippable(ray, blocks.at(p, spec.model)) {
+                // Provably nothing here: no crossing, no opacity. The lattice index moves on.
+                counters.skipped += 1;
+                if view.effects().surfaces {
+                    ray.primed = true;
+                    ray.prev_stale = true;
+                    ray.done_here = 0;
+                }
+                ray.k += 1;
+                continue;
+            }
+        }
+        if ray.prev_stale {
+            // Leaving a skipped run: the previous sample's exact value, for crossing tests and
+            // refinement, from the same expression as if it had not been skipped.
+            counters.samples += 1;
+            ray.prev = field::value(
+                slab,
+                spec.model,
+                ray.ray.at(ray.lattice.t(ray.k.saturating_sub(1))),
+                counters,
+            );
+            ray.prev_stale = false;
         }
         counters.samples += 1;
         let v = field::value(slab, spec.model, p, counters);

@@ -217,7 +217,7 @@ const PIXELS_LEN: usize = 1 + 8 * PIXELS_PER_SET;
 const STATS_LEN: usize = 2 + 8 * COUNTER_FIELDS + 8 * 4 + 8 * KINDS + 8 + 8 * 5;
 /// Number of message kinds.
 pub const KINDS: usize = 9;
-const COUNTER_FIELDS: usize = 14;
+const COUNTER_FIELDS: usize = 15;
 const PLANES_LEN: usize = 4 + 4 + 2 + PLANE_CHUNK;
 
 /// The longest encoded message.
@@ -437,6 +437,7 @@ fn counters_fields(c: &Counters) -> [u64; COUNTER_FIELDS] {
         c.normal_fallbacks,
         c.slab_misses,
         c.non_finite_pixels,
+        c.skipped,
     ]
 }
 
@@ -456,6 +457,7 @@ fn counters_from(f: [u64; COUNTER_FIELDS]) -> Counters {
         normal_fallbacks: f[11],
         slab_misses: f[12],
         non_finite_pixels: f[13],
+        skipped: f[14],
     }
 }
 
@@ -506,7 +508,7 @@ impl Msg {
                 w.u8(entry_code(r.entry));
                 w.u32(r.k);
                 w.f32(r.prev);
-                w.u8(u8::from(r.primed));
+                w.u8(u8::from(r.primed) | u8::from(r.prev_stale) << 1);
                 w.u16(r.done_here);
                 w.u8(r.depth);
                 w.f32(r.weight);
@@ -645,7 +647,11 @@ impl Msg {
                 };
                 let k = r.u32()?;
                 let prev = r.f32()?;
-                let primed = r.bool("primed")?;
+                let flags = r.u8()?;
+                if flags > 3 {
+                    return Err(r.bad("flags"));
+                }
+                let (primed, prev_stale) = (flags & 1 != 0, flags & 2 != 0);
                 let done_here = r.u16()?;
                 let depth = r.u8()?;
                 let weight = r.f32()?;
@@ -660,6 +666,7 @@ impl Msg {
                     k,
                     prev,
                     primed,
+                    prev_stale,
                     done_here,
                     depth,
                     weight,
@@ -822,6 +829,7 @@ mod tests {
             k: 3,
             prev: 4.5,
             primed: true,
+            prev_stale: true,
             done_here: 5,
             depth: 2,
             weight: 0.25,

@@ -7,6 +7,7 @@
 //! A read outside the stored planes returns 0 and is counted, never a panic: the bit-identity
 //! tests assert the count stays zero, which proves `g` wide enough.
 
+use crate::blocks::Blocks;
 use crate::grid::Grid;
 use crate::sample::Sample;
 use core::fmt;
@@ -67,6 +68,7 @@ pub struct Slab<'a, T> {
     stored_start: u32,
     stored_end: u32,
     data: &'a [T],
+    blocks: Option<Blocks<'a>>,
 }
 
 impl<'a, T: Sample> Slab<'a, T> {
@@ -101,12 +103,26 @@ impl<'a, T: Sample> Slab<'a, T> {
             stored_start: stored.start,
             stored_end: stored.end,
             data,
+            blocks: None,
         })
     }
 
     /// The slab that owns every plane: the whole volume, plane-major.
     pub fn whole(grid: Grid, data: &'a [T]) -> Result<Self, SlabError> {
         Slab::new(grid, 0..grid.dims()[0], 0, data)
+    }
+
+    /// The same slab, skipping empty space with `blocks` (built from this slab's planes).
+    pub fn with_blocks(self, blocks: Blocks<'a>) -> Self {
+        Slab {
+            blocks: Some(blocks),
+            ..self
+        }
+    }
+
+    /// The min/max blocks, when empty space is skipped.
+    pub fn blocks(&self) -> Option<&Blocks<'a>> {
+        self.blocks.as_ref()
     }
 
     /// The dataset's grid.

@@ -121,6 +121,19 @@ impl TransferFunction {
     }
 }
 
+impl TransferFunction {
+    /// The greatest opacity over values in `[lo, hi]`: a piecewise-linear function is greatest
+    /// at an end or at a control point between.
+    pub fn max_opacity(&self, lo: f32, hi: f32) -> f32 {
+        let inner = self
+            .points
+            .iter()
+            .filter(|p| p.value > lo && p.value < hi)
+            .map(|p| p.opacity);
+        inner.fold(self.eval(lo).1.max(self.eval(hi).1), f32::max)
+    }
+}
+
 /// Opacity of a segment `length_in_edges` cell edges long of material whose one-edge opacity
 /// is `alpha`: `1 - (1 - alpha)^length`, computed as `1 - exp(length · ln(1 - alpha))`.
 #[inline]

@@ -7,6 +7,7 @@
 //! with finite iso values, colours in `[0, 1]` and transparency in `[0, 1]`; cutoff in
 //! `[0, 1)`; depth at most [`MAX_DEPTH`]; refinement at most [`MAX_REFINE_STEPS`] steps.
 
+use crate::blocks::Range;
 use crate::camera::Camera;
 use crate::grid::{Grid, Model};
 use crate::lattice::Lattice;
@@ -228,6 +229,22 @@ impl View {
             effects,
             spec,
         })
+    }
+
+    /// Whether a sample in a block whose values lie in `r` can be skipped, provably changing
+    /// nothing: for surfaces, the block is below every iso value and so was the previous
+    /// sample (no crossing, and no cut face); for compositing, nothing in the range is opaque.
+    #[inline]
+    pub fn skippable(&self, ray: &RayState, r: Range) -> bool {
+        match &self.spec.mode {
+            Mode::Surfaces(surfaces) => {
+                let below = |v: f32| surfaces.iter().all(|s| v < s.iso);
+                ray.done_here == 0
+                    && below(r.max)
+                    && (!ray.primed || ray.prev_stale || below(ray.prev))
+            }
+            Mode::Composite(tf) => !(tf.max_opacity(r.min, r.max) > 0.0),
+        }
     }
 
     /// The parameters.

@@ -153,8 +153,10 @@ fn the_ncube2_profile_is_calibrated_to_the_papers_one_node_time() {
     let mut notes = String::new();
     let job = voxcube::paper::dataset(Some(&data), &mut notes).expect("SOD");
     assert!(notes.is_empty(), "{notes}");
+    // The paper's tracer, without empty-space skipping.
     let cfg = SimConfig {
         time: Some(MachineProfile::ncube2()),
+        skip: false,
         ..SimConfig::cluster(1, 1).expect("layout")
     };
     let t = sim::run(&job.volume, &job.views[0].view, &cfg)

@@ -7,7 +7,7 @@ pub mod mpi;
 pub mod sim;
 pub mod threads;
 
-use crate::budget::{worker_bytes, NodeMemory, CODE_AND_STACK};
+use crate::budget::{block_bytes, worker_bytes, NodeMemory, CODE_AND_STACK};
 use std::ops::Range;
 use std::time::Duration;
 use voxcube_kernel::counters::Counters;
@@ -63,7 +63,8 @@ impl NodeReport {
         let planes = partition.planes(usize::from(position));
         let stored = stored_planes(grid, planes.clone(), ghost);
         let memory = NodeMemory {
-            slab: (stored.end - stored.start) as usize * grid.plane_len() * sample_bytes,
+            slab: (stored.end - stored.start) as usize * grid.plane_len() * sample_bytes
+                + block_bytes(grid, stored.clone()),
             buffer: peak,
             worker: worker_bytes(),
             allowance: CODE_AND_STACK,
@@ -244,4 +245,32 @@ pub fn flow_for(
         });
     }
     Ok((control, capacity))
+}
+
+/// Min/max block storage for `slab` when empty space is skipped (`skip`), else empty.
+pub fn block_storage<T: voxcube_kernel::sample::Sample>(
+    slab: &voxcube_kernel::slab::Slab<'_, T>,
+    skip: bool,
+) -> Vec<voxcube_kernel::blocks::Range> {
+    use voxcube_kernel::blocks::{extent, Blocks, Range};
+    if !skip {
+        return Vec::new();
+    }
+    let mut out = vec![Range::UNKNOWN; extent(slab).2];
+    match Blocks::build(slab, &mut out) {
+        Ok(()) => out,
+        // The length comes from `extent`: this cannot fail; without blocks nothing is skipped.
+        Err(_) => Vec::new(),
+    }
+}
+
+/// `slab`, skipping empty space with the blocks in `storage` (none when it is empty).
+pub fn with_blocks<'a, T: voxcube_kernel::sample::Sample>(
+    slab: voxcube_kernel::slab::Slab<'a, T>,
+    storage: &'a [voxcube_kernel::blocks::Range],
+) -> voxcube_kernel::slab::Slab<'a, T> {
+    match voxcube_kernel::blocks::Blocks::new(&slab, storage) {
+        Ok(blocks) if !storage.is_empty() => slab.with_blocks(blocks),
+        _ => slab,
+    }
 }

@@ -99,6 +99,8 @@ pub struct SimConfig {
     pub time: Option<MachineProfile>,
     /// A fault to inject: this node stops answering after this many of its own steps.
     pub stop: Option<(u16, u64)>,
+    /// Skip provably empty samples with min/max blocks (changes no pixel; off to compare).
+    pub skip: bool,
     /// Test-only faults, applied to every worker.
     #[cfg(feature = "mutants")]
     pub mutants: voxcube_kernel::worker::Mutants,
@@ -129,6 +131,7 @@ impl SimConfig {
             flow_control: true,
             time: None,
             stop: None,
+            skip: true,
             #[cfg(feature = "mutants")]
             mutants: Default::default(),
         })
@@ -432,13 +435,23 @@ fn run_typed<T: Sample>(
         .iter()
         .map(|r| &data[r.start as usize * plane..r.end as usize * plane])
         .collect();
+    let block_stores: Vec<Vec<voxcube_kernel::blocks::Range>> = (0..size)
+        .map(|j| {
+            Slab::new(grid, partition.planes(j), ghost, storage[j])
+                .map(|s| super::block_storage(&s, cfg.skip))
+                .unwrap_or_default()
+        })
+        .collect();
     let nodes = layout.nodes() as usize;
     let mut workers: Vec<Box<SimWorker<'_, T>>> = Vec::with_capacity(nodes);
     let mut reports = Vec::with_capacity(nodes);
     for node in 0..nodes as u16 {
         let (cluster, position) = layout.place(node);
         let j = usize::from(position);
-        let slab = Slab::new(grid, partition.planes(j), ghost, storage[j])?;
+        let slab = super::with_blocks(
+            Slab::new(grid, partition.planes(j), ghost, storage[j])?,
+            &block_stores[j],
+        );
         let place = Place {
             layout,
             cluster,

@@ -208,17 +208,28 @@ fn run_typed<T: Sample + Sync>(
     let stored: Vec<_> = (0..size)
         .map(|j| stored_planes(&grid, partition.planes(j), ghost))
         .collect();
+    let block_stores: Vec<Vec<voxcube_kernel::blocks::Range>> = (0..size)
+        .map(|j| {
+            let data = &data[stored[j].start as usize * plane..stored[j].end as usize * plane];
+            Slab::new(grid, partition.planes(j), ghost, data)
+                .map(|s| super::block_storage(&s, cfg.skip))
+                .unwrap_or_default()
+        })
+        .collect();
     let nodes = layout.nodes() as usize;
     let mut workers = Vec::with_capacity(nodes);
     for node in 0..nodes as u16 {
         let (cluster, position) = layout.place(node);
         let j = usize::from(position);
-        let slab = Slab::new(
-            grid,
-            partition.planes(j),
-            ghost,
-            &data[stored[j].start as usize * plane..stored[j].end as usize * plane],
-        )?;
+        let slab = super::with_blocks(
+            Slab::new(
+                grid,
+                partition.planes(j),
+                ghost,
+                &data[stored[j].start as usize * plane..stored[j].end as usize * plane],
+            )?,
+            &block_stores[j],
+        );
         let place = Place {
             layout,
             cluster,

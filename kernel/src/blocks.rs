@@ -1,0 +1,231 @@
+//! Min/max blocks for empty-space skipping: for each block of `BLOCK`³ cells, the least and
+//! greatest value of its nodes, so every value the field takes inside the block (nearest or
+//! trilinear) lies in that range.
+//!
+//! A node builds its blocks from its own stored planes into storage it provides. A block that
+//! needs a plane the node does not store is marked unknown (an infinite range) and is never
+//! skipped. The tracer skips a sample only when the block says it provably contributes
+//! nothing, and skipping never changes an image; which samples a node skips is therefore free
+//! to differ from node to node.
+
+use crate::grid::Model;
+use crate::sample::Sample;
+use crate::slab::Slab;
+use core::fmt;
+use glam::Vec3;
+
+/// Cells per block edge.
+pub const BLOCK: u32 = 4;
+
+/// The values a block's field can take.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Range {
+    /// Least value.
+    pub min: f32,
+    /// Greatest value.
+    pub max: f32,
+}
+
+impl Range {
+    /// A range that proves nothing.
+    pub const UNKNOWN: Range = Range {
+        min: f32::NEG_INFINITY,
+        max: f32::INFINITY,
+    };
+}
+
+/// Why blocks cannot be built.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BlocksError {
+    /// Entries needed.
+    pub needed: usize,
+    /// Entries given.
+    pub given: usize,
+}
+
+impl fmt::Display for BlocksError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "block storage holds {} ranges, the slab needs {}",
+            self.given, self.needed
+        )
+    }
+}
+
+impl core::error::Error for BlocksError {}
+
+/// A slab's blocks: global block columns `[x0, x1)` × all Y × all Z.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Blocks<'a> {
+    data: &'a [Range],
+    x0: u32,
+    x1: u32,
+    ny: u32,
+    nz: u32,
+}
+
+/// Blocks along an axis of `n` nodes (`n − 1` cells, at least one block).
+fn count(n: u32) -> u32 {
+    n.saturating_sub(1).div_ceil(BLOCK).max(1)
+}
+
+/// The global block columns a slab's stored planes touch, and the storage they need.
+pub fn extent<T: Sample>(slab: &Slab<'_, T>) -> (u32, u32, usize) {
+    extent_for(slab.grid(), slab.stored())
+}
+
+/// [`extent`] for stored planes `stored` of `grid`, before any slab exists (for budgets).
+pub fn extent_for(grid: &crate::grid::Grid, stored: core::ops::Range<u32>) -> (u32, u32, usize) {
+    let [nx, ny, nz] = grid.dims();
+    let x0 = (stored.start / BLOCK).min(count(nx) - 1);
+    let x1 = (stored.end.saturating_sub(1) / BLOCK + 1)
+        .min(count(nx))
+        .max(x0 + 1);
+    (
+        x0,
+        x1,
+        (x1 - x0) as usize * count(ny) as usize * count(nz) as usize,
+    )
+}
+
+impl<'a> Blocks<'a> {
+    /// The blocks in `data`, filled for `slab` by [`Blocks::build`].
+    pub fn new<T: Sample>(
+        slab: &Slab<'_, T>,
+        data: &'a [Range],
+    ) -> Result<Blocks<'a>, BlocksError> {
+        let (x0, x1, needed) = extent(slab);
+        if data.len() != needed {
+            return Err(BlocksError {
+                needed,
+                given: data.len(),
+            });
+        }
+        let [_, ny, nz] = slab.grid().dims();
+        Ok(Blocks {
+            data,
+            x0,
+            x1,
+            ny: count(ny),
+            nz: count(nz),
+        })
+    }
+
+    /// Fill `out` (exactly [`extent`]'s length) with `slab`'s blocks.
+    pub fn build<T: Sample>(slab: &Slab<'_, T>, out: &mut [Range]) -> Result<(), BlocksError> {
+        let (x0, x1, needed) = extent(slab);
+        if out.len() != needed {
+            return Err(BlocksError {
+                needed,
+                given: out.len(),
+            });
+        }
+        let [nx, ny, nz] = slab.grid().dims();
+        let (by, bz) = (count(ny), count(nz));
+        let stored = slab.stored();
+        let mut i = 0;
+        for bx in x0..x1 {
+            let xs = bx * BLOCK..((bx + 1) * BLOCK).min(nx - 1) + 1;
+            let known = stored.start <= xs.start && xs.end <= stored.end;
+            for cz in 0..bz {
+                for cy in 0..by {
+                    let mut r = Range {
+                        min: f32::INFINITY,
+                        max: f32::NEG_INFINITY,
+                    };
+                    if known {
+                        for x in xs.clone() {
+                            for z in cz * BLOCK..((cz + 1) * BLOCK).min(nz - 1) + 1 {
+                                for y in cy * BLOCK..((cy + 1) * BLOCK).min(ny - 1) + 1 {
+                                    match slab.get(x, y, z) {
+                                        Some(v) => {
+                                            let v = v.to_f32();
+                                            r.min = r.min.min(v);
+                                            r.max = r.max.max(v);
+                                        }
+                                        None => r = Range::UNKNOWN,
+                                    }
+                                }
+                            }
+                        }
+                    } else {
+                        r = Range::UNKNOWN;
+                    }
+                    out[i] = r;
+                    i += 1;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The range of the block holding index-space point `p` under `model` (unknown outside).
+    #[inline]
+    pub fn at(&self, p: Vec3, model: Model) -> Range {
+        let shift = match model {
+            Model::Voxel => 0.5,
+            Model::Cell => 0.0,
+        };
+        // The cell (cell model) or node (voxel model) the point reads, then its block; a node
+        // on a block's upper face belongs to both blocks, and both include it.
+        let b = |v: f32| (libm::floorf(v + shift).max(0.0) as u32) / BLOCK;
+        let (bx, by, bz) = (b(p.x), b(p.y).min(self.ny - 1), b(p.z).min(self.nz - 1));
+        if bx < self.x0 || bx >= self.x1 {
+            return Range::UNKNOWN;
+        }
+        let i = ((bx - self.x0) as usize * self.nz as usize + bz as usize) * self.ny as usize
+            + by as usize;
+        self.data.get(i).copied().unwrap_or(Range::UNKNOWN)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::counters::Counters;
+    use crate::field;
+    use crate::grid::Grid;
+
+    #[test]
+    fn every_field_value_lies_in_its_block() {
+        let grid = Grid::new([9, 7, 6], Vec3::ONE).unwrap();
+        let data: [u8; 9 * 7 * 6] = core::array::from_fn(|i| (i * 37 % 251) as u8);
+        let slab = Slab::whole(grid, &data).unwrap();
+        let mut storage = [Range::UNKNOWN; 2 * 2 * 2];
+        Blocks::build(&slab, &mut storage).unwrap();
+        let blocks = Blocks::new(&slab, &storage).unwrap();
+        let mut c = Counters::default();
+        for i in 0..400 {
+            let p = Vec3::new(
+                (i % 17) as f32 * 0.5,
+                (i % 13) as f32 * 0.47,
+                (i % 11) as f32 * 0.46,
+            );
+            for model in [Model::Cell, Model::Voxel] {
+                let v = field::value(&slab, model, p, &mut c);
+                let r = blocks.at(p, model);
+                assert!(r.min <= v && v <= r.max, "{p} {model:?}: {v} outside {r:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn blocks_beyond_the_stored_planes_are_unknown() {
+        let grid = Grid::new([13, 2, 2], Vec3::ONE).unwrap();
+        let data = [5u8; 4 * 4];
+        // Owns planes 4..6 with one ghost plane: stores 3..7, so block 1 (planes 4..=8) is unknown.
+        let slab = Slab::new(grid, 4..6, 1, &data).unwrap();
+        let (x0, x1, n) = extent(&slab);
+        assert_eq!((x0, x1), (0, 2));
+        let mut storage = [Range::UNKNOWN; 2];
+        assert_eq!(n, 2);
+        Blocks::build(&slab, &mut storage).unwrap();
+        let blocks = Blocks::new(&slab, &storage).unwrap();
+        assert_eq!(
+            blocks.at(Vec3::new(5.0, 0.0, 0.0), Model::Cell),
+            Range::UNKNOWN
+        );
+        assert!(Blocks::build(&slab, &mut [Range::UNKNOWN; 3]).is_err());
+    }
+}
