@@ -160,17 +160,36 @@ impl<'a> Blocks<'a> {
         Ok(())
     }
 
-    /// The range of the block holding index-space point `p` under `model` (unknown outside).
+    /// The global block coordinates of index-space point `p` under `model`: what
+    /// [`Blocks::at`] reads. Monotone in each coordinate of `p`.
     #[inline]
-    pub fn at(&self, p: Vec3, model: Model) -> Range {
+    pub fn block_of(&self, p: Vec3, model: Model) -> (u32, u32, u32) {
         let shift = match model {
             Model::Voxel => 0.5,
             Model::Cell => 0.0,
         };
+        let b = |v: f32| (libm::floorf(v + shift).max(0.0) as u32) / BLOCK;
+        (b(p.x), b(p.y).min(self.ny - 1), b(p.z).min(self.nz - 1))
+    }
+
+    /// The index-space box of block `(bx, by, bz)` under `model`, for estimating where a ray
+    /// leaves it (the estimate is always checked exactly).
+    pub fn bounds(&self, block: (u32, u32, u32), model: Model) -> (Vec3, Vec3) {
+        let shift = match model {
+            Model::Voxel => 0.5,
+            Model::Cell => 0.0,
+        };
+        let lo = Vec3::new(block.0 as f32, block.1 as f32, block.2 as f32) * BLOCK as f32
+            - Vec3::splat(shift);
+        (lo, lo + Vec3::splat(BLOCK as f32))
+    }
+
+    /// The range of the block holding index-space point `p` under `model` (unknown outside).
+    #[inline]
+    pub fn at(&self, p: Vec3, model: Model) -> Range {
         // The cell (cell model) or node (voxel model) the point reads, then its block; a node
         // on a block's upper face belongs to both blocks, and both include it.
-        let b = |v: f32| (libm::floorf(v + shift).max(0.0) as u32) / BLOCK;
-        let (bx, by, bz) = (b(p.x), b(p.y).min(self.ny - 1), b(p.z).min(self.nz - 1));
+        let (bx, by, bz) = self.block_of(p, model);
         if bx < self.x0 || bx >= self.x1 {
             return Range::UNKNOWN;
         }

@@ -147,8 +147,11 @@ pub fn march<T: Sample>(
         }
         if let Some(blocks) = slab.blocks() {
             if view.skippable(ray, blocks.at(p, spec.model)) {
-                // Provably nothing here: no crossing, no opacity. The lattice index moves on.
-                counters.skipped += 1;
+                // Provably nothing here: no crossing, no opacity. The lattice index moves on,
+                // over every further sample in the same block and slab at once.
+                let last = skip_run(ray, slab, blocks, p, spec.model);
+                counters.skipped += u64::from(last - ray.k + 1);
+                ray.k = last;
                 if view.effects().surfaces {
                     ray.primed = true;
                     ray.prev_stale = true;
@@ -216,6 +219,45 @@ pub fn march<T: Sample>(
         ray.done_here = 0;
         ray.k += 1;
     }
+}
+
+/// The last sample of the run starting at `ray.k` (position `p`) that stays in `p`'s block
+/// and in `slab`: every sample between lies there too, since positions, cells and owner
+/// planes are monotone along the lattice. The exit point is only an estimate; each candidate
+/// is checked with the exact arithmetic of the samples themselves, halving on failure.
+fn skip_run<T: Sample>(
+    ray: &RayState,
+    slab: &Slab<'_, T>,
+    blocks: &crate::blocks::Blocks<'_>,
+    p: Vec3,
+    model: crate::grid::Model,
+) -> u32 {
+    let block = blocks.block_of(p, model);
+    let (lo, hi) = blocks.bounds(block, model);
+    let (o, d, t) = (ray.ray.origin, ray.ray.dir, ray.lattice.t(ray.k));
+    let mut t_out = f32::INFINITY;
+    for a in 0..3 {
+        if d[a] > 0.0 {
+            t_out = t_out.min((hi[a] - o[a]) / d[a]);
+        } else if d[a] < 0.0 {
+            t_out = t_out.min((lo[a] - o[a]) / d[a]);
+        }
+    }
+    let ahead = ((t_out - t) / ray.lattice.dt).max(0.0);
+    let mut n = if ahead.is_finite() {
+        (ahead as u32).min(ray.lattice.last - ray.k.min(ray.lattice.last))
+    } else {
+        0
+    };
+    let grid = slab.grid();
+    while n > 0 {
+        let q = ray.ray.at(ray.lattice.t(ray.k + n));
+        if slab.owns(grid.owner_plane(q.x, model)) && blocks.block_of(q, model) == block {
+            return ray.k + n;
+        }
+        n /= 2;
+    }
+    ray.k
 }
 
 /// The nearest surface crossing not yet reported on the segment ending at sample `k` (value
