@@ -8,7 +8,6 @@
 //! - error against a fine reference at the same image size (Δt = 1/16, cell model): PSNR and
 //!   maximum absolute error, in 8-bit levels.
 
-use crate::fabric::Category;
 use crate::profile::MachineProfile;
 use crate::render::render_skipping;
 use crate::scene::DatasetJob;
@@ -49,7 +48,6 @@ pub fn one_node_seconds(c: &Counters, profile: &MachineProfile) -> f64 {
         + c.shadings as f64 * k.shading
         + c.crossings as f64 * k.crossing
         + c.primary_rays as f64 * k.ray_setup;
-    let _ = Category::ALL;
     compute * profile.scale
 }
 

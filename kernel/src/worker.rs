@@ -42,7 +42,7 @@
 //! back-pressure.
 
 use crate::counters::Counters;
-use crate::flow::{r_imax, Class, FlowControl, CLASSES, CREDITS, CREDIT_CLASSES};
+use crate::flow::{r_imax, Class, FlowControl, CREDITS, CREDIT_CLASSES};
 use crate::lighting::lighting;
 use crate::march::{march, Hit, RayKind, RayState, Stop};
 use crate::msg::{HitRecord, Msg, Outcome, PixelSet, Reply, Resolved, Travel, NO_HOME, NO_LIGHT};
@@ -954,6 +954,3 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
         true
     }
 }
-
-/// Reading order of the classes, for fabrics that poll by class.
-pub const READING_ORDER: [Class; 7] = CLASSES;

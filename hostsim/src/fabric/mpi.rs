@@ -46,7 +46,6 @@ pub const TIMEOUT: Duration = Duration::from_secs(3);
 
 struct MpiPort<'w> {
     world: &'w SimpleCommunicator,
-    node: u16,
     local: [VecDeque<(Dest, Msg)>; 7],
     used: usize,
     peak: usize,
@@ -65,8 +64,7 @@ impl MpiPort<'_> {
         {
             let from = status.source_rank();
             let len = status.count(u8::equivalent_datatype()) as usize;
-            let status = message.matched_receive_into(&mut buf[..]);
-            let _ = status;
+            message.matched_receive_into(&mut buf[..]);
             let msg =
                 Msg::decode(&buf[..len.min(MAX_MSG_LEN)]).map_err(|error| SimError::Decode {
                     from: from as u16,
@@ -180,7 +178,6 @@ fn serve_typed<T: Sample>(
     )?);
     let mut port = MpiPort {
         world,
-        node,
         local: Default::default(),
         used: 0,
         peak: 0,
@@ -224,7 +221,6 @@ fn serve_typed<T: Sample>(
             std::thread::sleep(Duration::from_micros(20));
         }
     }
-    let _ = port.node;
     // Views are separated: no node starts the next view before the host has ended this one.
     world.barrier();
     Ok(())

@@ -31,7 +31,7 @@ use std::collections::VecDeque;
 use std::fmt;
 use std::time::{Duration, Instant};
 use voxcube_kernel::counters::Counters;
-use voxcube_kernel::flow::{self, Class, CLASSES};
+use voxcube_kernel::flow::{self, Class};
 use voxcube_kernel::msg::{DecodeError, Msg, MsgKind, MAX_MSG_LEN};
 use voxcube_kernel::partition::{Partition, PartitionError};
 use voxcube_kernel::port::{Dest, Port};
@@ -816,9 +816,6 @@ fn choose(scheduler: Scheduler, rng: &mut SplitMix, inflight: &[Envelope], nodes
         }
     }
 }
-
-/// Every class a port reads, for reports.
-pub const READ_CLASSES: [Class; 7] = CLASSES;
 
 /// Virtual time of a timed run: every node's clock and its time by category.
 struct Clock {
