@@ -154,6 +154,8 @@ pub struct View {
     box_lo: Vec3,
     box_hi: Vec3,
     effects: Effects,
+    /// The least iso value (surfaces mode): a value below it is outside every surface.
+    min_iso: f32,
 }
 
 impl View {
@@ -217,6 +219,12 @@ impl View {
                 }
             }
         }
+        let min_iso = match &spec.mode {
+            Mode::Surfaces(surfaces) => {
+                surfaces.iter().map(|s| s.iso).fold(f32::INFINITY, f32::min)
+            }
+            Mode::Composite(_) => f32::NEG_INFINITY,
+        };
         let cell_edge = grid.cell_edge();
         let (box_lo, box_hi) = grid.index_box(spec.model);
         Ok(View {
@@ -227,6 +235,7 @@ impl View {
             box_lo,
             box_hi,
             effects,
+            min_iso,
             spec,
         })
     }
@@ -237,8 +246,9 @@ impl View {
     #[inline]
     pub fn skippable(&self, ray: &RayState, r: Range) -> bool {
         match &self.spec.mode {
-            Mode::Surfaces(surfaces) => {
-                let below = |v: f32| surfaces.iter().all(|s| v < s.iso);
+            Mode::Surfaces(_) => {
+                // Below every iso value is below the least of them (NaN is below none).
+                let below = |v: f32| v < self.min_iso;
                 ray.done_here == 0
                     && below(r.max)
                     && (!ray.primed || ray.prev_stale || below(ray.prev))
