@@ -39,16 +39,7 @@ pub struct Point {
 
 /// Simulated 1-node seconds of the counted work on `profile` (compute, scaled; no messages).
 pub fn one_node_seconds(c: &Counters, profile: &MachineProfile) -> f64 {
-    let k = &profile.costs;
-    let compute = c.samples as f64 * k.sample
-        + c.interpolations as f64 * k.interpolation
-        + c.lookups as f64 * k.lookup
-        + c.refinements as f64 * k.refinement
-        + c.gradients as f64 * k.gradient
-        + c.shadings as f64 * k.shading
-        + c.crossings as f64 * k.crossing
-        + c.primary_rays as f64 * k.ray_setup;
-    compute * profile.scale
+    profile.compute(c).iter().sum::<f64>() * profile.scale
 }
 
 /// PSNR (dB) and maximum absolute error between two RGBA8 images of the same size.

@@ -154,6 +154,22 @@ impl MachineProfile {
         Ok(p)
     }
 
+    /// Unscaled seconds of the tracer's compute for counted work `c`, as the paper's Table 4
+    /// splits it: interpolation, tracing (stepping and ray set-up), and sample-and-shade
+    /// (refinement, gradients, shading, crossings). Multiply by `scale` for machine time.
+    pub fn compute(&self, c: &voxcube_kernel::counters::Counters) -> [f64; 3] {
+        let k = &self.costs;
+        let n = |v: u64| v as f64;
+        [
+            n(c.interpolations) * k.interpolation + n(c.lookups) * k.lookup,
+            n(c.samples) * k.sample + n(c.primary_rays) * k.ray_setup,
+            n(c.refinements) * k.refinement
+                + n(c.gradients) * k.gradient
+                + n(c.shadings) * k.shading
+                + n(c.crossings) * k.crossing,
+        ]
+    }
+
     /// The nCUBE 2.
     pub fn ncube2() -> MachineProfile {
         // The shipped file is checked by a test; a broken one is a build defect.

@@ -39,39 +39,92 @@ pub struct Counters {
 }
 
 impl Counters {
+    /// What was counted since `before` (each counter's difference, never below zero).
+    pub fn since(&self, before: &Counters) -> Counters {
+        let mut d = *self;
+        for (now, then) in d.fields_mut().into_iter().zip(before.fields()) {
+            *now = now.saturating_sub(then);
+        }
+        d
+    }
+
+    /// Every counter, in one fixed order (the order of the statistics message).
+    pub(crate) fn fields(&self) -> [u64; 15] {
+        let c = *self;
+        [
+            c.primary_rays,
+            c.transparency_rays,
+            c.shadow_rays,
+            c.samples,
+            c.skipped,
+            c.interpolations,
+            c.lookups,
+            c.refinements,
+            c.gradients,
+            c.shadings,
+            c.crossings,
+            c.early_terminations,
+            c.normal_fallbacks,
+            c.slab_misses,
+            c.non_finite_pixels,
+        ]
+    }
+
+    /// Every counter, mutably, in the order of [`Counters::fields`].
+    pub(crate) fn fields_mut(&mut self) -> [&mut u64; 15] {
+        [
+            &mut self.primary_rays,
+            &mut self.transparency_rays,
+            &mut self.shadow_rays,
+            &mut self.samples,
+            &mut self.skipped,
+            &mut self.interpolations,
+            &mut self.lookups,
+            &mut self.refinements,
+            &mut self.gradients,
+            &mut self.shadings,
+            &mut self.crossings,
+            &mut self.early_terminations,
+            &mut self.normal_fallbacks,
+            &mut self.slab_misses,
+            &mut self.non_finite_pixels,
+        ]
+    }
+
     /// Add `other` into `self` (saturating: counters never wrap).
     pub fn add(&mut self, other: &Counters) {
-        let Counters {
-            primary_rays,
-            transparency_rays,
-            shadow_rays,
-            samples,
-            skipped,
-            interpolations,
-            lookups,
-            refinements,
-            gradients,
-            shadings,
-            crossings,
-            early_terminations,
-            normal_fallbacks,
-            slab_misses,
-            non_finite_pixels,
-        } = *other;
-        self.primary_rays = self.primary_rays.saturating_add(primary_rays);
-        self.transparency_rays = self.transparency_rays.saturating_add(transparency_rays);
-        self.shadow_rays = self.shadow_rays.saturating_add(shadow_rays);
-        self.samples = self.samples.saturating_add(samples);
-        self.skipped = self.skipped.saturating_add(skipped);
-        self.interpolations = self.interpolations.saturating_add(interpolations);
-        self.lookups = self.lookups.saturating_add(lookups);
-        self.refinements = self.refinements.saturating_add(refinements);
-        self.gradients = self.gradients.saturating_add(gradients);
-        self.shadings = self.shadings.saturating_add(shadings);
-        self.crossings = self.crossings.saturating_add(crossings);
-        self.early_terminations = self.early_terminations.saturating_add(early_terminations);
-        self.normal_fallbacks = self.normal_fallbacks.saturating_add(normal_fallbacks);
-        self.slab_misses = self.slab_misses.saturating_add(slab_misses);
-        self.non_finite_pixels = self.non_finite_pixels.saturating_add(non_finite_pixels);
+        for (total, more) in self.fields_mut().into_iter().zip(other.fields()) {
+            *total = total.saturating_add(more);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn since_undoes_add() {
+        let a = Counters {
+            samples: 7,
+            skipped: 2,
+            shadings: 1,
+            ..Counters::default()
+        };
+        let mut b = a;
+        b.add(&Counters {
+            samples: 3,
+            non_finite_pixels: 4,
+            ..Counters::default()
+        });
+        assert_eq!(
+            b.since(&a),
+            Counters {
+                samples: 3,
+                non_finite_pixels: 4,
+                ..Counters::default()
+            }
+        );
+        assert_eq!(a.since(&b).samples, 0, "never below zero");
     }
 }

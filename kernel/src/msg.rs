@@ -422,43 +422,15 @@ fn entry_code(e: Entry) -> u8 {
 }
 
 fn counters_fields(c: &Counters) -> [u64; COUNTER_FIELDS] {
-    [
-        c.primary_rays,
-        c.transparency_rays,
-        c.shadow_rays,
-        c.samples,
-        c.interpolations,
-        c.lookups,
-        c.refinements,
-        c.gradients,
-        c.shadings,
-        c.crossings,
-        c.early_terminations,
-        c.normal_fallbacks,
-        c.slab_misses,
-        c.non_finite_pixels,
-        c.skipped,
-    ]
+    c.fields()
 }
 
 fn counters_from(f: [u64; COUNTER_FIELDS]) -> Counters {
-    Counters {
-        primary_rays: f[0],
-        transparency_rays: f[1],
-        shadow_rays: f[2],
-        samples: f[3],
-        interpolations: f[4],
-        lookups: f[5],
-        refinements: f[6],
-        gradients: f[7],
-        shadings: f[8],
-        crossings: f[9],
-        early_terminations: f[10],
-        normal_fallbacks: f[11],
-        slab_misses: f[12],
-        non_finite_pixels: f[13],
-        skipped: f[14],
+    let mut c = Counters::default();
+    for (slot, v) in c.fields_mut().into_iter().zip(f) {
+        *slot = v;
     }
+    c
 }
 
 impl Msg {

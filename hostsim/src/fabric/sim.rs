@@ -873,24 +873,13 @@ impl Clock {
         received: u64,
         sent: &mut [Envelope],
     ) {
-        let (c, m, scale) = (
-            self.profile.costs,
-            self.profile.messages,
-            self.profile.scale,
-        );
-        let d = |a: u64, b: u64| a.saturating_sub(b) as f64;
+        let (m, scale) = (self.profile.messages, self.profile.scale);
+        let [interpolate, trace, shade] = self.profile.compute(&after.since(before));
         let mut parts = [0.0; Category::COUNT];
         parts[Category::Test as usize] = m.test + m.test_per_pending * pending as f64;
-        parts[Category::Interpolate as usize] = d(after.interpolations, before.interpolations)
-            * c.interpolation
-            + d(after.lookups, before.lookups) * c.lookup;
-        parts[Category::Trace as usize] = d(after.samples, before.samples) * c.sample
-            + d(after.primary_rays, before.primary_rays) * c.ray_setup;
-        parts[Category::SampleShade as usize] = d(after.refinements, before.refinements)
-            * c.refinement
-            + d(after.gradients, before.gradients) * c.gradient
-            + d(after.shadings, before.shadings) * c.shading
-            + d(after.crossings, before.crossings) * c.crossing;
+        parts[Category::Interpolate as usize] = interpolate;
+        parts[Category::Trace as usize] = trace;
+        parts[Category::SampleShade as usize] = shade;
         parts[Category::Read as usize] = received as f64 * m.read;
         parts[Category::Write as usize] = sent.len() as f64 * m.write;
         let mut spent = 0.0;
