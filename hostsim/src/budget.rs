@@ -9,7 +9,9 @@
 //! is an error, never silent.
 
 use crate::fabric::sim::SimWorker;
+use crate::profile::{MachineProfile, BUILT_IN};
 use std::fmt;
+use std::sync::OnceLock;
 use voxcube_kernel::grid::Grid;
 use voxcube_kernel::partition::Partition;
 use voxcube_kernel::slab::stored_planes;
@@ -26,16 +28,35 @@ pub struct Profile {
     pub node_memory: usize,
 }
 
-/// The nCUBE 2 of the paper: 4 MiB per node.
-pub const NCUBE2: Profile = Profile {
-    name: "ncube2",
-    node_memory: 4 << 20,
-};
-/// A modern cluster node, for volumes the nCUBE could not hold: 1 GiB per node process.
-pub const MODERN: Profile = Profile {
-    name: "modern",
-    node_memory: 1 << 30,
-};
+impl Profile {
+    /// The node memory of a shipped machine profile (`hostsim/profiles/<name>.toml`), read
+    /// once: the TOML file is the one place it is written.
+    pub fn builtin(name: &str) -> Option<Profile> {
+        static SHIPPED: OnceLock<Vec<Profile>> = OnceLock::new();
+        let shipped = SHIPPED.get_or_init(|| {
+            BUILT_IN
+                .iter()
+                .filter_map(|(n, _)| {
+                    MachineProfile::load(n).ok().map(|p| Profile {
+                        name: n,
+                        node_memory: p.node_memory,
+                    })
+                })
+                .collect()
+        });
+        shipped.iter().find(|p| p.name == name).copied()
+    }
+
+    /// The nCUBE 2 of the paper (4 MiB per node).
+    pub fn ncube2() -> Profile {
+        // The shipped file is checked by a test; a broken one is a build defect.
+        #[allow(
+            clippy::expect_used,
+            reason = "the shipped profile is valid; a test checks it"
+        )]
+        Profile::builtin("ncube2").expect("the shipped ncube2 profile is valid")
+    }
+}
 
 /// The worker's fixed-capacity state in the simulator and threads fabrics, bytes.
 pub fn worker_bytes() -> usize {
@@ -174,7 +195,7 @@ mod tests {
     fn a_big_volume_needs_a_bigger_cluster() {
         let grid = Grid::new([208, 208, 208], Vec3::ONE).unwrap();
         let buffer = |_| 16 * 1024;
-        let err = check(NCUBE2, &grid, 1, 2, 3, &buffer).unwrap_err();
+        let err = check(Profile::ncube2(), &grid, 1, 2, 3, &buffer).unwrap_err();
         assert_eq!(err.fits_at, Some(4));
         let msg = err.to_string();
         assert!(
@@ -182,7 +203,7 @@ mod tests {
                 && msg.contains("smallest cluster that fits has 4 nodes"),
             "{msg}"
         );
-        let ok = check(NCUBE2, &grid, 1, 4, 3, &buffer).unwrap();
-        assert!(ok.total() <= NCUBE2.node_memory);
+        let ok = check(Profile::ncube2(), &grid, 1, 4, 3, &buffer).unwrap();
+        assert!(ok.total() <= Profile::ncube2().node_memory);
     }
 }

@@ -3,7 +3,7 @@
 //! scene loaded and checked.
 
 use crate::bench;
-use crate::budget::{MODERN, NCUBE2};
+use crate::budget::Profile;
 use crate::explore;
 use crate::output::{write_atomic, write_png};
 use crate::render::{preflight, render_on_with_progress, Fabric, Machine};
@@ -337,8 +337,9 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                     m.threads = threads;
                     m.skip = !no_skip;
                     m.profile = match profile {
-                        ProfileArg::Ncube2 => NCUBE2,
-                        ProfileArg::Modern => MODERN,
+                        ProfileArg::Ncube2 => Profile::ncube2(),
+                        ProfileArg::Modern => Profile::builtin("modern")
+                            .ok_or("the shipped modern profile is missing")?,
                     };
                     // Configuration errors up front: nothing renders if any view cannot.
                     preflight(&job.volume, &v.view, &m)

@@ -5,7 +5,7 @@
 //! formula, so their images are bit-identical; a non-finite colour is counted in the counters
 //! (`non_finite_pixels`, which tests require to be zero) before it becomes a defined pixel.
 
-use crate::budget::{self, BudgetError, Profile, NCUBE2};
+use crate::budget::{self, BudgetError, Profile};
 use crate::dataset::{Volume, VolumeData};
 use crate::fabric::sim::{self, SimConfig, SimError};
 use crate::fabric::threads;
@@ -83,7 +83,7 @@ impl Machine {
             generation: Generation::Distributed,
             buffer_bytes: None,
             flow_control: true,
-            profile: NCUBE2,
+            profile: Profile::ncube2(),
             threads: 0,
             skip: true,
         }

@@ -2,7 +2,7 @@
 //! fits; measured high-water marks within budget), and images bit-identical for every cube
 //! size and cluster size.
 
-use voxcube::budget::NCUBE2;
+use voxcube::budget::Profile;
 use voxcube::render::{render, render_on, Fabric, Machine, RenderError};
 use voxcube::scene::Scene;
 use voxcube_kernel::grid::Model;
@@ -52,7 +52,7 @@ fn a_volume_too_big_for_one_node_renders_once_the_cluster_is_large_enough() {
         let d = run.distributed.expect("distributed");
         for node in &d.nodes {
             assert!(
-                node.memory.total() <= NCUBE2.node_memory,
+                node.memory.total() <= Profile::ncube2().node_memory,
                 "node {}: {:?}",
                 node.stats.node,
                 node.memory
