@@ -21,8 +21,10 @@ pub struct Rays {
 /// Operations by kind.
 #[derive(Clone, Copy, Debug, Serialize, PartialEq, Eq)]
 pub struct Operations {
-    /// Lattice samples.
+    /// Lattice samples evaluated.
     pub samples: u64,
+    /// Lattice samples skipped as provably empty.
+    pub skipped: u64,
     /// Trilinear interpolations.
     pub interpolations: u64,
     /// Nearest-node lookups.
@@ -47,6 +49,7 @@ impl From<&Counters> for Operations {
     fn from(c: &Counters) -> Operations {
         Operations {
             samples: c.samples,
+            skipped: c.skipped,
             interpolations: c.interpolations,
             lookups: c.lookups,
             refinements: c.refinements,

@@ -8,7 +8,7 @@
 //! nothing, and skipping never changes an image; which samples a node skips is therefore free
 //! to differ from node to node.
 
-use crate::grid::Model;
+use crate::grid::{floor_index, Model};
 use crate::sample::Sample;
 use crate::slab::Slab;
 use core::fmt;
@@ -168,7 +168,7 @@ impl<'a> Blocks<'a> {
             Model::Voxel => 0.5,
             Model::Cell => 0.0,
         };
-        let b = |v: f32| (libm::floorf(v + shift).max(0.0) as u32) / BLOCK;
+        let b = |v: f32| floor_index(v + shift) / BLOCK;
         (b(p.x), b(p.y).min(self.ny - 1), b(p.z).min(self.nz - 1))
     }
 
@@ -189,7 +189,12 @@ impl<'a> Blocks<'a> {
     pub fn at(&self, p: Vec3, model: Model) -> Range {
         // The cell (cell model) or node (voxel model) the point reads, then its block; a node
         // on a block's upper face belongs to both blocks, and both include it.
-        let (bx, by, bz) = self.block_of(p, model);
+        self.range(self.block_of(p, model))
+    }
+
+    /// The range of block `(bx, by, bz)` (global block coordinates; unknown outside).
+    #[inline]
+    pub fn range(&self, (bx, by, bz): (u32, u32, u32)) -> Range {
         if bx < self.x0 || bx >= self.x1 {
             return Range::UNKNOWN;
         }

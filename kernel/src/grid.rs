@@ -168,9 +168,20 @@ impl Grid {
             Model::Cell => x,
             Model::Voxel => x + 0.5,
         };
-        // `as` saturates (NaN to 0), so no input makes this out of range.
-        let plane = libm::floorf(x).max(0.0) as u32;
-        plane.min(last)
+        floor_index(x).min(last)
+    }
+}
+
+/// `⌊x⌋` as an index: 0 for negative `x` and NaN, saturating at `u32::MAX`. Equal to
+/// `libm::floorf(x).max(0.0) as u32` for every `f32`, without a call: for positive `x`
+/// truncation is the floor, and `as` saturates. Every cell, node and block lookup of the
+/// sample loop goes through here, and `floorf` without SSE4.1 is a software routine.
+#[inline]
+pub fn floor_index(x: f32) -> u32 {
+    if x > 0.0 {
+        x as u32
+    } else {
+        0
     }
 }
 
@@ -195,6 +206,35 @@ mod tests {
         assert_eq!(g.owner_plane(0.5, Model::Voxel), 1);
         assert_eq!(g.owner_plane(3.49, Model::Voxel), 3);
         assert_eq!(g.owner_plane(9.0, Model::Voxel), 3);
+    }
+
+    #[test]
+    fn floor_index_is_the_clamped_floor_for_every_kind_of_float() {
+        let reference = |x: f32| libm::floorf(x).max(0.0) as u32;
+        let special = [
+            0.0,
+            -0.0,
+            -0.5,
+            0.5,
+            1.0 - f32::EPSILON / 2.0,
+            1.0,
+            4_294_967_040.0,
+            4_294_967_296.0,
+            f32::MAX,
+            f32::MIN,
+            f32::MIN_POSITIVE,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+        ];
+        for x in special {
+            assert_eq!(floor_index(x), reference(x), "{x}");
+        }
+        // A stride through every bit pattern: signs, subnormals, all exponents, NaNs.
+        for bits in (0..=u32::MAX).step_by(9_973) {
+            let x = f32::from_bits(bits);
+            assert_eq!(floor_index(x), reference(x), "{x} ({bits:#x})");
+        }
     }
 
     #[test]

@@ -135,6 +135,9 @@ pub fn march<T: Sample>(
 ) -> Stop {
     let spec = view.spec();
     let grid = slab.grid();
+    // The block of the last sample and whether it is empty: consecutive samples mostly share
+    // a block, and the test against the transfer function is not free.
+    let mut known: Option<((u32, u32, u32), bool)> = None;
     loop {
         if ray.k > ray.lattice.last {
             return Stop::Exit;
@@ -146,10 +149,19 @@ pub fn march<T: Sample>(
             return Stop::Leave { plane };
         }
         if let Some(blocks) = slab.blocks() {
-            if view.skippable(ray, blocks.at(p, spec.model)) {
+            let block = blocks.block_of(p, spec.model);
+            let empty = match known {
+                Some((b, empty)) if b == block => empty,
+                _ => {
+                    let empty = view.empty(blocks.range(block));
+                    known = Some((block, empty));
+                    empty
+                }
+            };
+            if empty && view.may_skip(ray) {
                 // Provably nothing here: no crossing, no opacity. The lattice index moves on,
                 // over every further sample in the same block and slab at once.
-                let last = skip_run(ray, slab, blocks, p, spec.model);
+                let last = skip_run(ray, slab, blocks, block, spec.model);
                 counters.skipped += u64::from(last - ray.k + 1);
                 ray.k = last;
                 if view.effects().surfaces {
@@ -197,7 +209,8 @@ pub fn march<T: Sample>(
                     return Stop::Hit(hit);
                 }
             }
-            Mode::Composite(tf) => {
+            // Most samples of a composited view are transparent, and their colour unused.
+            Mode::Composite(tf) if tf.opacity(v) > 0.0 => {
                 let (base, alpha) = tf.eval(v);
                 let alpha = corrected_opacity(alpha, ray.lattice.segment(ray.k) / view.cell_edge());
                 if alpha > 0.0 {
@@ -213,6 +226,7 @@ pub fn march<T: Sample>(
                     }
                 }
             }
+            Mode::Composite(_) => {}
         }
         ray.prev = v;
         ray.primed = true;
@@ -221,7 +235,7 @@ pub fn march<T: Sample>(
     }
 }
 
-/// The last sample of the run starting at `ray.k` (position `p`) that stays in `p`'s block
+/// The last sample of the run starting at `ray.k` that stays in that sample's `block`
 /// and in `slab`: every sample between lies there too, since positions, cells and owner
 /// planes are monotone along the lattice. The exit point is only an estimate; each candidate
 /// is checked with the exact arithmetic of the samples themselves, halving on failure.
@@ -229,10 +243,9 @@ fn skip_run<T: Sample>(
     ray: &RayState,
     slab: &Slab<'_, T>,
     blocks: &crate::blocks::Blocks<'_>,
-    p: Vec3,
+    block: (u32, u32, u32),
     model: crate::grid::Model,
 ) -> u32 {
-    let block = blocks.block_of(p, model);
     let (lo, hi) = blocks.bounds(block, model);
     let (o, d, t) = (ray.ray.origin, ray.ray.dir, ray.lattice.t(ray.k));
     let mut t_out = f32::INFINITY;

@@ -146,6 +146,40 @@ impl<'a, T: Sample> Slab<'a, T> {
         self.stored_start..self.stored_end
     }
 
+    /// The eight nodes of the cell spanned by `x`, `y` and `z` (each a pair of equal or
+    /// adjacent node indices, low first), ordered by corner bits `z y x` from 000 to 111; `None`
+    /// when any lies outside the stored planes or the grid. One range check for the cell,
+    /// where eight [`Slab::get`] calls would each recompute an index.
+    #[inline]
+    pub fn cell(&self, x: (u32, u32), y: (u32, u32), z: (u32, u32)) -> Option<[T; 8]> {
+        let [_, ny, nz] = self.grid.dims();
+        let ordered = |(a, b): (u32, u32)| a <= b && b - a <= 1;
+        if !(ordered(x) && ordered(y) && ordered(z))
+            || x.0 < self.stored_start
+            || x.1 >= self.stored_end
+            || y.1 >= ny
+            || z.1 >= nz
+        {
+            return None;
+        }
+        let (ny, nz) = (ny as usize, nz as usize);
+        let base = ((x.0 - self.stored_start) as usize * nz + z.0 as usize) * ny + y.0 as usize;
+        let sx = (x.1 - x.0) as usize * nz * ny;
+        let sy = (y.1 - y.0) as usize;
+        let sz = (z.1 - z.0) as usize * ny;
+        let at = |offset: usize| self.data.get(base + offset).copied();
+        Some([
+            at(0)?,
+            at(sx)?,
+            at(sy)?,
+            at(sx + sy)?,
+            at(sz)?,
+            at(sx + sz)?,
+            at(sy + sz)?,
+            at(sx + sy + sz)?,
+        ])
+    }
+
     /// The sample at grid node `(x, y, z)`, or `None` outside the stored planes or the grid.
     #[inline]
     pub fn get(&self, x: u32, y: u32, z: u32) -> Option<T> {

@@ -119,6 +119,26 @@ impl TransferFunction {
             a.opacity + (b.opacity - a.opacity) * f,
         )
     }
+
+    /// The opacity of [`TransferFunction::eval`] alone, by the same arithmetic (so equal to
+    /// it in every bit), for the test whether a sample shows at all.
+    pub fn opacity(&self, v: f32) -> f32 {
+        let pts = &self.points;
+        let (first, last) = match (pts.first(), pts.last()) {
+            (Some(f), Some(l)) => (f, l),
+            _ => return 0.0,
+        };
+        if !(v > first.value) {
+            return first.opacity;
+        }
+        if v >= last.value {
+            return last.opacity;
+        }
+        let i = pts.partition_point(|p| p.value <= v);
+        let (a, b) = (&pts[i - 1], &pts[i]);
+        let f = (v - a.value) / (b.value - a.value);
+        a.opacity + (b.opacity - a.opacity) * f
+    }
 }
 
 impl TransferFunction {
@@ -166,6 +186,18 @@ mod tests {
         assert_eq!(tf.eval(15.0), (Vec3::splat(0.5), 0.25));
         assert_eq!(tf.eval(99.0), (Vec3::ONE, 0.5));
         assert_eq!(tf.eval(f32::NAN), (Vec3::ZERO, 0.0));
+    }
+
+    #[test]
+    fn opacity_alone_equals_eval_in_every_bit() {
+        let tf =
+            TransferFunction::new(&[cp(10.0, 0.2, 0.0), cp(60.0, 0.7, 0.15), cp(200.0, 1.0, 0.8)])
+                .unwrap();
+        for i in -100..3000 {
+            let v = i as f32 * 0.1 + 0.013;
+            assert_eq!(tf.opacity(v).to_bits(), tf.eval(v).1.to_bits(), "{v}");
+        }
+        assert_eq!(tf.opacity(f32::NAN), 0.0);
     }
 
     #[test]

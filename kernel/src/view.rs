@@ -245,15 +245,30 @@ impl View {
     /// sample (no crossing, and no cut face); for compositing, nothing in the range is opaque.
     #[inline]
     pub fn skippable(&self, ray: &RayState, r: Range) -> bool {
+        self.empty(r) && self.may_skip(ray)
+    }
+
+    /// The block half of [`View::skippable`]: nothing with values in `r` can show. Depends on
+    /// the block alone, so a marcher may remember it while it stays in one block.
+    #[inline]
+    pub fn empty(&self, r: Range) -> bool {
+        match &self.spec.mode {
+            // Below every iso value is below the least of them (NaN is below none).
+            Mode::Surfaces(_) => r.max < self.min_iso,
+            Mode::Composite(tf) => !(tf.max_opacity(r.min, r.max) > 0.0),
+        }
+    }
+
+    /// The ray half of [`View::skippable`]: a surface ray may skip only where no crossing
+    /// from its previous sample is pending (that sample was below every iso value, or itself
+    /// skipped) and nothing on the current segment has been reported.
+    #[inline]
+    pub fn may_skip(&self, ray: &RayState) -> bool {
         match &self.spec.mode {
             Mode::Surfaces(_) => {
-                // Below every iso value is below the least of them (NaN is below none).
-                let below = |v: f32| v < self.min_iso;
-                ray.done_here == 0
-                    && below(r.max)
-                    && (!ray.primed || ray.prev_stale || below(ray.prev))
+                ray.done_here == 0 && (!ray.primed || ray.prev_stale || ray.prev < self.min_iso)
             }
-            Mode::Composite(tf) => !(tf.max_opacity(r.min, r.max) > 0.0),
+            Mode::Composite(_) => true,
         }
     }
 
