@@ -1,18 +1,32 @@
-//! `voxcube bench`: milliseconds per frame and samples per second, medians of several runs,
-//! for the default scene and SOD at the paper's 350×250 and Δt = 1/2, surfaces and
-//! compositing, on one node and on the machine shapes worth comparing here.
+//! `voxcube bench`: what a frame costs on this machine, and how far that is from the limit.
+//!
+//! For the default scene and SOD, as a shaded surface and composited, at the paper's 350×250
+//! with Δt = ½ and at 1024×768 with Δt = ⅕: milliseconds per frame (median of several runs),
+//! lattice samples evaluated per second, the fraction skipped as provably empty, and the
+//! machine's own ceiling measured in the same run — a tight loop of trilinear samples over the
+//! same volume along the same rays, one core — so the ratio to the limit is visible. It ends
+//! with each target of the issue "Speed" and whether this run met it.
 
+use crate::dataset::{Volume, VolumeData};
 use crate::render::{render_on, Fabric, Machine, RenderError};
 use crate::scene::{Scene, SceneError};
 use std::fmt::Write;
+use std::hint::black_box;
 use std::path::Path;
-use std::time::Duration;
+use std::time::{Duration, Instant};
+use voxcube_kernel::counters::Counters;
+use voxcube_kernel::field;
+use voxcube_kernel::sample::Sample;
+use voxcube_kernel::slab::{Slab, SlabError};
+use voxcube_kernel::view::View;
 
 /// The views benchmarked: the paper's view as a shaded surface and composited.
 const VIEWS: &str = r#"
 [[datasets.views]]
 name = "surfaces"
-dt = 0.5
+width = WIDTH
+height = HEIGHT
+dt = DT
 [datasets.views.camera]
 azimuth = 45.0
 [[datasets.views.surfaces]]
@@ -25,7 +39,9 @@ frame = "camera"
 
 [[datasets.views]]
 name = "composite"
-dt = 0.5
+width = WIDTH
+height = HEIGHT
+dt = DT
 mode = "composite"
 [datasets.views.camera]
 azimuth = 45.0
@@ -43,6 +59,36 @@ color = [1.0, 0.2, 0.1]
 opacity = 0.8
 "#;
 
+/// An image size and step benchmarked.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Size {
+    /// Pixels across.
+    pub width: u32,
+    /// Pixels down.
+    pub height: u32,
+    /// Step, in cell edges, as a fraction `1 / dt_inverse`.
+    pub dt_inverse: u32,
+}
+
+impl Size {
+    /// The paper's image: 350×250, Δt = ½.
+    pub const PAPER: Size = Size {
+        width: 350,
+        height: 250,
+        dt_inverse: 2,
+    };
+    /// The paper's large image at a fine step: 1024×768, Δt = ⅕.
+    pub const LARGE: Size = Size {
+        width: 1024,
+        height: 768,
+        dt_inverse: 5,
+    };
+
+    fn label(self) -> String {
+        format!("{}x{} dt 1/{}", self.width, self.height, self.dt_inverse)
+    }
+}
+
 /// Why the benchmark could not run.
 #[derive(Debug, thiserror::Error)]
 pub enum BenchError {
@@ -52,6 +98,9 @@ pub enum BenchError {
     /// A render failed.
     #[error("{0}")]
     Render(#[from] RenderError),
+    /// The ceiling loop could not read the volume.
+    #[error("{0}")]
+    Slab(#[from] SlabError),
 }
 
 /// One measured configuration.
@@ -59,14 +108,37 @@ pub enum BenchError {
 pub struct Row {
     /// Dataset.
     pub dataset: String,
+    /// Image size and step.
+    pub size: Size,
     /// View.
     pub view: String,
     /// Fabric and shape.
     pub config: String,
+    /// Threads working (for the per-core rate).
+    pub threads: u32,
     /// Median wall time per frame.
     pub median: Duration,
-    /// Samples per frame.
+    /// Lattice samples evaluated per frame.
     pub samples: u64,
+    /// Lattice samples skipped per frame.
+    pub skipped: u64,
+    /// The ceiling for this dataset, size and view: trilinear samples per second on one core.
+    pub ceiling: f64,
+}
+
+impl Row {
+    fn rate(&self) -> f64 {
+        self.samples as f64 / self.median.as_secs_f64().max(1e-9)
+    }
+
+    fn skipped_fraction(&self) -> f64 {
+        self.skipped as f64 / ((self.samples + self.skipped) as f64).max(1.0)
+    }
+
+    /// Evaluated samples per second per working core, as a fraction of the ceiling.
+    fn of_ceiling(&self) -> f64 {
+        self.rate() / f64::from(self.threads.max(1)) / self.ceiling.max(1e-9)
+    }
 }
 
 fn median(mut v: Vec<Duration>) -> Duration {
@@ -74,67 +146,132 @@ fn median(mut v: Vec<Duration>) -> Duration {
     v.get(v.len() / 2).copied().unwrap_or_default()
 }
 
-/// The machine shapes compared: one node, pure image partition over the cores, and a
-/// ray-dataflow cluster of 16.
-pub fn machines(cores: u32) -> Vec<(String, Machine)> {
+/// The machine shapes compared at `size`: one node; pure image partition over the cores; and,
+/// at the paper's size only (they are about overhead, not pixels), a ray-dataflow cluster of
+/// 16 on threads and the simulator with 128 nodes in 64 clusters.
+pub fn machines(cores: u32, size: Size) -> Vec<(String, Machine, u32)> {
     let cores = cores.max(1).next_power_of_two();
-    vec![
+    let mut all = vec![
         (
             "direct, 1 node".into(),
             Machine::new(Fabric::Direct, 1, 1, 1),
+            1,
         ),
         (
             format!("threads, {cores} clusters of 1"),
             Machine::new(Fabric::Threads, cores, cores, 1),
+            cores,
         ),
-        (
+    ];
+    if size == Size::PAPER {
+        all.push((
             "threads, 1 cluster of 16".into(),
             Machine::new(Fabric::Threads, 16, 1, 1),
-        ),
-    ]
+            cores,
+        ));
+        all.push((
+            "sim, 128 nodes, 64 clusters".into(),
+            Machine::new(Fabric::Sim, 128, 64, 1),
+            1,
+        ));
+    }
+    all
 }
 
-/// Run the benchmark: `runs` renders of each view on each machine. SOD is read from `sod`
-/// when it exists, and left out (with a line saying so) when it does not.
-pub fn run(runs: usize, sod: &Path, out: &mut String) -> Result<Vec<Row>, BenchError> {
-    let mut scenes = vec![format!(
-        "[[datasets]]\nname = \"molecule\"\nbuiltin = \"molecule\"\n{}",
-        VIEWS.replace("ISO", "40.0")
-    )];
-    if sod.is_file() {
-        let path = sod.display().to_string().replace('\\', "/");
-        scenes.push(format!(
-            "[[datasets]]\nname = \"sod\"\npath = \"{path}\"\nformat = \"raw\"\ndims = [97, 97, 116]\ntype = \"u8\"\nheader_bytes = 12\n{}",
-            VIEWS.replace("ISO", "50.0")
-        ));
-    } else {
-        let _ = writeln!(
-            out,
-            "SOD not found at {}: benchmarking the default scene only",
-            sod.display()
-        );
+/// The machine's limit for `view` of `volume`: every lattice sample of every primary ray (no
+/// skipping, no shading, no termination) read by [`field::trilinear`] in one tight loop on
+/// one core, the best of `runs`. Returns samples per second.
+pub fn ceiling(volume: &Volume, view: &View, runs: usize) -> Result<f64, SlabError> {
+    fn typed<T: Sample>(
+        volume: &Volume,
+        data: &[T],
+        view: &View,
+    ) -> Result<(u64, Duration), SlabError> {
+        let slab = Slab::whole(volume.grid, data)?;
+        let mut counters = Counters::default();
+        let mut sum = 0.0f32;
+        let start = Instant::now();
+        for pixel in 0..view.pixel_count() {
+            let Some(ray) = view.primary_ray(pixel as u32) else {
+                continue;
+            };
+            for k in 0..=ray.lattice.last {
+                sum += field::trilinear(&slab, ray.ray.at(ray.lattice.t(k)), &mut counters);
+            }
+        }
+        black_box(sum);
+        Ok((counters.interpolations, start.elapsed()))
     }
+    let mut best = 0.0f64;
+    for _ in 0..runs.max(1) {
+        let (samples, time) = match &volume.data {
+            VolumeData::U8(d) => typed(volume, d, view)?,
+            VolumeData::U16(d) => typed(volume, d, view)?,
+            VolumeData::F32(d) => typed(volume, d, view)?,
+        };
+        best = best.max(samples as f64 / time.as_secs_f64().max(1e-9));
+    }
+    Ok(best)
+}
+
+/// Run the benchmark: `runs` renders of each view at each of `sizes` on each machine. SOD is
+/// read from `sod` when it exists, and left out (with a line saying so) when it does not.
+pub fn run(
+    runs: usize,
+    sizes: &[Size],
+    sod: &Path,
+    out: &mut String,
+) -> Result<Vec<Row>, BenchError> {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get() as u32);
     let mut rows = Vec::new();
-    for text in scenes {
-        let jobs = Scene::parse(&text, "<bench>", Path::new("."))?.load()?;
-        for job in &jobs {
-            for v in &job.views {
-                for (name, machine) in machines(cores) {
-                    let mut times = Vec::with_capacity(runs);
-                    let mut samples = 0;
-                    for _ in 0..runs.max(1) {
-                        let r = render_on(&job.volume, &v.view, &machine)?;
-                        times.push(r.wall);
-                        samples = r.counters.samples;
+    for &size in sizes {
+        let views = VIEWS
+            .replace("WIDTH", &size.width.to_string())
+            .replace("HEIGHT", &size.height.to_string())
+            .replace("DT", &format!("{}", 1.0 / f64::from(size.dt_inverse)));
+        let mut scenes = vec![format!(
+            "[[datasets]]\nname = \"molecule\"\nbuiltin = \"molecule\"\n{}",
+            views.replace("ISO", "40.0")
+        )];
+        if sod.is_file() {
+            let path = sod.display().to_string().replace('\\', "/");
+            scenes.push(format!(
+                "[[datasets]]\nname = \"sod\"\npath = \"{path}\"\nformat = \"raw\"\ndims = [97, 97, 116]\ntype = \"u8\"\nheader_bytes = 12\n{}",
+                views.replace("ISO", "50.0")
+            ));
+        } else if size == sizes[0] {
+            let _ = writeln!(
+                out,
+                "SOD not found at {}: benchmarking the default scene only",
+                sod.display()
+            );
+        }
+        for text in scenes {
+            let jobs = Scene::parse(&text, "<bench>", Path::new("."))?.load()?;
+            for job in &jobs {
+                for v in &job.views {
+                    let limit = ceiling(&job.volume, &v.view, runs)?;
+                    for (name, machine, threads) in machines(cores, size) {
+                        let mut times = Vec::with_capacity(runs);
+                        let (mut samples, mut skipped) = (0, 0);
+                        for _ in 0..runs.max(1) {
+                            let r = render_on(&job.volume, &v.view, &machine)?;
+                            times.push(r.wall);
+                            samples = r.counters.samples;
+                            skipped = r.counters.skipped;
+                        }
+                        rows.push(Row {
+                            dataset: job.name.clone(),
+                            size,
+                            view: v.name.clone(),
+                            config: name,
+                            threads,
+                            median: median(times),
+                            samples,
+                            skipped,
+                            ceiling: limit,
+                        });
                     }
-                    rows.push(Row {
-                        dataset: job.name.clone(),
-                        view: v.name.clone(),
-                        config: name,
-                        median: median(times),
-                        samples,
-                    });
                 }
             }
         }
@@ -142,31 +279,127 @@ pub fn run(runs: usize, sod: &Path, out: &mut String) -> Result<Vec<Row>, BenchE
     Ok(rows)
 }
 
-/// The table.
+/// The table, then the targets.
 pub fn table(rows: &[Row], runs: usize) -> String {
     let mut out = format!(
-        "{:<10} {:<10} {:<28} {:>10} {:>12} {:>9}\n",
-        "dataset", "view", "machine", "ms/frame", "samples/s", "speedup"
+        "{:<9} {:<17} {:<10} {:<28} {:>9} {:>11} {:>8} {:>11} {:>9}\n",
+        "dataset",
+        "size",
+        "view",
+        "machine",
+        "ms/frame",
+        "samples/s",
+        "skipped",
+        "ceiling/s",
+        "of ceil."
     );
-    let mut base = Duration::ZERO;
     for r in rows {
-        if r.config.starts_with("direct") {
-            base = r.median;
-        }
-        let ms = r.median.as_secs_f64() * 1e3;
-        let rate = r.samples as f64 / r.median.as_secs_f64().max(1e-9);
-        let speedup = base.as_secs_f64() / r.median.as_secs_f64().max(1e-9);
         let _ = writeln!(
             out,
-            "{:<10} {:<10} {:<28} {:>10.1} {:>10.1} M {:>8.2}x",
+            "{:<9} {:<17} {:<10} {:<28} {:>9.1} {:>9.1} M {:>7.1}% {:>9.1} M {:>8.0}%",
             r.dataset,
+            r.size.label(),
             r.view,
             r.config,
-            ms,
-            rate / 1e6,
-            speedup
+            r.median.as_secs_f64() * 1e3,
+            r.rate() / 1e6,
+            100.0 * r.skipped_fraction(),
+            r.ceiling / 1e6,
+            100.0 * r.of_ceiling()
         );
     }
-    let _ = writeln!(out, "medians of {runs} runs, 350x250, dt = 1/2");
+    let _ = writeln!(
+        out,
+        "medians of {runs} runs; samples/s counts evaluated lattice samples; the ceiling is a \
+         tight trilinear loop over every lattice sample of the same rays on one core (best of \
+         {runs}); 'of ceil.' is samples/s per working core over the ceiling"
+    );
+    out.push_str(&targets(rows));
+    out
+}
+
+/// Each target of the issue "Speed", with this run's figure and whether it is met. A target
+/// whose rows were not measured (SOD absent, a size left out) says so.
+pub fn targets(rows: &[Row]) -> String {
+    let best = |size: Size, view: &str| {
+        rows.iter()
+            .filter(|r| r.dataset == "sod" && r.size == size && r.view == view)
+            .filter(|r| r.config.starts_with("threads") || r.config.starts_with("direct"))
+            .map(|r| r.median)
+            .min()
+    };
+    let mut out = String::from("targets (SOD, best configuration on this machine):\n");
+    let mut line = |what: &str, figure: Option<f64>, unit: &str, limit: f64, at_most: bool| {
+        let _ = match figure {
+            Some(f) => {
+                let met = if at_most { f <= limit } else { f >= limit };
+                writeln!(
+                    out,
+                    "  {what}: {f:.1} {unit} (target {} {limit} {unit}): {}",
+                    if at_most { "<=" } else { ">=" },
+                    if met { "met" } else { "NOT met" }
+                )
+            }
+            None => writeln!(out, "  {what}: not measured in this run"),
+        };
+    };
+    let ms = |d: Option<Duration>| d.map(|d| d.as_secs_f64() * 1e3);
+    line(
+        "350x250 dt 1/2 surfaces",
+        ms(best(Size::PAPER, "surfaces")),
+        "ms",
+        10.0,
+        true,
+    );
+    line(
+        "350x250 dt 1/2 composite",
+        ms(best(Size::PAPER, "composite")),
+        "ms",
+        20.0,
+        true,
+    );
+    line(
+        "1024x768 dt 1/5 surfaces",
+        ms(best(Size::LARGE, "surfaces")),
+        "ms",
+        250.0,
+        true,
+    );
+    line(
+        "1024x768 dt 1/5 composite",
+        ms(best(Size::LARGE, "composite")),
+        "ms",
+        250.0,
+        true,
+    );
+    let sod_paper = |config: &str| {
+        rows.iter()
+            .filter(|r| r.dataset == "sod" && r.size == Size::PAPER && r.config.starts_with(config))
+            .collect::<Vec<_>>()
+    };
+    let ratio = sod_paper("sim, 128")
+        .iter()
+        .zip(sod_paper("direct"))
+        .filter(|(a, b)| a.view == b.view)
+        .map(|(a, b)| a.median.as_secs_f64() / b.median.as_secs_f64().max(1e-9))
+        .fold(None, |m: Option<f64>, x| Some(m.map_or(x, |m| m.max(x))));
+    line(
+        "sim 128 nodes / 64 clusters over 1 node (worst view)",
+        ratio,
+        "x",
+        2.0,
+        true,
+    );
+    let of_ceiling = sod_paper("direct")
+        .iter()
+        .map(|r| 100.0 * r.of_ceiling())
+        .fold(None, |m: Option<f64>, x| Some(m.map_or(x, |m| m.min(x))));
+    line(
+        "evaluated samples on 1 node, of the ceiling (worst view)",
+        of_ceiling,
+        "%",
+        50.0,
+        false,
+    );
     out
 }

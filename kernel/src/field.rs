@@ -65,23 +65,23 @@ pub fn trilinear<T: Sample>(slab: &Slab<'_, T>, p: Vec3, counters: &mut Counters
     let (x0, x1, fx) = cell_axis(p.x, nx);
     let (y0, y1, fy) = cell_axis(p.y, ny);
     let (z0, z1, fz) = cell_axis(p.z, nz);
-    let [c000, c100, c010, c110, c001, c101, c011, c111] =
-        match slab.cell((x0, x1), (y0, y1), (z0, z1)) {
-            Some(c) => c.map(Sample::to_f32),
-            None => cell_missing(slab, (x0, x1), (y0, y1), (z0, z1), counters),
-        };
     // The four lerps along x, one per lane: each lane rounds exactly as the scalar `lerp`
     // (glam never fuses), and all four lanes hold data. Left to itself the compiler packs two
     // lanes and leaves stale values in the others, which can be subnormal and stall the
     // multiply (a measured 40% of the whole render).
-    let low = Vec4::new(c000, c010, c001, c011);
-    let high = Vec4::new(c100, c110, c101, c111);
+    let (low, high) = match slab.cell((x0, x1), (y0, y1), (z0, z1)) {
+        Some([c000, c100, c010, c110, c001, c101, c011, c111]) => (
+            Vec4::new(c000.to_f32(), c010.to_f32(), c001.to_f32(), c011.to_f32()),
+            Vec4::new(c100.to_f32(), c110.to_f32(), c101.to_f32(), c111.to_f32()),
+        ),
+        None => cell_missing(slab, (x0, x1), (y0, y1), (z0, z1), counters),
+    };
     let [c00, c10, c01, c11] = (low + Vec4::splat(fx) * (high - low)).to_array();
     lerp(lerp(c00, c10, fy), lerp(c01, c11, fy), fz)
 }
 
 /// A cell some of whose nodes lie outside the stored planes: each node read alone, the misses
-/// counted. Never taken when the ghost planes are wide enough; kept out of line so that the
+/// counted; the low-x and high-x nodes as [`trilinear`] lays them out. Never taken when the ghost planes are wide enough; kept out of line so that the
 /// sample loop stays small.
 #[cold]
 #[inline(never)]
@@ -91,17 +91,21 @@ fn cell_missing<T: Sample>(
     (y0, y1): (u32, u32),
     (z0, z1): (u32, u32),
     counters: &mut Counters,
-) -> [f32; 8] {
-    [
-        read(slab, x0, y0, z0, counters),
-        read(slab, x1, y0, z0, counters),
-        read(slab, x0, y1, z0, counters),
-        read(slab, x1, y1, z0, counters),
-        read(slab, x0, y0, z1, counters),
-        read(slab, x1, y0, z1, counters),
-        read(slab, x0, y1, z1, counters),
-        read(slab, x1, y1, z1, counters),
-    ]
+) -> (Vec4, Vec4) {
+    (
+        Vec4::new(
+            read(slab, x0, y0, z0, counters),
+            read(slab, x0, y1, z0, counters),
+            read(slab, x0, y0, z1, counters),
+            read(slab, x0, y1, z1, counters),
+        ),
+        Vec4::new(
+            read(slab, x1, y0, z0, counters),
+            read(slab, x1, y1, z0, counters),
+            read(slab, x1, y0, z1, counters),
+            read(slab, x1, y1, z1, counters),
+        ),
+    )
 }
 
 #[inline]

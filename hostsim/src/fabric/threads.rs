@@ -32,6 +32,9 @@ use voxcube_kernel::worker::{Place, Progress};
 /// How long the host waits without hearing from any node before it reports a stall.
 pub const STALL: Duration = Duration::from_secs(20);
 
+/// How often the host looks for messages when it has none.
+const HOST_POLL: Duration = Duration::from_micros(100);
+
 #[derive(Default)]
 struct Inbox {
     by_class: [VecDeque<(Dest, Msg)>; 7],
@@ -279,12 +282,16 @@ fn run_typed<T: Sample + Sync>(
                 let mut idle_rounds = 0u32;
                 while !done.load(Ordering::Acquire) {
                     let mut busy = false;
+                    // One clock read per poll: each poll's time runs from the previous read.
+                    let mut t = Instant::now();
                     for ((w, port), spent) in share.iter_mut().zip(&mut ports).zip(&mut busy_time) {
-                        let t = Instant::now();
-                        if w.poll(port) == Progress::Busy {
+                        let progress = w.poll(port);
+                        let now = Instant::now();
+                        if progress == Progress::Busy {
                             busy = true;
-                            *spent += t.elapsed();
+                            *spent += now - t;
                         }
+                        t = now;
                     }
                     if busy {
                         idle_rounds = 0;
@@ -381,13 +388,28 @@ fn host(
         trace: Default::default(),
     };
     let mut host = Host::new(pixels, width, clusters, nodes);
+    let mut heard = Instant::now();
     while !host.done() {
-        let msg = rx.recv_timeout(STALL).map_err(|_| {
-            failed(format!(
-                "threads stalled: no message for {STALL:?}; {} of {pixels} pixels",
-                host.received()
-            ))
-        })?;
+        // Polled, not waited on: a receiver blocked in `recv` is woken by every send, and
+        // those wake-ups (a futex call and a context switch per pixel message, on a machine
+        // whose cores the workers need) cost a measured fifth of a one-node frame. Polling
+        // every HOST_POLL costs one wake-up per interval and at most one interval of latency.
+        let msg = match rx.try_recv() {
+            Ok(msg) => {
+                heard = Instant::now();
+                msg
+            }
+            Err(mpsc::TryRecvError::Empty) if heard.elapsed() < STALL => {
+                std::thread::sleep(HOST_POLL);
+                continue;
+            }
+            Err(_) => {
+                return Err(failed(format!(
+                    "threads stalled: no message for {STALL:?}; {} of {pixels} pixels",
+                    host.received()
+                )))
+            }
+        };
         if host.receive(msg).map_err(failed)? {
             for b in buffers {
                 // The control reserve of every buffer has room for this request.
