@@ -58,7 +58,7 @@ fn cell_axis(v: f32, n: u32) -> (u32, u32, f32) {
 }
 
 /// The trilinear interpolation of the eight nodes of the cell around `p`.
-#[inline]
+#[inline(always)]
 pub fn trilinear<T: Sample>(slab: &Slab<'_, T>, p: Vec3, counters: &mut Counters) -> f32 {
     counters.interpolations += 1;
     let [nx, ny, nz] = slab.grid().dims();
