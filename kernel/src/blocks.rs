@@ -8,7 +8,8 @@
 //! nothing, and skipping never changes an image; which samples a node skips is therefore free
 //! to differ from node to node.
 
-use crate::grid::{floor_index, Model};
+use crate::field::Site;
+use crate::grid::Model;
 use crate::sample::Sample;
 use crate::slab::Slab;
 use core::fmt;
@@ -160,16 +161,18 @@ impl<'a> Blocks<'a> {
         Ok(())
     }
 
-    /// The global block coordinates of index-space point `p` under `model`: what
-    /// [`Blocks::at`] reads. Monotone in each coordinate of `p`.
+    /// The global block coordinates of the cell or node a sample reads at `site`: what
+    /// [`Blocks::at`] reads. Monotone along a ray, as the site's corners are.
     #[inline]
-    pub fn block_of(&self, p: Vec3, model: Model) -> (u32, u32, u32) {
-        let shift = match model {
-            Model::Voxel => 0.5,
-            Model::Cell => 0.0,
-        };
-        let b = |v: f32| floor_index(v + shift) / BLOCK;
-        (b(p.x), b(p.y).min(self.ny - 1), b(p.z).min(self.nz - 1))
+    pub fn block_of(&self, site: &Site) -> (u32, u32, u32) {
+        // A voxel-model node on the grid's last face belongs to the last block (X needs no
+        // clamp: a column past the slab's reads as unknown).
+        let [x, y, z] = site.lo;
+        (
+            x / BLOCK,
+            (y / BLOCK).min(self.ny - 1),
+            (z / BLOCK).min(self.nz - 1),
+        )
     }
 
     /// The index-space box of block `(bx, by, bz)` under `model`, for estimating where a ray
@@ -184,12 +187,12 @@ impl<'a> Blocks<'a> {
         (lo, lo + Vec3::splat(BLOCK as f32))
     }
 
-    /// The range of the block holding index-space point `p` under `model` (unknown outside).
+    /// The range of the block holding `site` (unknown outside the slab's columns).
     #[inline]
-    pub fn at(&self, p: Vec3, model: Model) -> Range {
+    pub fn at(&self, site: &Site) -> Range {
         // The cell (cell model) or node (voxel model) the point reads, then its block; a node
         // on a block's upper face belongs to both blocks, and both include it.
-        self.range(self.block_of(p, model))
+        self.range(self.block_of(site))
     }
 
     /// The range of block `(bx, by, bz)` (global block coordinates; unknown outside).
@@ -228,7 +231,7 @@ mod tests {
             );
             for model in [Model::Cell, Model::Voxel] {
                 let v = field::value(&slab, model, p, &mut c);
-                let r = blocks.at(p, model);
+                let r = blocks.at(&field::locate(&grid, model, p));
                 assert!(r.min <= v && v <= r.max, "{p} {model:?}: {v} outside {r:?}");
             }
         }
@@ -247,7 +250,7 @@ mod tests {
         Blocks::build(&slab, &mut storage).unwrap();
         let blocks = Blocks::new(&slab, &storage).unwrap();
         assert_eq!(
-            blocks.at(Vec3::new(5.0, 0.0, 0.0), Model::Cell),
+            blocks.at(&field::locate(&grid, Model::Cell, Vec3::new(5.0, 0.0, 0.0))),
             Range::UNKNOWN
         );
         assert!(Blocks::build(&slab, &mut [Range::UNKNOWN; 3]).is_err());

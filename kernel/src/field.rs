@@ -6,7 +6,7 @@
 //! (`f32::max`/`min` discard NaN) and still yields a finite value. Each read is counted.
 
 use crate::counters::Counters;
-use crate::grid::{floor_index, Model};
+use crate::grid::{floor_index, Grid, Model};
 use crate::sample::Sample;
 use crate::slab::Slab;
 use glam::{Vec3, Vec4};
@@ -29,23 +29,88 @@ fn read<T: Sample>(slab: &Slab<'_, T>, x: u32, y: u32, z: u32, counters: &mut Co
     }
 }
 
-/// The field value at index-space point `p` under `model`.
-#[inline]
-pub fn value<T: Sample>(slab: &Slab<'_, T>, model: Model, p: Vec3, counters: &mut Counters) -> f32 {
-    match model {
-        Model::Voxel => nearest(slab, p, counters),
-        Model::Cell => trilinear(slab, p, counters),
+/// Where a point reads the grid under a model: the nodes and fractions that the ownership
+/// rule, the block lookup and the interpolation all need, found once per sample (each would
+/// otherwise clamp and floor the same coordinates again).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Site {
+    /// The cell's low corner (cell model) or the nearest node (voxel model).
+    pub lo: [u32; 3],
+    /// The cell's high corner, `lo + 1` clamped into the grid (voxel model: `lo`).
+    pub hi: [u32; 3],
+    /// The position inside the cell, each coordinate in `[0, 1]` (voxel model: zero).
+    pub frac: Vec3,
+}
+
+impl Site {
+    /// The X plane that owns a sample here: equal to [`Grid::owner_plane`] of the point's
+    /// `x` under the same model, for every `f32` (tested), so either may decide ownership.
+    #[inline]
+    pub fn plane(&self) -> u32 {
+        self.lo[0]
     }
 }
 
-/// The value of the grid node nearest to `p` (halves round up, as [`crate::grid::Grid::owner_plane`]).
+/// The [`Site`] of index-space point `p` in `grid` under `model`.
+#[inline]
+pub fn locate(grid: &Grid, model: Model, p: Vec3) -> Site {
+    let dims = grid.dims();
+    let p = p.to_array();
+    match model {
+        Model::Voxel => {
+            let lo: [u32; 3] = core::array::from_fn(|a| {
+                floor_index(clamp_axis(p[a], dims[a]) + 0.5).min(dims[a] - 1)
+            });
+            Site {
+                lo,
+                hi: lo,
+                frac: Vec3::ZERO,
+            }
+        }
+        Model::Cell => {
+            let [(x0, x1, fx), (y0, y1, fy), (z0, z1, fz)] =
+                core::array::from_fn(|a| cell_axis(p[a], dims[a]));
+            Site {
+                lo: [x0, y0, z0],
+                hi: [x1, y1, z1],
+                frac: Vec3::new(fx, fy, fz),
+            }
+        }
+    }
+}
+
+/// The field value at index-space point `p` under `model`.
+#[inline]
+pub fn value<T: Sample>(slab: &Slab<'_, T>, model: Model, p: Vec3, counters: &mut Counters) -> f32 {
+    value_at(slab, model, &locate(slab.grid(), model, p), counters)
+}
+
+/// The field value at `site` (found under `model`).
+#[inline(always)]
+pub fn value_at<T: Sample>(
+    slab: &Slab<'_, T>,
+    model: Model,
+    site: &Site,
+    counters: &mut Counters,
+) -> f32 {
+    match model {
+        Model::Voxel => {
+            counters.lookups += 1;
+            let [x, y, z] = site.lo;
+            read(slab, x, y, z, counters)
+        }
+        Model::Cell => interpolate(slab, site, counters),
+    }
+}
+
+/// The value of the grid node nearest to `p` (halves round up, as [`Grid::owner_plane`]).
 pub fn nearest<T: Sample>(slab: &Slab<'_, T>, p: Vec3, counters: &mut Counters) -> f32 {
-    counters.lookups += 1;
-    let [nx, ny, nz] = slab.grid().dims();
-    let x = floor_index(clamp_axis(p.x, nx) + 0.5);
-    let y = floor_index(clamp_axis(p.y, ny) + 0.5);
-    let z = floor_index(clamp_axis(p.z, nz) + 0.5);
-    read(slab, x.min(nx - 1), y.min(ny - 1), z.min(nz - 1), counters)
+    value_at(
+        slab,
+        Model::Voxel,
+        &locate(slab.grid(), Model::Voxel, p),
+        counters,
+    )
 }
 
 /// Cell index and fraction along one axis: `i ∈ [0, n - 2]` (0 when `n = 1`), `f ∈ [0, 1]`.
@@ -58,17 +123,26 @@ fn cell_axis(v: f32, n: u32) -> (u32, u32, f32) {
 }
 
 /// The trilinear interpolation of the eight nodes of the cell around `p`.
-#[inline(always)]
+#[inline]
 pub fn trilinear<T: Sample>(slab: &Slab<'_, T>, p: Vec3, counters: &mut Counters) -> f32 {
+    interpolate(slab, &locate(slab.grid(), Model::Cell, p), counters)
+}
+
+/// The trilinear interpolation of the eight nodes of the cell at `site` (cell model).
+#[inline(always)]
+fn interpolate<T: Sample>(slab: &Slab<'_, T>, site: &Site, counters: &mut Counters) -> f32 {
     counters.interpolations += 1;
-    let [nx, ny, nz] = slab.grid().dims();
-    let (x0, x1, fx) = cell_axis(p.x, nx);
-    let (y0, y1, fy) = cell_axis(p.y, ny);
-    let (z0, z1, fz) = cell_axis(p.z, nz);
+    let ([x0, y0, z0], [x1, y1, z1]) = (site.lo, site.hi);
+    let Vec3 {
+        x: fx,
+        y: fy,
+        z: fz,
+    } = site.frac;
     // The four lerps along x, one per lane: each lane rounds exactly as the scalar `lerp`
     // (glam never fuses), and all four lanes hold data. Left to itself the compiler packs two
     // lanes and leaves stale values in the others, which can be subnormal and stall the
-    // multiply (a measured 40% of the whole render).
+    // multiply (a measured 40% of the whole render). The lanes are built from the loaded
+    // values directly: going through an array on the stack costs a store-forwarding stall.
     let (low, high) = match slab.cell((x0, x1), (y0, y1), (z0, z1)) {
         Some([c000, c100, c010, c110, c001, c101, c011, c111]) => (
             Vec4::new(c000.to_f32(), c010.to_f32(), c001.to_f32(), c011.to_f32()),
@@ -176,6 +250,43 @@ mod tests {
             20.0
         );
         assert_eq!(nearest(&slab, Vec3::splat(f32::INFINITY), &mut c), 222.0);
+    }
+
+    #[test]
+    fn a_site_names_the_owner_plane_for_every_kind_of_coordinate() {
+        for dims in [[1, 2, 3], [2, 1, 1], [5, 4, 3], [97, 97, 116]] {
+            let grid = Grid::new(dims, Vec3::ONE).unwrap();
+            let n = dims[0] as f32;
+            let special = [
+                f32::NAN,
+                f32::INFINITY,
+                f32::NEG_INFINITY,
+                -0.0,
+                0.0,
+                -0.5,
+                0.5,
+                n - 1.0,
+                n - 1.5,
+                n - 0.5,
+                n,
+                1e30,
+                -1e30,
+            ];
+            let sweep = (0..2000).map(|i| i as f32 * (n + 2.0) / 1999.0 - 1.0);
+            let near_half = (0..200).map(|i| f32::from_bits(0x3f00_0000 + i * 40_000));
+            let xs = || {
+                special
+                    .into_iter()
+                    .chain(sweep.clone())
+                    .chain(near_half.clone())
+            };
+            for model in [Model::Cell, Model::Voxel] {
+                for x in xs() {
+                    let site = locate(&grid, model, Vec3::new(x, 0.3, 0.7));
+                    assert_eq!(site.plane(), grid.owner_plane(x, model), "{x} {model:?}");
+                }
+            }
+        }
     }
 
     #[test]

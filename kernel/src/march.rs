@@ -144,12 +144,13 @@ pub fn march<T: Sample>(
         }
         let t = ray.lattice.t(ray.k);
         let p = ray.ray.at(t);
-        let plane = grid.owner_plane(p.x, spec.model);
+        let site = field::locate(grid, spec.model, p);
+        let plane = site.plane();
         if !slab.owns(plane) {
             return Stop::Leave { plane };
         }
         if let Some(blocks) = slab.blocks() {
-            let block = blocks.block_of(p, spec.model);
+            let block = blocks.block_of(&site);
             let empty = match known {
                 Some((b, empty)) if b == block => empty,
                 _ => {
@@ -186,7 +187,7 @@ pub fn march<T: Sample>(
             ray.prev_stale = false;
         }
         counters.samples += 1;
-        let v = field::value(slab, spec.model, p, counters);
+        let v = field::value_at(slab, spec.model, &site, counters);
         match &spec.mode {
             Mode::Surfaces(surfaces) if ray.kind == RayKind::Shadow => {
                 if ray.primed {
@@ -265,7 +266,8 @@ fn skip_run<T: Sample>(
     let grid = slab.grid();
     while n > 0 {
         let q = ray.ray.at(ray.lattice.t(ray.k + n));
-        if slab.owns(grid.owner_plane(q.x, model)) && blocks.block_of(q, model) == block {
+        let site = field::locate(grid, model, q);
+        if slab.owns(site.plane()) && blocks.block_of(&site) == block {
             return ray.k + n;
         }
         n /= 2;
