@@ -149,6 +149,35 @@ pub fn largest_node(
     })
 }
 
+/// The most planes a slab may own in `grid` (samples of `sample_bytes`, `ghost` planes each
+/// side, `buffer` bytes of receive buffer) and still fit `profile`'s node memory: the cap
+/// static load balancing keeps every slab under. 0 when not even one plane fits.
+pub fn max_owned_planes(
+    profile: Profile,
+    grid: &Grid,
+    sample_bytes: usize,
+    ghost: u32,
+    buffer: usize,
+) -> u32 {
+    let nx = grid.dims()[0];
+    let fits = |owned: u32| {
+        // An interior slab stores its ghosts on both sides: the most a slab of this size does.
+        let stored = 0..(owned + 2 * ghost).min(nx);
+        let memory = NodeMemory {
+            slab: (stored.end - stored.start) as usize * grid.plane_len() * sample_bytes
+                + block_bytes(grid, stored),
+            buffer,
+            worker: worker_bytes(),
+            allowance: CODE_AND_STACK,
+        };
+        memory.total() <= profile.node_memory
+    };
+    (1..=nx)
+        .take_while(|&owned| fits(owned))
+        .last()
+        .unwrap_or(0)
+}
+
 /// Check that every node fits `profile`; `buffer_for(size)` gives the receive buffer of a
 /// cluster of `size`.
 pub fn check(
@@ -190,6 +219,24 @@ pub fn check(
 mod tests {
     use super::*;
     use voxcube_kernel::Vec3;
+
+    #[test]
+    fn the_plane_cap_is_the_largest_slab_that_fits() {
+        let grid = Grid::new([208, 208, 208], Vec3::ONE).unwrap();
+        let (ghost, buffer) = (3, 16 * 1024);
+        let cap = max_owned_planes(Profile::ncube2(), &grid, 1, ghost, buffer);
+        assert!(cap > 0 && cap < 208, "{cap}");
+        let memory = |owned: u32| {
+            let stored = 0..owned + 2 * ghost;
+            stored.len() * grid.plane_len()
+                + block_bytes(&grid, stored)
+                + buffer
+                + worker_bytes()
+                + CODE_AND_STACK
+        };
+        assert!(memory(cap) <= Profile::ncube2().node_memory);
+        assert!(memory(cap + 1) > Profile::ncube2().node_memory);
+    }
 
     #[test]
     fn a_big_volume_needs_a_bigger_cluster() {

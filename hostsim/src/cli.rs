@@ -6,8 +6,8 @@ use crate::bench;
 use crate::budget::Profile;
 use crate::explore;
 use crate::output::{write_atomic, write_png};
-use crate::render::{preflight, render_on_with_progress, Fabric, Machine};
-use crate::report::{summary, Report, ViewReport};
+use crate::render::{preflight, render_cut, Fabric, Machine};
+use crate::report::{summary, BalanceReport, Report, ViewReport};
 use crate::scene::{Scene, ViewJob, DEFAULT_SCENE};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -71,6 +71,11 @@ pub enum Command {
         /// Do not skip empty space (a debug option: it changes no pixel, only the time).
         #[arg(long)]
         no_skip: bool,
+        /// Balance every view's slabs first, as the paper does: one cluster traces a probe
+        /// of about 32x32 primary rays, timed by the --machine profile, and the slab sizes
+        /// follow the workers' times. Also a view's `balance = true`. Changes no pixel.
+        #[arg(long)]
+        balance: bool,
     },
     /// Print the built-in default scene: a complete, commented example of the format.
     Scene,
@@ -328,6 +333,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             machine: profile,
             threads,
             no_skip,
+            balance,
         } => {
             let (scene, name) = match &scene {
                 Some(path) => (Scene::from_file(path)?, path.display().to_string()),
@@ -353,6 +359,13 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                     // Configuration errors up front: nothing renders if any view cannot.
                     preflight(&job.volume, &v.view, &m)
                         .map_err(|e| format!("{}/{}: {e}", job.name, v.name))?;
+                    if (balance || v.balance) && m.fabric == Fabric::Mpi {
+                        return Err(format!(
+                            "{}/{}: load balancing runs on the sim and threads fabrics, not yet on MPI",
+                            job.name, v.name
+                        )
+                        .into());
+                    }
                     plan.push((job, v, m));
                 }
             }
@@ -405,6 +418,15 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                     }
                     bar.set_position(done);
                 };
+                let balanced = if (balance || v.balance) && machine.cluster_size() > 1 {
+                    Some(
+                        balance_view(&job.volume, &v.view, &machine, profile)
+                            .map_err(|e| format!("{}/{}: {e}", job.name, v.name))?,
+                    )
+                } else {
+                    None
+                };
+                let cuts = balanced.as_ref().map(|b| b.cuts_used.as_slice());
                 let rendered = match machine.fabric {
                     #[cfg(feature = "mpi")]
                     Fabric::Mpi => {
@@ -412,20 +434,22 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                         mpi_host(world, &job.volume, &v.view, &machine)
                             .map_err(|e| format!("{}/{}: {e}", job.name, v.name))?
                     }
-                    _ => render_on_with_progress(&job.volume, &v.view, &machine, &progress)
+                    _ => render_cut(&job.volume, &v.view, &machine, cuts, &progress)
                         .map_err(|e| format!("{}/{}: {e}", job.name, v.name))?,
                 };
                 bar.finish_and_clear();
                 let image = out.join(format!("{}-{}.png", job.name, v.name));
                 write_png(&image, rendered.width, rendered.height, &rendered.bytes())?;
-                views.push(ViewReport::new(
+                let mut report = ViewReport::new(
                     &job.name,
                     &v.name,
                     image.display().to_string(),
                     &v.view,
                     &machine,
                     &rendered,
-                ));
+                );
+                report.balance = balanced;
+                views.push(report);
             }
             if !quiet {
                 print!("{}", summary(&views));
@@ -437,6 +461,40 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             Ok(())
         }
     }
+}
+
+/// Static load balancing of `view` for `machine`'s clusters, timed by the `profile` chosen
+/// with `--machine`, each slab kept within the node memory of `machine`'s profile.
+fn balance_view(
+    volume: &crate::dataset::Volume,
+    view: &voxcube_kernel::view::View,
+    machine: &Machine,
+    profile: ProfileArg,
+) -> Result<BalanceReport, String> {
+    let name = match profile {
+        ProfileArg::Ncube2 => "ncube2",
+        ProfileArg::Modern => "modern",
+    };
+    let timing = crate::profile::MachineProfile::load(name).map_err(|e| e.to_string())?;
+    let size = machine.cluster_size();
+    let buffer = match machine.buffer_bytes {
+        Some(b) => b,
+        None => {
+            voxcube_kernel::flow::buffer_bytes(size as usize, crate::fabric::sim::DEFAULT_I_MAX)
+        }
+    };
+    let cap = crate::budget::max_owned_planes(
+        machine.profile,
+        &volume.grid,
+        volume.data.kind().bytes(),
+        view.ghost_planes(),
+        buffer,
+    );
+    let b = crate::balance::balance(volume, view, &timing, size, machine.skip, cap)
+        .map_err(|e| e.to_string())?;
+    let probe = crate::balance::probe_view(view, volume).map_err(|e| e.to_string())?;
+    let rays = [probe.spec().width, probe.spec().height];
+    Ok(BalanceReport::new(&b, rays, name))
 }
 
 #[cfg(feature = "mpi")]

@@ -9,6 +9,7 @@
 #![deny(missing_docs)]
 
 pub mod accuracy;
+pub mod balance;
 pub mod bench;
 pub mod budget;
 pub mod builtin;

@@ -25,8 +25,7 @@ use plotters::prelude::*;
 use std::fmt::Write as _;
 use std::path::Path;
 use voxcube_kernel::msg::PLANE_CHUNK;
-use voxcube_kernel::topology::Layout;
-use voxcube_kernel::view::{View, ViewSpec};
+use voxcube_kernel::view::View;
 
 /// The paper's Table 1: nodes, seconds.
 pub const TABLE1: [(u32, f64); 8] = [
@@ -149,17 +148,9 @@ pub fn timed(
         .ok_or_else(|| PaperError::Write("a timed run returned no time".into()))
 }
 
-/// Worker times of a run: the time each spent tracing the probe rays (work and message
-/// handling, not waiting).
-fn busy(t: &VirtualTime) -> Vec<f64> {
-    t.parts
-        .iter()
-        .map(|p| p.iter().sum::<f64>() - p[Category::Idle as usize] - p[Category::Test as usize])
-        .collect()
-}
-
-/// The paper's static load balancing for one cluster of `size`: new cuts and the seconds the
-/// plane transfer costs.
+/// The paper's static load balancing for one cluster of `size` (see [`crate::balance`]; the
+/// paper's tracer had no empty-space skipping, and memory does not bind on SOD): new cuts
+/// and the seconds the plane transfer costs.
 pub fn balance(
     job: &DatasetJob,
     view: &View,
@@ -167,74 +158,15 @@ pub fn balance(
     size: u32,
 ) -> Result<(Vec<u32>, f64), PaperError> {
     let nx = job.volume.grid.dims()[0];
-    let mut spec: ViewSpec = view.spec().clone();
-    spec.width = 35;
-    spec.height = 25;
-    let probe = View::new(spec, &job.volume.grid).map_err(|e| PaperError::Write(e.to_string()))?;
-    let t = timed(job, &probe, profile, 1, size, None)?;
-    // Times are per node id; slabs are per ring position (Gray-coded ids): map them.
-    let by_node = busy(&t);
-    let layout = Layout::new(1, size).map_err(|e| PaperError::Write(e.to_string()))?;
-    let times: Vec<f64> = (0..size as u16)
-        .map(|j| by_node[usize::from(layout.node(0, j))])
-        .collect();
-    let total: f64 = times.iter().sum();
-    let mean = total / f64::from(size);
-    let single_plane = total / f64::from(nx);
-    let old = voxcube_kernel::partition::Partition::uniform(nx, size as usize)
+    let b = crate::balance::balance(&job.volume, view, profile, size, false, nx)
         .map_err(|e| PaperError::Write(e.to_string()))?;
-    let mut sizes: Vec<f64> = (0..size as usize)
-        .map(|i| {
-            let r = old.planes(i);
-            f64::from(r.end - r.start)
-                + if single_plane > 0.0 {
-                    (mean - times[i]) / single_plane
-                } else {
-                    0.0
-                }
-        })
-        .collect();
-    // Whole planes, at least one each, summing to nx.
-    for s in &mut sizes {
-        *s = s.round().max(1.0);
-    }
-    let mut whole: Vec<u32> = sizes.iter().map(|&s| s as u32).collect();
-    while whole.iter().sum::<u32>() > nx {
-        if let Some(i) = (0..whole.len())
-            .filter(|&i| whole[i] > 1)
-            .max_by_key(|&i| whole[i])
-        {
-            whole[i] -= 1;
-        }
-    }
-    while whole.iter().sum::<u32>() < nx {
-        if let Some(i) = (0..whole.len()).min_by_key(|&i| whole[i]) {
-            whole[i] += 1;
-        }
-    }
-    let mut cuts = vec![0u32];
-    for w in &whole {
-        cuts.push(cuts.last().copied().unwrap_or(0) + w);
-    }
-    // The formula is one-shot and can overshoot where the frame is not set by how the work
-    // divides (long rings): keep the old cuts unless the new ones trace the probe faster.
-    let after = timed(job, &probe, profile, 1, size, Some(cuts.clone()))?;
-    if after.frame >= t.frame {
-        return Ok((old.cuts().to_vec(), 0.0));
-    }
     // Every boundary moves |new cut - old cut| planes between neighbours, all in parallel.
     let plane_bytes = job.volume.grid.plane_len() * job.volume.data.kind().bytes();
     let m = &profile.messages;
-    let moved = cuts
-        .iter()
-        .zip(old.cuts())
-        .map(|(a, b)| a.abs_diff(*b))
-        .max()
-        .unwrap_or(0) as usize;
-    let messages = (moved * plane_bytes).div_ceil(PLANE_CHUNK);
+    let messages = (b.moved_planes() as usize * plane_bytes).div_ceil(PLANE_CHUNK);
     let transfer =
         messages as f64 * (m.latency + m.write + m.read + PLANE_CHUNK as f64 * m.per_byte);
-    Ok((cuts, transfer))
+    Ok((b.after, transfer))
 }
 
 /// Picks one share out of a node's time by category.

@@ -267,6 +267,18 @@ pub fn render_on_with_progress(
     machine: &Machine,
     progress: OnProgress<'_>,
 ) -> Result<Rendered, RenderError> {
+    render_cut(volume, view, machine, None, progress)
+}
+
+/// [`render_on_with_progress`] with every cluster's slabs cut at `cuts` (`None`: uniform),
+/// as static load balancing chooses them. The image does not depend on the cuts.
+pub fn render_cut(
+    volume: &Volume,
+    view: &View,
+    machine: &Machine,
+    cuts: Option<&[u32]>,
+    progress: OnProgress<'_>,
+) -> Result<Rendered, RenderError> {
     preflight(volume, view, machine)?;
     match machine.fabric {
         Fabric::Direct => Ok(render_direct(volume, view, machine.skip, progress)?),
@@ -274,7 +286,10 @@ pub fn render_on_with_progress(
             "the MPI fabric renders through `voxcube render --fabric mpi` under mpirun".into(),
         )),
         Fabric::Sim | Fabric::Threads => {
-            let cfg = machine.sim_config()?;
+            let cfg = SimConfig {
+                cuts: cuts.map(<[u32]>::to_vec),
+                ..machine.sim_config()?
+            };
             let run = match machine.fabric {
                 Fabric::Threads => {
                     threads::run_with_progress(volume, view, &cfg, machine.threads, progress)?

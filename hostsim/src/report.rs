@@ -180,6 +180,45 @@ pub struct ViewReport {
     pub wall_ms: f64,
     /// SHA-256 of the RGBA8 pixel buffer.
     pub pixels_sha256: String,
+    /// Static load balancing, when the view asked for it.
+    pub balance: Option<BalanceReport>,
+}
+
+/// What static load balancing did for a view: partitions and the probe's worker times.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct BalanceReport {
+    /// Primary rays of the probe, across and down.
+    pub probe: [u32; 2],
+    /// Cuts before (uniform).
+    pub cuts_before: Vec<u32>,
+    /// The formula's cuts.
+    pub cuts_proposed: Vec<u32>,
+    /// The cuts rendered with.
+    pub cuts_used: Vec<u32>,
+    /// Simulated seconds each worker (by ring position) spent on the probe, uniform slabs.
+    pub times_before: Vec<f64>,
+    /// The same with the proposed cuts.
+    pub times_proposed: Vec<f64>,
+    /// The probe's simulated frame, uniform then proposed.
+    pub probe_frames: [f64; 2],
+    /// The machine profile that priced the probe.
+    pub profile: String,
+}
+
+impl BalanceReport {
+    /// The report of `b`, probed at `probe` rays with `profile`.
+    pub fn new(b: &crate::balance::Balance, probe: [u32; 2], profile: &str) -> BalanceReport {
+        BalanceReport {
+            probe,
+            cuts_before: b.before.clone(),
+            cuts_proposed: b.proposed.clone(),
+            cuts_used: b.after.clone(),
+            times_before: b.times_before.clone(),
+            times_proposed: b.times_proposed.clone(),
+            probe_frames: [b.frames.0, b.frames.1],
+            profile: profile.to_string(),
+        }
+    }
 }
 
 fn kinds(counts: &[u64; 9]) -> BTreeMap<&'static str, u64> {
@@ -264,6 +303,7 @@ impl ViewReport {
             nan_pixels: c.non_finite_pixels,
             wall_ms: rendered.wall.as_secs_f64() * 1e3,
             pixels_sha256: crate::output::pixels_sha256(&rendered.bytes()),
+            balance: None,
         }
     }
 }
@@ -340,6 +380,38 @@ pub fn summary(views: &[ViewReport]) -> String {
         );
     }
     for v in views {
+        if let Some(b) = &v.balance {
+            let spread = |t: &[f64]| {
+                let max = t.iter().copied().fold(0.0, f64::max);
+                let mean = t.iter().sum::<f64>() / t.len().max(1) as f64;
+                format!("max {max:.3} s, mean {mean:.3} s")
+            };
+            out += &format!(
+                "{}/{}: balance ({}x{} probe rays, {} times): cuts {:?} -> {:?}; worker times {} -> {}; {}\n",
+                v.dataset,
+                v.view,
+                b.probe[0],
+                b.probe[1],
+                b.profile,
+                b.cuts_before,
+                b.cuts_proposed,
+                spread(&b.times_before),
+                spread(&b.times_proposed),
+                if b.cuts_used == b.cuts_before && b.cuts_proposed != b.cuts_before {
+                    format!(
+                        "not kept: the probe took {:.3} s against {:.3} s uniform",
+                        b.probe_frames[1], b.probe_frames[0]
+                    )
+                } else if b.cuts_used == b.cuts_before {
+                    "nothing to move".to_string()
+                } else {
+                    format!(
+                        "kept: probe {:.3} s -> {:.3} s",
+                        b.probe_frames[0], b.probe_frames[1]
+                    )
+                }
+            );
+        }
         if let Some(t) = &v.traffic {
             let msgs: Vec<String> = t
                 .messages

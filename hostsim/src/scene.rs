@@ -191,6 +191,8 @@ struct ViewToml {
     #[serde(default = "d_count")]
     clusters: u32,
     #[serde(default)]
+    balance: bool,
+    #[serde(default)]
     camera: CameraToml,
     #[serde(default)]
     surfaces: Vec<SurfaceToml>,
@@ -328,6 +330,8 @@ pub struct ViewJob {
     pub nodes: u32,
     /// Requested clusters (recorded).
     pub clusters: u32,
+    /// Balance the slabs before rendering (the paper's static load balancing).
+    pub balance: bool,
 }
 
 /// A dataset loaded, with its views built.
@@ -471,6 +475,7 @@ impl Scene {
                     view,
                     nodes: v.nodes,
                     clusters: v.clusters,
+                    balance: v.balance,
                 });
             }
             jobs.push(DatasetJob {
