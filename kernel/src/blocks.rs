@@ -136,17 +136,19 @@ impl<'a> Blocks<'a> {
                         max: f32::NEG_INFINITY,
                     };
                     if known {
+                        let ys = (cy * BLOCK) as usize..((cy + 1) * BLOCK).min(ny - 1) as usize + 1;
                         for x in xs.clone() {
                             for z in cz * BLOCK..((cz + 1) * BLOCK).min(nz - 1) + 1 {
-                                for y in cy * BLOCK..((cy + 1) * BLOCK).min(ny - 1) + 1 {
-                                    match slab.get(x, y, z) {
-                                        Some(v) => {
+                                // The block's nodes on one Y row lie side by side in storage.
+                                match slab.row(x, z).and_then(|row| row.get(ys.clone())) {
+                                    Some(values) => {
+                                        for v in values {
                                             let v = v.to_f32();
                                             r.min = r.min.min(v);
                                             r.max = r.max.max(v);
                                         }
-                                        None => r = Range::UNKNOWN,
                                     }
+                                    None => r = Range::UNKNOWN,
                                 }
                             }
                         }

@@ -146,6 +146,18 @@ impl<'a, T: Sample> Slab<'a, T> {
         self.stored_start..self.stored_end
     }
 
+    /// The samples of row `z` of plane `x`, in Y order; `None` outside the stored planes or
+    /// the grid.
+    #[inline]
+    pub fn row(&self, x: u32, z: u32) -> Option<&'a [T]> {
+        let [_, ny, nz] = self.grid.dims();
+        if x < self.stored_start || x >= self.stored_end || z >= nz {
+            return None;
+        }
+        let start = ((x - self.stored_start) as usize * nz as usize + z as usize) * ny as usize;
+        self.data.get(start..start + ny as usize)
+    }
+
     /// The eight nodes of the cell spanned by `x`, `y` and `z` (each a pair of equal or
     /// adjacent node indices, low first), ordered by corner bits `z y x` from 000 to 111; `None`
     /// when any lies outside the stored planes or the grid. One range check for the cell,
@@ -153,7 +165,8 @@ impl<'a, T: Sample> Slab<'a, T> {
     #[inline]
     pub fn cell(&self, x: (u32, u32), y: (u32, u32), z: (u32, u32)) -> Option<[T; 8]> {
         let [_, ny, nz] = self.grid.dims();
-        let ordered = |(a, b): (u32, u32)| a <= b && b - a <= 1;
+        // Equal or adjacent, low first, in one comparison: `b < a` wraps to a large value.
+        let ordered = |(a, b): (u32, u32)| b.wrapping_sub(a) <= 1;
         if !(ordered(x) && ordered(y) && ordered(z))
             || x.0 < self.stored_start
             || x.1 >= self.stored_end
