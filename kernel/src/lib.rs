@@ -40,6 +40,7 @@ pub mod ray;
 pub mod record;
 pub mod sample;
 pub mod shade;
+pub mod shift;
 pub mod slab;
 pub mod stats;
 pub mod surface;

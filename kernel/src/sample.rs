@@ -31,6 +31,11 @@ pub trait Sample: Copy + Default + 'static {
     const KIND: SampleKind;
     /// The value as `f32`, exactly.
     fn to_f32(self) -> f32;
+    /// Write the little-endian bytes into `out`; leaves it untouched unless it is exactly
+    /// [`SampleKind::bytes`] long.
+    fn write_le(self, out: &mut [u8]);
+    /// The sample from little-endian bytes; `None` unless `bytes` is exactly its size.
+    fn read_le(bytes: &[u8]) -> Option<Self>;
 }
 
 impl Sample for u8 {
@@ -38,6 +43,15 @@ impl Sample for u8 {
     #[inline]
     fn to_f32(self) -> f32 {
         f32::from(self)
+    }
+    fn write_le(self, out: &mut [u8]) {
+        let bytes = self.to_le_bytes();
+        if out.len() == bytes.len() {
+            out.copy_from_slice(&bytes);
+        }
+    }
+    fn read_le(bytes: &[u8]) -> Option<Self> {
+        Some(Self::from_le_bytes(bytes.try_into().ok()?))
     }
 }
 
@@ -47,6 +61,15 @@ impl Sample for u16 {
     fn to_f32(self) -> f32 {
         f32::from(self)
     }
+    fn write_le(self, out: &mut [u8]) {
+        let bytes = self.to_le_bytes();
+        if out.len() == bytes.len() {
+            out.copy_from_slice(&bytes);
+        }
+    }
+    fn read_le(bytes: &[u8]) -> Option<Self> {
+        Some(Self::from_le_bytes(bytes.try_into().ok()?))
+    }
 }
 
 impl Sample for f32 {
@@ -54,5 +77,14 @@ impl Sample for f32 {
     #[inline]
     fn to_f32(self) -> f32 {
         self
+    }
+    fn write_le(self, out: &mut [u8]) {
+        let bytes = self.to_le_bytes();
+        if out.len() == bytes.len() {
+            out.copy_from_slice(&bytes);
+        }
+    }
+    fn read_le(bytes: &[u8]) -> Option<Self> {
+        Some(Self::from_le_bytes(bytes.try_into().ok()?))
     }
 }
