@@ -3,8 +3,9 @@
 //! `size'[i] = size[i] + (mean(t) − t_i) / t_plane` with `t_plane = Σ t / nx`.
 //!
 //! Invariants: the new cuts cover every plane once, every slab keeps at least one plane and
-//! at most `max_planes` (what a node's memory holds), and the new cuts are kept only if the
-//! probe runs faster with them (the formula is one-shot and can overshoot). Times are
+//! at most `max_planes` (what a node's memory holds) also in every round of shifts between
+//! neighbours that reaches them (see `voxcube_kernel::shift`), and the new cuts are kept
+//! only if the probe runs faster with them (the formula is one-shot and can overshoot). Times are
 //! simulated: each worker's work and message handling priced by a machine profile, so the
 //! same scene balances the same way on every fabric and every run. The image does not depend
 //! on the cuts (bit-identical for any partition), only the time does.
@@ -116,6 +117,9 @@ pub fn new_cuts(old: &Partition, times: &[f64], max_planes: u32) -> Vec<u32> {
     for w in whole {
         cuts.push(cuts.last().copied().unwrap_or(0) + w);
     }
+    // The workers reach these cuts in rounds of shifts between neighbours; no slab is larger
+    // between rounds than the larger of its sizes before and after (a property test in
+    // tests/tests/shift.rs), so the cap holds throughout.
     cuts
 }
 
@@ -233,6 +237,18 @@ mod tests {
         assert!(sizes[0] > 10 && sizes[2] > 10 && sizes[3] > 10, "{sizes:?}");
         // Equal times change nothing.
         assert_eq!(new_cuts(&old, &[2.0; 4], 40), old.cuts().to_vec());
+        // Cut 3 of eight 5-plane slabs moves from 15 to 30, past old cuts (the workers get
+        // there in rounds between neighbours); a cap of 9 planes reshapes the answer.
+        let eight = Partition::uniform(40, 8).unwrap();
+        let slow = [0.01, 0.01, 0.01, 100.0, 100.0, 100.0, 100.0, 100.0];
+        assert_eq!(
+            new_cuts(&eight, &slow, 40),
+            [0, 10, 20, 30, 32, 34, 36, 38, 40]
+        );
+        assert_eq!(
+            new_cuts(&eight, &slow, 9),
+            [0, 9, 18, 27, 30, 33, 36, 38, 40]
+        );
     }
 
     #[test]

@@ -286,8 +286,11 @@ pub fn render_cut(
             "the MPI fabric renders through `voxcube render --fabric mpi` under mpirun".into(),
         )),
         Fabric::Sim | Fabric::Threads => {
+            // On the simulator the nodes shift planes to the cuts by message; the threads
+            // fabric loads its slabs of the cuts directly.
             let cfg = SimConfig {
                 cuts: cuts.map(<[u32]>::to_vec),
+                shift: cuts.is_some() && machine.fabric == Fabric::Sim,
                 ..machine.sim_config()?
             };
             let run = match machine.fabric {

@@ -141,8 +141,23 @@ pub struct TrafficReport {
     pub memory_max: usize,
     /// Mean node memory high-water mark, bytes.
     pub memory_mean: usize,
+    /// The plane shift to balanced cuts before rendering, when the nodes made one.
+    pub shift: Option<ShiftEntry>,
     /// Per node.
     pub nodes: Vec<NodeEntry>,
+}
+
+/// The plane shift before a balanced render.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct ShiftEntry {
+    /// Slab-plane messages.
+    pub messages: u64,
+    /// Their bytes.
+    pub bytes: u64,
+    /// Simulated seconds (timed runs).
+    pub seconds: Option<f64>,
+    /// Rounds of shifts between neighbours.
+    pub rounds: u32,
 }
 
 /// One view's report.
@@ -278,6 +293,12 @@ impl ViewReport {
                 memory_max: nodes.iter().map(|n| n.memory_high_water).max().unwrap_or(0),
                 memory_mean: nodes.iter().map(|n| n.memory_high_water).sum::<usize>()
                     / nodes.len().max(1),
+                shift: d.shift.as_ref().map(|s| ShiftEntry {
+                    messages: s.messages,
+                    bytes: s.bytes,
+                    seconds: s.seconds,
+                    rounds: s.rounds,
+                }),
                 nodes,
             }
         });
@@ -423,8 +444,17 @@ pub fn summary(views: &[ViewReport]) -> String {
                 .iter()
                 .map(|c| format!("{c:?}"))
                 .collect();
+            let shift = match &t.shift {
+                Some(s) => format!(
+                    "; before rendering, the nodes shifted planes to the balanced cuts: {} rounds, {} messages, {} bytes",
+                    s.rounds,
+                    count(s.messages),
+                    s.bytes
+                ),
+                None => String::new(),
+            };
             out += &format!(
-                "{}/{}: messages: {}; receive buffers {} bytes (i_max {}); rays across slab boundaries per cluster: {}\n",
+                "{}/{}: messages: {}; receive buffers {} bytes (i_max {}); rays across slab boundaries per cluster: {}{shift}\n",
                 v.dataset,
                 v.view,
                 msgs.join(", "),

@@ -76,6 +76,28 @@ pub struct Plan {
     pub take_right: Range<u32>,
 }
 
+/// One round towards `target`: each cut moves towards its target cut, but not past the
+/// current cuts on either side of it, so the round is a shift between neighbours
+/// ([`plan`] accepts it). Every cut not yet at its target moves at least one plane, never
+/// past it, and the cuts stay strictly increasing; rounds from any partition reach any
+/// other of the same slabs in at most `nx` rounds (in practice a few).
+pub fn next_step(current: &Partition, target: &Partition) -> Result<Partition, ShiftError> {
+    let (c, t) = (current.cuts(), target.cuts());
+    if c.len() != t.len() || c.last() != t.last() {
+        return Err(ShiftError::Shape);
+    }
+    let mut next: heapless::Vec<u32, { crate::partition::MAX_CLUSTER + 1 }> = heapless::Vec::new();
+    for i in 0..c.len() {
+        let cut = if i == 0 || i + 1 == c.len() {
+            c[i]
+        } else {
+            t[i].clamp(c[i - 1], c[i + 1])
+        };
+        next.push(cut).map_err(|_| ShiftError::Shape)?;
+    }
+    Partition::new(&next, c[c.len() - 1]).map_err(|_| ShiftError::Shape)
+}
+
 /// The planes ring position `j` lacks on its left and right after the change.
 fn takes(old: &Range<u32>, new: &Range<u32>) -> (Range<u32>, Range<u32>) {
     let left = new.start..new.end.min(old.start).max(new.start);
@@ -503,6 +525,47 @@ mod tests {
         }
         // Nothing moves: every node is done at once.
         exchange(dims, &[0, 4, 8, 12, 16], &[0, 4, 8, 12, 16], 1, 1, 3);
+    }
+
+    #[test]
+    fn rounds_between_neighbours_reach_any_partition() {
+        let cases: [(&[u32], &[u32]); 4] = [
+            (
+                &[0, 5, 10, 15, 20, 25, 30, 35, 40],
+                &[0, 10, 15, 20, 25, 30, 35, 38, 40],
+            ),
+            (
+                &[0, 10, 15, 20, 25, 30, 35, 38, 40],
+                &[0, 1, 2, 3, 4, 5, 6, 7, 40],
+            ),
+            (
+                &[0, 1, 2, 3, 4, 5, 6, 7, 40],
+                &[0, 33, 34, 35, 36, 37, 38, 39, 40],
+            ),
+            (&[0, 20, 40], &[0, 20, 40]),
+        ];
+        let grid = Grid::new([40, 1, 1], Vec3::ONE).unwrap();
+        for (from, to) in cases {
+            let target = Partition::new(to, 40).unwrap();
+            let mut current = Partition::new(from, 40).unwrap();
+            let mut rounds = 0;
+            while current != target {
+                let next = next_step(&current, &target).unwrap();
+                for j in 0..current.slabs() {
+                    assert!(plan(&grid, &current, &next, 1, j).is_ok(), "{next:?}");
+                }
+                let distance = |p: &Partition| -> u32 {
+                    p.cuts().iter().zip(to).map(|(a, b)| a.abs_diff(*b)).sum()
+                };
+                assert!(distance(&next) < distance(&current));
+                current = next;
+                rounds += 1;
+                assert!(rounds <= 40);
+            }
+        }
+        let three = Partition::new(&[0, 20, 30, 40], 40).unwrap();
+        let two = Partition::new(&[0, 20, 40], 40).unwrap();
+        assert_eq!(next_step(&two, &three), Err(ShiftError::Shape));
     }
 
     #[test]

@@ -55,7 +55,7 @@ fn timed_runs_are_exact_repeatable_and_add_up() {
 #[test]
 fn static_load_balancing_lowers_the_time_of_an_unbalanced_cluster() {
     // Four slabs of the default scene's molecule are far from balanced: the paper's formula
-    // (plane transfer included) must win clearly. (Table 3's claim on SOD is a data test.)
+    // (the plane shift included) must win clearly. (Table 3's claim on SOD is a data test.)
     let jobs = Scene::default_scene()
         .and_then(Scene::load)
         .expect("default scene");
@@ -65,13 +65,32 @@ fn static_load_balancing_lowers_the_time_of_an_unbalanced_cluster() {
     let uniform = voxcube::paper::timed(job, v, &profile, 1, 4, None)
         .expect("runs")
         .frame;
-    let (cuts, transfer) = voxcube::paper::balance(job, v, &profile, 4).expect("balances");
+    let cuts = voxcube::paper::balance(job, v, &profile, 4).expect("balances");
     assert_eq!(cuts.len(), 5);
-    assert!(transfer > 0.0, "planes moved, so the transfer costs time");
+    let run = |shift: bool| {
+        let cfg = SimConfig {
+            time: Some(profile.clone()),
+            cuts: Some(cuts.clone()),
+            shift,
+            skip: false,
+            ..SimConfig::cluster(4, 1).expect("layout")
+        };
+        sim::run(&job.volume, v, &cfg).expect("runs")
+    };
+    // The nodes shift planes by message; that takes time, and changes no pixel.
+    let (shifted, loaded) = (run(true), run(false));
+    let report = shifted.shift.as_ref().expect("a shift report");
+    assert!(
+        report.messages > 0 && report.seconds.is_some_and(|s| s > 0.0),
+        "{report:?}"
+    );
+    let (a, b) = (shifted.time.expect("timed"), loaded.time.expect("timed"));
+    assert!((a.frame - b.frame - report.seconds.unwrap_or(0.0)).abs() < 1e-9);
+    assert_eq!(shifted.pixels, loaded.pixels);
     let balanced = voxcube::paper::timed(job, v, &profile, 1, 4, Some(cuts.clone()))
         .expect("runs")
-        .frame
-        + transfer;
+        .frame;
+    assert!((balanced - a.frame).abs() < 1e-9, "paper::timed shifts too");
     assert!(
         balanced < 0.95 * uniform,
         "balanced {balanced:.2} s (cuts {cuts:?}) against uniform {uniform:.2} s"

@@ -4,6 +4,7 @@
 pub mod host;
 #[cfg(feature = "mpi")]
 pub mod mpi;
+pub mod shift;
 pub mod sim;
 pub mod threads;
 
@@ -182,6 +183,8 @@ pub struct Distributed {
     pub wall: Duration,
     /// Virtual time, for timed simulated runs.
     pub time: Option<VirtualTime>,
+    /// The plane shift before rendering, when the nodes moved to balanced cuts by message.
+    pub shift: Option<shift::ShiftReport>,
 }
 
 impl Distributed {

@@ -339,5 +339,6 @@ pub fn host(
         i_max: flow.i_max,
         wall: start.elapsed(),
         time: None,
+        shift: None,
     })
 }

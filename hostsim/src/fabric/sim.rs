@@ -90,6 +90,10 @@ pub struct SimConfig {
     pub generation: Generation,
     /// Slab cuts (`cd + 1` of them); `None` for a uniform partition.
     pub cuts: Option<Vec<u32>>,
+    /// With `cuts`: every node starts on its uniform slab and shifts planes to its neighbours
+    /// by slab-plane messages until it holds its slab of `cuts`, before rendering (timed runs
+    /// add the shift's time). Without it the nodes load their slabs of `cuts` directly.
+    pub shift: bool,
     /// Receive-buffer bytes per node; `None` for room for [`DEFAULT_I_MAX`].
     pub buffer_bytes: Option<usize>,
     /// Ack-counter flow control (off only to show what it prevents).
@@ -127,6 +131,7 @@ impl SimConfig {
             scheduler: Scheduler::Uniform,
             generation: Generation::Distributed,
             cuts: None,
+            shift: false,
             buffer_bytes: None,
             flow_control: true,
             time: None,
@@ -205,6 +210,9 @@ pub enum SimError {
     /// The partition does not fit the grid.
     #[error("partition: {0}")]
     Partition(#[from] PartitionError),
+    /// The plane shift to balanced cuts failed.
+    #[error("{0}")]
+    Shift(String),
     /// A slab could not be built.
     #[error("slab: {0}")]
     Slab(#[from] SlabError),
@@ -427,29 +435,56 @@ fn run_typed<T: Sample>(
     let (flow, capacity) = super::flow_for(cfg, view)?;
     let ghost = view.ghost_planes();
     let plane = grid.plane_len();
-    // Each ring position loads only its slab (the same for every cluster, so shared here).
+    let nodes = layout.nodes() as usize;
+    // Each ring position loads only its slab (the same for every cluster, so shared here),
+    // unless the nodes shift planes to their slabs by message: then each holds its own.
     let stored: Vec<_> = (0..size)
         .map(|j| stored_planes(&grid, partition.planes(j), ghost))
         .collect();
-    let storage: Vec<&[T]> = stored
-        .iter()
-        .map(|r| &data[r.start as usize * plane..r.end as usize * plane])
+    let shifted = match (&cfg.cuts, cfg.shift) {
+        (Some(_), true) => {
+            let uniform = Partition::uniform(nx, size)?;
+            let (storages, report) = super::shift::run(
+                &grid,
+                data,
+                layout,
+                &uniform,
+                &partition,
+                ghost,
+                capacity,
+                cfg.time.as_ref(),
+            )
+            .map_err(|e| SimError::Shift(e.to_string()))?;
+            Some((storages, report))
+        }
+        _ => None,
+    };
+    let storage: Vec<&[T]> = (0..nodes as u16)
+        .map(|node| {
+            let j = usize::from(layout.place(node).1);
+            match &shifted {
+                Some((storages, _)) => storages[usize::from(node)].as_slice(),
+                None => &data[stored[j].start as usize * plane..stored[j].end as usize * plane],
+            }
+        })
         .collect();
+    // Blocks per ring position, from cluster 0's node at that position (every cluster holds
+    // the same planes there).
     let block_stores: Vec<Vec<voxcube_kernel::blocks::Range>> = (0..size)
         .map(|j| {
-            Slab::new(grid, partition.planes(j), ghost, storage[j])
+            let node = usize::from(layout.node(0, j as u16));
+            Slab::new(grid, partition.planes(j), ghost, storage[node])
                 .map(|s| super::block_storage(&s, cfg.skip))
                 .unwrap_or_default()
         })
         .collect();
-    let nodes = layout.nodes() as usize;
     let mut workers: Vec<Box<SimWorker<'_, T>>> = Vec::with_capacity(nodes);
     let mut reports = Vec::with_capacity(nodes);
     for node in 0..nodes as u16 {
         let (cluster, position) = layout.place(node);
         let j = usize::from(position);
         let slab = super::with_blocks(
-            Slab::new(grid, partition.planes(j), ghost, storage[j])?,
+            Slab::new(grid, partition.planes(j), ghost, storage[usize::from(node)])?,
             &block_stores[j],
         );
         let place = Place {
@@ -752,9 +787,23 @@ fn run_typed<T: Sample>(
             },
         )
         .collect();
-    let time = clock.map(Clock::finish);
+    let mut time = clock.map(Clock::finish);
+    let shift = shifted.map(|(_, report)| report);
+    if let (Some(t), Some(report)) = (&mut time, &shift) {
+        // The render starts once every node has shifted: each node's own sends and
+        // receives, then idle until the busiest is done.
+        let whole = report.seconds.unwrap_or(0.0);
+        for (parts, &(send, receive)) in t.parts.iter_mut().zip(&report.per_node) {
+            parts[Category::Write as usize] += send;
+            parts[Category::Read as usize] += receive;
+            parts[Category::Idle as usize] += (whole - send - receive).max(0.0);
+        }
+        t.frame += whole;
+        t.end += whole;
+    }
     Ok(Distributed {
         time,
+        shift,
         pixels: image,
         nodes,
         messages,

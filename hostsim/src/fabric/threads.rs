@@ -371,6 +371,7 @@ fn run_typed<T: Sample + Sync>(
         i_max: flow.i_max,
         wall: start.elapsed(),
         time: None,
+        shift: None,
     })
 }
 

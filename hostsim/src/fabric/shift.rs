@@ -1,0 +1,278 @@
+//! The plane shift before a balanced render: every node of every cluster starts with its
+//! uniform slab and runs the kernel's [`Shift`] over byte-bounded receive buffers until it
+//! holds its slab of the new cuts, as the paper's workers do.
+//!
+//! Cuts that move past their old neighbours are reached in rounds, each a shift between
+//! neighbours ([`next_step`]). Invariants: each node's storage is its own (nothing is copied
+//! from the volume after the start); a round ends only when every node is done, and a pass
+//! over the nodes in which none can move is an error, never a hang. Time, when a profile is
+//! given, is each node's own message work (send: latency, write and bytes; receive: read);
+//! a round takes as long as its busiest node, since all nodes shift at once.
+
+use crate::profile::MachineProfile;
+use std::collections::VecDeque;
+use std::fmt;
+use voxcube_kernel::flow::Class;
+use voxcube_kernel::grid::Grid;
+use voxcube_kernel::msg::Msg;
+use voxcube_kernel::partition::Partition;
+use voxcube_kernel::port::{Dest, Port};
+use voxcube_kernel::sample::Sample;
+use voxcube_kernel::shift::{next_step, plan, Shift, ShiftError};
+use voxcube_kernel::slab::stored_planes;
+use voxcube_kernel::topology::Layout;
+use voxcube_kernel::worker::{Place, Progress};
+
+/// What the shift did.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ShiftReport {
+    /// Slab-plane messages delivered, all nodes.
+    pub messages: u64,
+    /// Their bytes.
+    pub bytes: u64,
+    /// Simulated seconds: each round as long as its busiest node, the rounds one after
+    /// another (timed runs only).
+    pub seconds: Option<f64>,
+    /// Each node's simulated seconds sending and receiving, in node-id order (timed runs
+    /// only).
+    pub per_node: Vec<(f64, f64)>,
+    /// The largest storage any node needed during the shift, samples.
+    pub peak_samples: usize,
+    /// Rounds of shifts between neighbours.
+    pub rounds: u32,
+}
+
+/// Why the shift failed.
+#[derive(Debug)]
+pub enum ShiftFailure {
+    /// The cuts or storage were refused.
+    Plan(ShiftError),
+    /// A round passed in which no node could do anything.
+    Stalled {
+        /// Nodes not done.
+        unfinished: usize,
+    },
+    /// A node received chunks that were no planes it takes.
+    Strays {
+        /// The node.
+        node: u16,
+    },
+}
+
+impl fmt::Display for ShiftFailure {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ShiftFailure::Plan(e) => write!(f, "plane shift: {e}"),
+            ShiftFailure::Stalled { unfinished } => {
+                write!(f, "plane shift stalled with {unfinished} nodes unfinished")
+            }
+            ShiftFailure::Strays { node } => {
+                write!(
+                    f,
+                    "plane shift: node {node} received planes it does not take"
+                )
+            }
+        }
+    }
+}
+
+impl std::error::Error for ShiftFailure {}
+
+/// A node's receive buffer: messages and the bytes they hold.
+#[derive(Default)]
+struct Inbox {
+    queue: VecDeque<(Dest, Msg)>,
+    bytes: usize,
+}
+
+struct ShiftPort<'n> {
+    inboxes: &'n mut [Inbox],
+    capacity: usize,
+    me: u16,
+    sent: u64,
+    sent_bytes: u64,
+    received: u64,
+}
+
+impl Port for ShiftPort<'_> {
+    fn try_send(&mut self, to: Dest, msg: Msg) -> Result<(), Msg> {
+        let Dest::Node(n) = to else { return Err(msg) };
+        let len = msg.kind().encoded_len();
+        let Some(inbox) = self.inboxes.get_mut(usize::from(n)) else {
+            return Err(msg);
+        };
+        if inbox.bytes + len > self.capacity {
+            return Err(msg);
+        }
+        inbox.bytes += len;
+        inbox.queue.push_back((Dest::Node(self.me), msg));
+        self.sent += 1;
+        self.sent_bytes += len as u64;
+        Ok(())
+    }
+
+    fn peek(&mut self, _: Class) -> Option<&Msg> {
+        self.inboxes
+            .get(usize::from(self.me))
+            .and_then(|i| i.queue.front())
+            .map(|(_, m)| m)
+    }
+
+    fn try_recv(&mut self, _: Class) -> Option<(Dest, Msg)> {
+        let inbox = self.inboxes.get_mut(usize::from(self.me))?;
+        let (from, msg) = inbox.queue.pop_front()?;
+        inbox.bytes = inbox.bytes.saturating_sub(msg.kind().encoded_len());
+        self.received += 1;
+        Some((from, msg))
+    }
+
+    fn pending(&self) -> usize {
+        self.inboxes
+            .get(usize::from(self.me))
+            .map_or(0, |i| i.queue.len())
+    }
+}
+
+/// Shift every node of `layout` from the `old` cuts to the `new` ones, in rounds of shifts
+/// between neighbours ([`next_step`]). `data` is the whole volume, from which each node
+/// loads its old slab at the start; `capacity` is each receive buffer's bytes. Returns each
+/// node's storage (its new stored planes, plane-major), in node-id order, and the report.
+#[allow(
+    clippy::too_many_arguments,
+    reason = "one call site: the machine's shape"
+)]
+pub fn run<T: Sample>(
+    grid: &Grid,
+    data: &[T],
+    layout: Layout,
+    old: &Partition,
+    new: &Partition,
+    ghost: u32,
+    capacity: usize,
+    profile: Option<&MachineProfile>,
+) -> Result<(Vec<Vec<T>>, ShiftReport), ShiftFailure> {
+    let plane = grid.plane_len();
+    let nodes = layout.nodes() as usize;
+    // Each node loads its slab of the old cuts; from here on it has only its own storage.
+    let mut storages: Vec<Vec<T>> = (0..nodes as u16)
+        .map(|node| {
+            let j = usize::from(layout.place(node).1);
+            let s = stored_planes(grid, old.planes(j), ghost);
+            data[s.start as usize * plane..s.end as usize * plane].to_vec()
+        })
+        .collect();
+    let mut report = ShiftReport {
+        messages: 0,
+        bytes: 0,
+        seconds: profile.map(|_| 0.0),
+        per_node: if profile.is_some() {
+            vec![(0.0, 0.0); nodes]
+        } else {
+            Vec::new()
+        },
+        peak_samples: storages.iter().map(Vec::len).max().unwrap_or(0),
+        rounds: 0,
+    };
+    let mut current = old.clone();
+    while current != *new {
+        let next = next_step(&current, new).map_err(ShiftFailure::Plan)?;
+        round(
+            grid,
+            &mut storages,
+            layout,
+            (&current, &next),
+            ghost,
+            capacity,
+            profile,
+            &mut report,
+        )?;
+        current = next;
+    }
+    Ok((storages, report))
+}
+
+/// One round: every node shifts from `cuts.0` to `cuts.1` (neighbouring cuts), in parallel.
+#[allow(
+    clippy::too_many_arguments,
+    reason = "one call site: the round's shape"
+)]
+fn round<T: Sample>(
+    grid: &Grid,
+    storages: &mut [Vec<T>],
+    layout: Layout,
+    cuts: (&Partition, &Partition),
+    ghost: u32,
+    capacity: usize,
+    profile: Option<&MachineProfile>,
+    report: &mut ShiftReport,
+) -> Result<(), ShiftFailure> {
+    let plane = grid.plane_len();
+    let nodes = storages.len();
+    let mut shifts = Vec::with_capacity(nodes);
+    for (node, storage) in storages.iter_mut().enumerate() {
+        let (cluster, position) = layout.place(node as u16);
+        let p =
+            plan(grid, cuts.0, cuts.1, ghost, usize::from(position)).map_err(ShiftFailure::Plan)?;
+        // The node's storage holds the larger of its slabs before and after the round.
+        storage.resize(p.old.len().max(p.new.len()) * plane, T::default());
+        report.peak_samples = report.peak_samples.max(storage.len());
+        let place = Place {
+            layout,
+            cluster,
+            position,
+        };
+        shifts.push(Shift::new(grid, p, place, storage).map_err(ShiftFailure::Plan)?);
+    }
+    let mut inboxes: Vec<Inbox> = (0..nodes).map(|_| Inbox::default()).collect();
+    let (mut sent, mut sent_bytes, mut received) =
+        (vec![0u64; nodes], vec![0u64; nodes], vec![0u64; nodes]);
+    loop {
+        let unfinished = shifts.iter().filter(|s| !s.done()).count();
+        if unfinished == 0 {
+            break;
+        }
+        let mut moved = false;
+        for (node, shift) in shifts.iter_mut().enumerate() {
+            let mut port = ShiftPort {
+                inboxes: &mut inboxes,
+                capacity,
+                me: node as u16,
+                sent: 0,
+                sent_bytes: 0,
+                received: 0,
+            };
+            moved |= shift.poll(&mut port) == Progress::Busy;
+            sent[node] += port.sent;
+            sent_bytes[node] += port.sent_bytes;
+            received[node] += port.received;
+        }
+        if !moved {
+            return Err(ShiftFailure::Stalled { unfinished });
+        }
+    }
+    if let Some(node) = shifts.iter().position(|s| s.strays() > 0) {
+        return Err(ShiftFailure::Strays { node: node as u16 });
+    }
+    let stored: Vec<_> = shifts.iter().map(Shift::stored).collect();
+    drop(shifts);
+    for (storage, s) in storages.iter_mut().zip(&stored) {
+        storage.truncate(s.len() * plane);
+    }
+    report.rounds += 1;
+    report.messages += sent.iter().sum::<u64>();
+    report.bytes += sent_bytes.iter().sum::<u64>();
+    if let Some(p) = profile {
+        let m = &p.messages;
+        let mut slowest = 0.0f64;
+        for (n, total) in report.per_node.iter_mut().enumerate() {
+            let send = sent[n] as f64 * (m.latency + m.write) + sent_bytes[n] as f64 * m.per_byte;
+            let receive = received[n] as f64 * m.read;
+            total.0 += send;
+            total.1 += receive;
+            slowest = slowest.max(send + receive);
+        }
+        // The rounds follow one another; within one, every node shifts at once.
+        report.seconds = report.seconds.map(|s| s + slowest);
+    }
+    Ok(())
+}
