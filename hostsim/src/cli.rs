@@ -477,12 +477,7 @@ fn balance_view(
     };
     let timing = crate::profile::MachineProfile::load(name).map_err(|e| e.to_string())?;
     let size = machine.cluster_size();
-    let buffer = match machine.buffer_bytes {
-        Some(b) => b,
-        None => {
-            voxcube_kernel::flow::buffer_bytes(size as usize, crate::fabric::sim::DEFAULT_I_MAX)
-        }
-    };
+    let buffer = machine.sim_config().map_err(|e| e.to_string())?.buffer();
     let cap = crate::budget::max_owned_planes(
         machine.profile,
         &volume.grid,

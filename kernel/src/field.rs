@@ -191,8 +191,8 @@ pub fn trilinear4<T: Sample>(
 }
 
 /// A cell some of whose nodes lie outside the stored planes: each node read alone, the misses
-/// counted; the low-x and high-x nodes as [`trilinear`] lays them out. Never taken when the ghost planes are wide enough; kept out of line so that the
-/// sample loop stays small.
+/// counted, the low-x and high-x nodes laid out as [`trilinear`] lanes them. Never taken when
+/// the ghost planes are wide enough; kept out of line so that the sample loop stays small.
 #[cold]
 #[inline(never)]
 fn cell_missing<T: Sample>(

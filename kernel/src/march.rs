@@ -210,11 +210,16 @@ pub fn march<T: Sample>(
                     return Stop::Hit(hit);
                 }
             }
-            // Most samples of a composited view are transparent, and their colour unused.
-            Mode::Composite(tf) if tf.opacity(v) > 0.0 => {
-                let (base, alpha) = tf.eval(v);
-                let alpha = corrected_opacity(alpha, ray.lattice.segment(ray.k) / view.cell_edge());
+            Mode::Composite(tf) => {
+                // Most samples of a composited view are transparent: their colour is not
+                // looked at.
+                let span = tf.span(v);
+                let alpha = corrected_opacity(
+                    tf.opacity_at(span),
+                    ray.lattice.segment(ray.k) / view.cell_edge(),
+                );
                 if alpha > 0.0 {
+                    let base = tf.color_at(span);
                     // Compositing casts no shadows: every light is fully visible.
                     let light = lighting(view, slab, base, p, None, ray.ray.dir_world, counters);
                     let color = light.color(&[1.0; MAX_LIGHTS]);
@@ -227,7 +232,6 @@ pub fn march<T: Sample>(
                     }
                 }
             }
-            Mode::Composite(_) => {}
         }
         ray.prev = v;
         ray.primed = true;

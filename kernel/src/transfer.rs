@@ -67,6 +67,15 @@ impl fmt::Display for TransferError {
 
 impl core::error::Error for TransferError {}
 
+/// Where a data value falls among a transfer function's control points.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Span {
+    /// On point `i`'s value, or beyond the first or last point (which then applies).
+    At(usize),
+    /// Between points `i` and `i + 1`, the fraction `f` of the way.
+    Between(usize, f32),
+}
+
 /// A transfer function.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TransferFunction {
@@ -97,47 +106,63 @@ impl TransferFunction {
         &self.points
     }
 
-    /// Colour and per-cell-edge opacity at data value `v`.
-    pub fn eval(&self, v: f32) -> (Vec3, f32) {
+    /// Where data value `v` falls among the control points: one lookup that
+    /// [`TransferFunction::opacity_at`] and [`TransferFunction::color_at`] share, so a sample
+    /// found transparent never pays for its colour.
+    pub fn span(&self, v: f32) -> Span {
         let pts = &self.points;
         let (first, last) = match (pts.first(), pts.last()) {
             (Some(f), Some(l)) => (f, l),
-            _ => return (Vec3::ZERO, 0.0),
+            _ => return Span::At(0),
         };
         if !(v > first.value) {
             // Also catches NaN: it maps to the first point, never to NaN.
-            return (first.color, first.opacity);
+            return Span::At(0);
         }
         if v >= last.value {
-            return (last.color, last.opacity);
+            return Span::At(pts.len() - 1);
         }
         let i = pts.partition_point(|p| p.value <= v);
         let (a, b) = (&pts[i - 1], &pts[i]);
-        let f = (v - a.value) / (b.value - a.value);
-        (
-            a.color + (b.color - a.color) * f,
-            a.opacity + (b.opacity - a.opacity) * f,
-        )
+        Span::Between(i - 1, (v - a.value) / (b.value - a.value))
     }
 
-    /// The opacity of [`TransferFunction::eval`] alone, by the same arithmetic (so equal to
-    /// it in every bit), for the test whether a sample shows at all.
+    /// The per-cell-edge opacity at `span`.
+    pub fn opacity_at(&self, span: Span) -> f32 {
+        self.mix(span, |p| p.opacity, 0.0, |a, b, f| a + (b - a) * f)
+    }
+
+    /// The colour at `span`.
+    pub fn color_at(&self, span: Span) -> Vec3 {
+        self.mix(span, |p| p.color, Vec3::ZERO, |a, b, f| a + (b - a) * f)
+    }
+
+    /// A point's `field` at `span`, or `lerp` between two points' (`none` past the points).
+    fn mix<V: Copy>(
+        &self,
+        span: Span,
+        field: impl Fn(&ControlPoint) -> V,
+        none: V,
+        lerp: impl Fn(V, V, f32) -> V,
+    ) -> V {
+        match span {
+            Span::At(i) => self.points.get(i).map_or(none, field),
+            Span::Between(i, f) => match (self.points.get(i), self.points.get(i + 1)) {
+                (Some(a), Some(b)) => lerp(field(a), field(b), f),
+                _ => none,
+            },
+        }
+    }
+
+    /// Colour and per-cell-edge opacity at data value `v`.
+    pub fn eval(&self, v: f32) -> (Vec3, f32) {
+        let span = self.span(v);
+        (self.color_at(span), self.opacity_at(span))
+    }
+
+    /// The opacity of [`TransferFunction::eval`] alone (equal to it in every bit).
     pub fn opacity(&self, v: f32) -> f32 {
-        let pts = &self.points;
-        let (first, last) = match (pts.first(), pts.last()) {
-            (Some(f), Some(l)) => (f, l),
-            _ => return 0.0,
-        };
-        if !(v > first.value) {
-            return first.opacity;
-        }
-        if v >= last.value {
-            return last.opacity;
-        }
-        let i = pts.partition_point(|p| p.value <= v);
-        let (a, b) = (&pts[i - 1], &pts[i]);
-        let f = (v - a.value) / (b.value - a.value);
-        a.opacity + (b.opacity - a.opacity) * f
+        self.opacity_at(self.span(v))
     }
 }
 
@@ -150,7 +175,7 @@ impl TransferFunction {
             .iter()
             .filter(|p| p.value > lo && p.value < hi)
             .map(|p| p.opacity);
-        inner.fold(self.eval(lo).1.max(self.eval(hi).1), f32::max)
+        inner.fold(self.opacity(lo).max(self.opacity(hi)), f32::max)
     }
 }
 

@@ -240,16 +240,10 @@ impl View {
         })
     }
 
-    /// Whether a sample in a block whose values lie in `r` can be skipped, provably changing
-    /// nothing: for surfaces, the block is below every iso value and so was the previous
-    /// sample (no crossing, and no cut face); for compositing, nothing in the range is opaque.
-    #[inline]
-    pub fn skippable(&self, ray: &RayState, r: Range) -> bool {
-        self.empty(r) && self.may_skip(ray)
-    }
-
-    /// The block half of [`View::skippable`]: nothing with values in `r` can show. Depends on
-    /// the block alone, so a marcher may remember it while it stays in one block.
+    /// Whether nothing with values in `r` can show: for surfaces, `r` lies below every iso
+    /// value; for compositing, nothing in it is opaque. A sample in such a block may be
+    /// skipped, provably changing nothing, when [`View::may_skip`] also holds. Depends on the
+    /// block alone, so a marcher may remember it while it stays in one block.
     #[inline]
     pub fn empty(&self, r: Range) -> bool {
         match &self.spec.mode {
@@ -259,7 +253,7 @@ impl View {
         }
     }
 
-    /// The ray half of [`View::skippable`]: a surface ray may skip only where no crossing
+    /// The ray's half of the skipping test: a surface ray may skip only where no crossing
     /// from its previous sample is pending (that sample was below every iso value, or itself
     /// skipped) and nothing on the current segment has been reported.
     #[inline]

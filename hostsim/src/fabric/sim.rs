@@ -212,7 +212,7 @@ pub enum SimError {
     Partition(#[from] PartitionError),
     /// The plane shift to balanced cuts failed.
     #[error("{0}")]
-    Shift(String),
+    Shift(#[from] super::shift::ShiftFailure),
     /// A slab could not be built.
     #[error("slab: {0}")]
     Slab(#[from] SlabError),
@@ -453,8 +453,7 @@ fn run_typed<T: Sample>(
                 ghost,
                 capacity,
                 cfg.time.as_ref(),
-            )
-            .map_err(|e| SimError::Shift(e.to_string()))?;
+            )?;
             Some((storages, report))
         }
         _ => None,
