@@ -73,7 +73,9 @@ pub enum Command {
         no_skip: bool,
         /// Balance every view's slabs first, as the paper does: one cluster traces a probe
         /// of about 32x32 primary rays, timed by the --machine profile, and the slab sizes
-        /// follow the workers' times. Also a view's `balance = true`. Changes no pixel.
+        /// follow the workers' times. The nodes start on uniform slabs and shift planes to
+        /// their neighbours by message, on every fabric. Also a view's `balance = true`.
+        /// Changes no pixel.
         #[arg(long)]
         balance: bool,
     },
@@ -359,13 +361,6 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                     // Configuration errors up front: nothing renders if any view cannot.
                     preflight(&job.volume, &v.view, &m)
                         .map_err(|e| format!("{}/{}: {e}", job.name, v.name))?;
-                    if (balance || v.balance) && m.fabric == Fabric::Mpi {
-                        return Err(format!(
-                            "{}/{}: load balancing runs on the sim and threads fabrics, not yet on MPI",
-                            job.name, v.name
-                        )
-                        .into());
-                    }
                     plan.push((job, v, m));
                 }
             }
@@ -380,7 +375,8 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 if world.rank() != 0 {
                     // A node rank: serve every view's node, write nothing.
                     for (job, v, machine) in &plan {
-                        if let Err(e) = mpi_serve(world, &job.volume, &v.view, machine) {
+                        let balanced = (balance || v.balance) && machine.cluster_size() > 1;
+                        if let Err(e) = mpi_serve(world, &job.volume, &v.view, machine, balanced) {
                             eprintln!(
                                 "voxcube: error: rank {}: {}/{}: {e}",
                                 world.rank(),
@@ -419,10 +415,19 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                     bar.set_position(done);
                 };
                 let balanced = if (balance || v.balance) && machine.cluster_size() > 1 {
-                    Some(
-                        balance_view(&job.volume, &v.view, &machine, profile)
-                            .map_err(|e| format!("{}/{}: {e}", job.name, v.name))?,
-                    )
+                    match balance_view(&job.volume, &v.view, &machine, profile) {
+                        Ok(b) => Some(b),
+                        Err(e) => {
+                            let e = format!("{}/{}: {e}", job.name, v.name);
+                            // The node ranks wait for the cuts: stop them all, never a hang.
+                            #[cfg(feature = "mpi")]
+                            if let Some(world) = &mpi_world {
+                                eprintln!("voxcube: error: {e}");
+                                mpi::topology::Communicator::abort(world, 1);
+                            }
+                            return Err(e.into());
+                        }
+                    }
                 } else {
                     None
                 };
@@ -431,7 +436,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                     #[cfg(feature = "mpi")]
                     Fabric::Mpi => {
                         let world = mpi_world.as_ref().ok_or("MPI is not initialised")?;
-                        mpi_host(world, &job.volume, &v.view, &machine)
+                        mpi_host(world, &job.volume, &v.view, &machine, cuts)
                             .map_err(|e| format!("{}/{}: {e}", job.name, v.name))?
                     }
                     _ => render_cut(&job.volume, &v.view, &machine, cuts, &progress)
@@ -528,13 +533,14 @@ fn mpi_serve(
     volume: &crate::dataset::Volume,
     view: &voxcube_kernel::view::View,
     machine: &Machine,
+    balanced: bool,
 ) -> Result<(), Box<dyn std::error::Error>> {
-    Ok(crate::fabric::mpi::serve(
-        world,
-        volume,
-        view,
-        &machine.sim_config()?,
-    )?)
+    // Balanced: the node takes the host's cuts and shifts to them.
+    let cfg = crate::fabric::sim::SimConfig {
+        shift: balanced,
+        ..machine.sim_config()?
+    };
+    Ok(crate::fabric::mpi::serve(world, volume, view, &cfg)?)
 }
 
 #[cfg(feature = "mpi")]
@@ -543,9 +549,15 @@ fn mpi_host(
     volume: &crate::dataset::Volume,
     view: &voxcube_kernel::view::View,
     machine: &Machine,
+    cuts: Option<&[u32]>,
 ) -> Result<crate::render::Rendered, Box<dyn std::error::Error>> {
     use mpi::topology::Communicator;
-    match crate::fabric::mpi::host(world, volume, view, &machine.sim_config()?) {
+    let cfg = crate::fabric::sim::SimConfig {
+        cuts: cuts.map(<[u32]>::to_vec),
+        shift: cuts.is_some(),
+        ..machine.sim_config()?
+    };
+    match crate::fabric::mpi::host(world, volume, view, &cfg) {
         Ok(run) => Ok(crate::render::Rendered::from_run(view, run)),
         Err(e) => {
             eprintln!("voxcube: error: {e}");

@@ -286,11 +286,10 @@ pub fn render_cut(
             "the MPI fabric renders through `voxcube render --fabric mpi` under mpirun".into(),
         )),
         Fabric::Sim | Fabric::Threads => {
-            // On the simulator the nodes shift planes to the cuts by message; the threads
-            // fabric loads its slabs of the cuts directly.
+            // The nodes start on uniform slabs and shift planes to the cuts by message.
             let cfg = SimConfig {
                 cuts: cuts.map(<[u32]>::to_vec),
-                shift: cuts.is_some() && machine.fabric == Fabric::Sim,
+                shift: cuts.is_some(),
                 ..machine.sim_config()?
             };
             let run = match machine.fabric {

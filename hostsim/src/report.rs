@@ -446,8 +446,9 @@ pub fn summary(views: &[ViewReport]) -> String {
                 .collect();
             let shift = match &t.shift {
                 Some(s) => format!(
-                    "; before rendering, the nodes shifted planes to the balanced cuts: {} rounds, {} messages, {} bytes",
+                    "; before rendering, the nodes shifted planes to the balanced cuts: {} round{}, {} messages, {} bytes",
                     s.rounds,
+                    if s.rounds == 1 { "" } else { "s" },
                     count(s.messages),
                     s.bytes
                 ),

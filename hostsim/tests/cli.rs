@@ -184,14 +184,22 @@ fn bad_machines_are_clear_errors() {
 
 #[test]
 fn balancing_moves_the_cuts_and_not_a_pixel() {
+    for fabric in ["sim", "threads"] {
+        balancing_on(fabric);
+    }
+}
+
+/// `--balance` on `fabric`: the nodes shift planes by message to the cuts the probe chose,
+/// and the image stays the same.
+fn balancing_on(fabric: &str) {
     let dir = tempfile::tempdir().expect("tempdir");
-    let machine = ["--nodes", "8", "--clusters", "2", "--fabric", "sim"];
+    let machine = ["--nodes", "8", "--clusters", "2", "--fabric", fabric];
     let (plain, _) = render_ok(dir.path(), &machine, "plain.json");
     let mut args = machine.to_vec();
     args.push("--balance");
     let (balanced, stdout) = render_ok(dir.path(), &args, "balanced.json");
     let (p, b) = (&plain["views"][0], &balanced["views"][0]);
-    assert_eq!(p["pixels_sha256"], b["pixels_sha256"]);
+    assert_eq!(p["pixels_sha256"], b["pixels_sha256"], "{fabric}");
     assert!(p["balance"].is_null());
     let report = &b["balance"];
     let cuts = |key: &str| -> Vec<u64> {
@@ -214,7 +222,10 @@ fn balancing_moves_the_cuts_and_not_a_pixel() {
         assert!(c.windows(2).all(|w| w[0] < w[1]), "{c:?}");
     }
     let frames = report["probe_frames"].as_array().expect("frames");
-    let (uniform, new) = (frames[0].as_f64().unwrap(), frames[1].as_f64().unwrap());
+    let (uniform, new) = (
+        frames[0].as_f64().expect("a time"),
+        frames[1].as_f64().expect("a time"),
+    );
     // Kept exactly when the probe ran faster with the proposal.
     assert_eq!(used == proposed, new < uniform, "{uniform} {new} {used:?}");
     assert_eq!(report["times_before"].as_array().map(Vec::len), Some(4));
@@ -235,6 +246,13 @@ fn balancing_moves_the_cuts_and_not_a_pixel() {
         );
     }
     assert!(stdout.contains("molecule/paper: balance ("), "{stdout}");
+    // They got there from uniform slabs by slab-plane messages.
+    let shift = &b["traffic"]["shift"];
+    assert!(p["traffic"]["shift"].is_null(), "{fabric}");
+    if used != before {
+        assert!(shift["messages"].as_u64() > Some(0), "{fabric}: {shift}");
+        assert!(shift["rounds"].as_u64() >= Some(1), "{fabric}: {shift}");
+    }
 }
 
 #[test]

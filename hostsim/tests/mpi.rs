@@ -1,5 +1,6 @@
 //! The MPI fabric, under `mpirun` on loopback (`cargo test -p voxcube --features mpi --test mpi`;
-//! needs Open MPI). The image equals the simulator's bit for bit; a rank that hangs or dies
+//! needs Open MPI). The image equals the simulator's bit for bit, balanced or not, and a
+//! balanced run's nodes shift the same planes as the simulator's; a rank that hangs or dies
 //! mid-render ends the run within seconds with an error, never a hang.
 #![cfg(feature = "mpi")]
 
@@ -93,6 +94,66 @@ fn mpi_images_equal_the_simulator_s() {
                 sha_of(&sim_report),
                 "{scene} on {nodes} nodes in {clusters} clusters"
             );
+        }
+    }
+}
+
+fn read_report(path: &Path) -> serde_json::Value {
+    serde_json::from_slice(&std::fs::read(path).expect("report")).expect("json")
+}
+
+#[test]
+fn balanced_mpi_nodes_shift_the_simulator_s_planes() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    for scene in scenes() {
+        let mut common = vec![
+            "render",
+            "--nodes",
+            "8",
+            "--clusters",
+            "2",
+            "--balance",
+            "-q",
+        ];
+        if !scene.is_empty() {
+            common.insert(1, &scene);
+        }
+        let run = |fabric: &str| {
+            let path = dir.path().join(format!("{fabric}.json"));
+            let mut args = common.clone();
+            let out_dir = dir.path().join(fabric).display().to_string();
+            let report = path.display().to_string();
+            args.extend(["--fabric", fabric, "-o", &out_dir, "--report", &report]);
+            let out = if fabric == "mpi" {
+                mpirun(9, &args, None)
+            } else {
+                Command::new(env!("CARGO_BIN_EXE_voxcube"))
+                    .args(&args)
+                    .output()
+                    .expect("runs")
+            };
+            assert!(
+                out.status.success(),
+                "{scene} {fabric}: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            read_report(&path)
+        };
+        let (mpi, sim) = (run("mpi"), run("sim"));
+        for v in 0..sim["views"].as_array().map_or(0, Vec::len) {
+            let (m, s) = (&mpi["views"][v], &sim["views"][v]);
+            assert_eq!(m["pixels_sha256"], s["pixels_sha256"], "{scene} view {v}");
+            assert_eq!(m["balance"]["cuts_used"], s["balance"]["cuts_used"]);
+            let shift = &s["traffic"]["shift"];
+            if s["balance"]["cuts_used"] != s["balance"]["cuts_before"] {
+                assert!(shift["messages"].as_u64() > Some(0), "{scene}: {shift}");
+            }
+            for key in ["messages", "bytes", "rounds"] {
+                assert_eq!(
+                    m["traffic"]["shift"][key], shift[key],
+                    "{scene} view {v}: {key}"
+                );
+            }
         }
     }
 }

@@ -1,10 +1,10 @@
 //! Slab planes shifted between ring neighbours to new cuts: rounds reach any partition, no
 //! slab outgrows the larger of its sizes before and after on the way (so a memory cap that
 //! holds for both holds throughout), and every node of every cluster ends with exactly the
-//! planes of its new slab, ghosts included.
+//! planes of its new slab, ghosts included, on the simulator and on OS threads.
 
 use proptest::prelude::*;
-use voxcube::fabric::shift;
+use voxcube::fabric::{shift, threads};
 use voxcube_kernel::grid::Grid;
 use voxcube_kernel::partition::Partition;
 use voxcube_kernel::shift::{next_step, plan};
@@ -78,17 +78,25 @@ fn every_node_of_every_cluster_ends_with_its_new_slab() {
         let layout = Layout::new(clusters, size).expect("layout");
         let old = Partition::uniform(dims[0], size as usize).expect("uniform");
         let new = Partition::new(cuts, dims[0]).expect("cuts");
-        for (ghost, capacity) in [(0, 300), (2, 1000), (3, 100_000)] {
-            let (storages, report) =
+        for ((ghost, capacity), threads) in [(0, 300), (2, 1000), (3, 100_000)]
+            .into_iter()
+            .flat_map(|g| [(g, 0), (g, 1), (g, 3)])
+        {
+            // Threads 0: the simulator's driver; otherwise the threads fabric's, on so many
+            // OS threads.
+            let (storages, report) = if threads == 0 {
                 shift::run(&grid, &data, layout, &old, &new, ghost, capacity, None)
-                    .expect("shifts");
+            } else {
+                threads::shift(&grid, &data, layout, &old, &new, ghost, capacity, threads)
+            }
+            .expect("shifts");
             assert!(report.messages > 0 && report.rounds >= 1, "{report:?}");
             for (node, storage) in storages.iter().enumerate() {
                 let j = usize::from(layout.place(node as u16).1);
                 let s = stored_planes(&grid, new.planes(j), ghost);
                 assert!(
                     storage[..] == data[s.start as usize * plane..s.end as usize * plane],
-                    "node {node}, cuts {cuts:?}, ghost {ghost}"
+                    "node {node}, cuts {cuts:?}, ghost {ghost}, threads {threads}"
                 );
             }
         }

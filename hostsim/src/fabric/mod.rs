@@ -267,6 +267,46 @@ pub fn block_storage<T: voxcube_kernel::sample::Sample>(
     }
 }
 
+/// Each node's stored planes, in node-id order: its own storage after a plane shift
+/// (`shifted`), else its slab of `partition` in `data`, which every cluster holds alike at a
+/// ring position; and the min/max blocks of each ring position (`skip`), built from cluster
+/// 0's node there.
+pub fn node_storage<'d, T: voxcube_kernel::sample::Sample>(
+    grid: &Grid,
+    layout: Layout,
+    partition: &Partition,
+    ghost: u32,
+    data: &'d [T],
+    shifted: Option<&'d [Vec<T>]>,
+    skip: bool,
+) -> (Vec<&'d [T]>, Vec<Vec<voxcube_kernel::blocks::Range>>) {
+    let plane = grid.plane_len();
+    let storage: Vec<&[T]> = (0..layout.nodes() as u16)
+        .map(|node| match shifted {
+            Some(storages) => storages[usize::from(node)].as_slice(),
+            None => {
+                let j = usize::from(layout.place(node).1);
+                let s = stored_planes(grid, partition.planes(j), ghost);
+                &data[s.start as usize * plane..s.end as usize * plane]
+            }
+        })
+        .collect();
+    let blocks = (0..layout.size())
+        .map(|j| {
+            let node = usize::from(layout.node(0, j));
+            voxcube_kernel::slab::Slab::new(
+                *grid,
+                partition.planes(usize::from(j)),
+                ghost,
+                storage[node],
+            )
+            .map(|s| block_storage(&s, skip))
+            .unwrap_or_default()
+        })
+        .collect();
+    (storage, blocks)
+}
+
 /// `slab`, skipping empty space with the blocks in `storage` (none when it is empty).
 pub fn with_blocks<'a, T: voxcube_kernel::sample::Sample>(
     slab: voxcube_kernel::slab::Slab<'a, T>,

@@ -10,6 +10,12 @@
 //! Views run one after another; a barrier ends each, so no message of the next view reaches a
 //! host still ending this one.
 //!
+//! Balanced views (`SimConfig::shift`): the host broadcasts the cuts it chose, and every node
+//! starts on its uniform slab and shifts planes to its neighbours by slab-plane messages
+//! before rendering, round `r` under its own tag ([`TAG_SHIFT`]` + r`), so a chunk sent by a
+//! node already in the next round waits in MPI's queue until its receiver gets there: no
+//! barrier is needed. Each node then tells the host what it sent.
+//!
 //! Faults: every node sends the host a heartbeat every [`HEARTBEAT`]. A node the host has not
 //! heard from for [`TIMEOUT`], before it reported, is declared lost. The host names it and the
 //! pixels it lacks, and the run fails (the caller aborts the job, so no rank hangs). A rank that
@@ -19,19 +25,22 @@
 use super::host::Host;
 use super::{Distributed, NodeReport};
 use crate::dataset::{Volume, VolumeData};
+use crate::fabric::shift::{self as planes, Counted, ShiftFailure, ShiftReport};
 use crate::fabric::sim::{SimConfig, SimError, SimWorker};
-use mpi::collective::CommunicatorCollectives;
+use mpi::collective::{CommunicatorCollectives, Root};
 use mpi::datatype::Equivalence;
 use mpi::point_to_point::{Destination, Source};
 use mpi::topology::{Communicator, SimpleCommunicator};
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 use voxcube_kernel::flow::Class;
+use voxcube_kernel::grid::Grid;
 use voxcube_kernel::msg::{Msg, MAX_MSG_LEN};
 use voxcube_kernel::partition::Partition;
 use voxcube_kernel::port::{Dest, Port};
 use voxcube_kernel::sample::Sample;
 use voxcube_kernel::slab::{stored_planes, Slab};
+use voxcube_kernel::topology::Layout;
 use voxcube_kernel::view::View;
 use voxcube_kernel::worker::{Place, Progress};
 
@@ -39,6 +48,10 @@ use voxcube_kernel::worker::{Place, Progress};
 const TAG_MSG: i32 = 1;
 /// Tag of heartbeats.
 const TAG_BEAT: i32 = 2;
+/// Tag of a node's account of its plane shift: messages, bytes, peak samples, rounds.
+const TAG_SHIFT_REPORT: i32 = 3;
+/// Tag of the plane shift's first round; round `r` uses `TAG_SHIFT + r`.
+pub const TAG_SHIFT: i32 = 16;
 /// How often a node tells the host it is alive.
 pub const HEARTBEAT: Duration = Duration::from_millis(250);
 /// How long the host waits for a node before declaring it lost.
@@ -113,6 +126,122 @@ impl Port for MpiPort<'_> {
     }
 }
 
+/// The plane shift's port for one round: messages are taken from MPI one at a time, when the
+/// kernel asks, under the round's tag, so later rounds' chunks wait in MPI's queue.
+struct RoundPort<'w> {
+    world: &'w SimpleCommunicator,
+    tag: i32,
+    next: Option<(Dest, Msg)>,
+    error: Option<SimError>,
+}
+
+impl RoundPort<'_> {
+    fn fill(&mut self) {
+        if self.next.is_some() || self.error.is_some() {
+            return;
+        }
+        let Some((message, status)) = self
+            .world
+            .any_process()
+            .immediate_matched_probe_with_tag(self.tag)
+        else {
+            return;
+        };
+        let mut buf = [0u8; MAX_MSG_LEN];
+        let from = status.source_rank();
+        let len = status.count(u8::equivalent_datatype()) as usize;
+        message.matched_receive_into(&mut buf[..]);
+        match Msg::decode(&buf[..len.min(MAX_MSG_LEN)]) {
+            Ok(msg) => self.next = Some((Dest::Node((from - 1) as u16), msg)),
+            Err(error) => {
+                self.error = Some(SimError::Decode {
+                    from: from as u16,
+                    error,
+                })
+            }
+        }
+    }
+}
+
+impl Port for RoundPort<'_> {
+    fn try_send(&mut self, to: Dest, msg: Msg) -> Result<(), Msg> {
+        let Dest::Node(n) = to else { return Err(msg) };
+        let mut buf = [0u8; MAX_MSG_LEN];
+        let len = msg.encode(&mut buf);
+        self.world
+            .process_at_rank(i32::from(n) + 1)
+            .send_with_tag(&buf[..len], self.tag);
+        Ok(())
+    }
+
+    fn peek(&mut self, _: Class) -> Option<&Msg> {
+        self.fill();
+        self.next.as_ref().map(|(_, m)| m)
+    }
+
+    fn try_recv(&mut self, _: Class) -> Option<(Dest, Msg)> {
+        self.fill();
+        self.next.take()
+    }
+
+    fn pending(&self) -> usize {
+        usize::from(self.next.is_some())
+    }
+}
+
+/// Node `node`'s plane shift from the `old` cuts to the `new` ones: its storage (its new
+/// stored planes) and its account (messages, bytes, peak samples, rounds). It heartbeats to
+/// the host while it waits, as it does while rendering.
+#[allow(
+    clippy::too_many_arguments,
+    reason = "one call site: the node's place and the cuts"
+)]
+fn shift<T: Sample>(
+    world: &SimpleCommunicator,
+    grid: &Grid,
+    data: &[T],
+    layout: Layout,
+    node: u16,
+    (old, new): (&Partition, &Partition),
+    ghost: u32,
+    beat: &mut Instant,
+) -> Result<(Vec<T>, [u64; 4]), SimError> {
+    let mut storage = planes::load(grid, data, layout, old, ghost, node);
+    let rounds = planes::rounds(old, new)?;
+    let mut account = [0, 0, storage.len() as u64, rounds.len() as u64];
+    for (r, (from, to)) in rounds.iter().enumerate() {
+        let (mut shift, held) = planes::start(grid, layout, node, (from, to), ghost, &mut storage)?;
+        account[2] = account[2].max(held as u64);
+        let mut port = Counted::new(RoundPort {
+            world,
+            tag: TAG_SHIFT + r as i32,
+            next: None,
+            error: None,
+        });
+        while !shift.done() {
+            let progress = shift.poll(&mut port);
+            if let Some(e) = port.port.error.take() {
+                return Err(e);
+            }
+            if beat.elapsed() >= HEARTBEAT {
+                world.process_at_rank(0).send_with_tag(&[0u8][..], TAG_BEAT);
+                *beat = Instant::now();
+            }
+            if progress == Progress::Idle {
+                std::thread::sleep(Duration::from_micros(20));
+            }
+        }
+        if shift.strays() > 0 {
+            return Err(ShiftFailure::Strays { node }.into());
+        }
+        let stored = shift.stored();
+        planes::keep(grid, &mut storage, &stored);
+        account[0] += port.sent;
+        account[1] += port.sent_bytes;
+    }
+    Ok((storage, account))
+}
+
 /// The test hook: `VOXCUBE_MPI_STOP=<rank>:<ms>[:exit]` stops that rank after `ms`
 /// milliseconds, hanging (stops answering) or, with `:exit`, exiting at once (dies).
 fn stop_hook(rank: i32) -> Option<(Duration, bool)> {
@@ -149,18 +278,46 @@ fn serve_typed<T: Sample>(
     let layout = cfg.layout;
     let rank = world.rank();
     let node = (rank - 1) as u16;
-    let partition = Partition::uniform(grid.dims()[0], usize::from(layout.size()))?;
+    let (nx, size) = (grid.dims()[0], usize::from(layout.size()));
+    let uniform = Partition::uniform(nx, size)?;
     let (flow, capacity) = super::flow_for(cfg, view)?;
     let (cluster, position) = layout.place(node);
     let j = usize::from(position);
-    let stored = stored_planes(&grid, partition.planes(j), view.ghost_planes());
+    let ghost = view.ghost_planes();
     let plane = grid.plane_len();
+    let mut beat = Instant::now();
+    let host = world.process_at_rank(0);
+    host.send_with_tag(&[0u8][..], TAG_BEAT);
+    // Balanced: the host's cuts, reached from the uniform slab by shifting planes.
+    let (partition, shifted) = if cfg.shift {
+        let mut cuts = vec![0u32; size + 1];
+        host.broadcast_into(&mut cuts[..]);
+        let partition = Partition::new(&cuts, nx)?;
+        let (storage, account) = shift(
+            world,
+            &grid,
+            data,
+            layout,
+            node,
+            (&uniform, &partition),
+            ghost,
+            &mut beat,
+        )?;
+        host.send_with_tag(&account[..], TAG_SHIFT_REPORT);
+        (partition, Some(storage))
+    } else {
+        (uniform, None)
+    };
+    let stored = stored_planes(&grid, partition.planes(j), ghost);
     // This node's slab only.
     let slab = Slab::new(
         grid,
         partition.planes(j),
-        view.ghost_planes(),
-        &data[stored.start as usize * plane..stored.end as usize * plane],
+        ghost,
+        match &shifted {
+            Some(storage) => storage.as_slice(),
+            None => &data[stored.start as usize * plane..stored.end as usize * plane],
+        },
     )?;
     let block_store = super::block_storage(&slab, cfg.skip);
     let slab = super::with_blocks(slab, &block_store);
@@ -186,9 +343,6 @@ fn serve_typed<T: Sample>(
     };
     let start = Instant::now();
     let stop = stop_hook(rank);
-    let mut beat = Instant::now();
-    let host = world.process_at_rank(0);
-    host.send_with_tag(&[0u8][..], TAG_BEAT);
     while !worker.has_reported() || port.pending() > 0 {
         if let Some((after, die)) = stop {
             if start.elapsed() >= after {
@@ -245,8 +399,6 @@ pub fn host(
         usize::from(layout.clusters()),
         nodes,
     );
-    let mut heard = vec![Instant::now(); nodes];
-    let mut buf = [0u8; MAX_MSG_LEN];
     let failed = |what: String| SimError::Invariant {
         what,
         events: 0,
@@ -254,8 +406,43 @@ pub fn host(
         scheduler: crate::fabric::sim::Scheduler::Uniform,
         trace: Default::default(),
     };
+    let (nx, size) = (volume.grid.dims()[0], usize::from(layout.size()));
+    // Balanced: every node takes the cuts, and shifts to them before rendering.
+    let partition = match (&cfg.cuts, cfg.shift) {
+        (Some(cuts), true) => {
+            let partition = Partition::new(cuts, nx)?;
+            if partition.slabs() != size {
+                return Err(failed(format!(
+                    "{} cuts for clusters of {size}",
+                    cuts.len()
+                )));
+            }
+            let mut cuts = cuts.clone();
+            world.process_at_rank(0).broadcast_into(&mut cuts[..]);
+            partition
+        }
+        _ => Partition::uniform(nx, size)?,
+    };
+    let mut accounts: Vec<Option<[u64; 4]>> = vec![None; if cfg.shift { nodes } else { 0 }];
+    let mut heard = vec![Instant::now(); nodes];
+    let mut buf = [0u8; MAX_MSG_LEN];
     while !host.done() {
         let mut any = false;
+        while let Some((message, status)) = world
+            .any_process()
+            .immediate_matched_probe_with_tag(TAG_SHIFT_REPORT)
+        {
+            let mut account = [0u64; 4];
+            message.matched_receive_into(&mut account[..]);
+            let n = (status.source_rank() - 1) as usize;
+            if let Some(a) = accounts.get_mut(n) {
+                *a = Some(account);
+            }
+            if let Some(h) = heard.get_mut(n) {
+                *h = Instant::now();
+            }
+            any = true;
+        }
         while let Some((message, status)) = world
             .any_process()
             .immediate_matched_probe_with_tag(TAG_BEAT)
@@ -306,10 +493,31 @@ pub fn host(
         }
     }
     let (image, reports) = host.finish().map_err(failed)?;
+    // A node that reported its statistics sent its shift account before them: waiting for
+    // it cannot hang.
+    for (n, account) in accounts.iter_mut().enumerate() {
+        if account.is_none() {
+            let mut a = [0u64; 4];
+            world
+                .process_at_rank(n as i32 + 1)
+                .receive_into_with_tag(&mut a[..], TAG_SHIFT_REPORT);
+            *account = Some(a);
+        }
+    }
+    let shift = (!accounts.is_empty()).then(|| {
+        let all = accounts.iter().flatten();
+        ShiftReport {
+            messages: all.clone().map(|a| a[0]).sum(),
+            bytes: all.clone().map(|a| a[1]).sum(),
+            seconds: None,
+            per_node: Vec::new(),
+            peak_samples: all.clone().map(|a| a[2] as usize).max().unwrap_or(0),
+            rounds: all.map(|a| a[3] as u32).max().unwrap_or(0),
+        }
+    });
     // Views are separated: every node waits here until the host has ended this view.
     world.barrier();
     let grid = volume.grid;
-    let partition = Partition::uniform(grid.dims()[0], usize::from(layout.size()))?;
     let sample_bytes = volume.data.kind().bytes();
     let nodes: Vec<NodeReport> = reports
         .into_iter()
@@ -339,6 +547,6 @@ pub fn host(
         i_max: flow.i_max,
         wall: start.elapsed(),
         time: None,
-        shift: None,
+        shift,
     })
 }

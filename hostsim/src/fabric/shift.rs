@@ -89,9 +89,6 @@ struct ShiftPort<'n> {
     inboxes: &'n mut [Inbox],
     capacity: usize,
     me: u16,
-    sent: u64,
-    sent_bytes: u64,
-    received: u64,
 }
 
 impl Port for ShiftPort<'_> {
@@ -106,8 +103,6 @@ impl Port for ShiftPort<'_> {
         }
         inbox.bytes += len;
         inbox.queue.push_back((Dest::Node(self.me), msg));
-        self.sent += 1;
-        self.sent_bytes += len as u64;
         Ok(())
     }
 
@@ -122,7 +117,6 @@ impl Port for ShiftPort<'_> {
         let inbox = self.inboxes.get_mut(usize::from(self.me))?;
         let (from, msg) = inbox.queue.pop_front()?;
         inbox.bytes = inbox.bytes.saturating_sub(msg.kind().encoded_len());
-        self.received += 1;
         Some((from, msg))
     }
 
@@ -131,6 +125,120 @@ impl Port for ShiftPort<'_> {
             .get(usize::from(self.me))
             .map_or(0, |i| i.queue.len())
     }
+}
+
+/// A port that counts the messages a node sends (and their bytes) and receives: every
+/// fabric's shift reports them alike.
+#[derive(Debug)]
+pub struct Counted<P> {
+    /// The fabric's port.
+    pub port: P,
+    /// Messages sent.
+    pub sent: u64,
+    /// Their encoded bytes.
+    pub sent_bytes: u64,
+    /// Messages received.
+    pub received: u64,
+}
+
+impl<P> Counted<P> {
+    /// Counting from zero.
+    pub fn new(port: P) -> Counted<P> {
+        Counted {
+            port,
+            sent: 0,
+            sent_bytes: 0,
+            received: 0,
+        }
+    }
+}
+
+impl<P: Port> Port for Counted<P> {
+    fn try_send(&mut self, to: Dest, msg: Msg) -> Result<(), Msg> {
+        let len = msg.kind().encoded_len();
+        self.port.try_send(to, msg)?;
+        self.sent += 1;
+        self.sent_bytes += len as u64;
+        Ok(())
+    }
+
+    fn peek(&mut self, class: Class) -> Option<&Msg> {
+        self.port.peek(class)
+    }
+
+    fn try_recv(&mut self, class: Class) -> Option<(Dest, Msg)> {
+        let got = self.port.try_recv(class)?;
+        self.received += 1;
+        Some(got)
+    }
+
+    fn pending(&self) -> usize {
+        self.port.pending()
+    }
+}
+
+/// The rounds from `old` to `new` as `(from, to)` cuts, each a shift between neighbours
+/// ([`next_step`]); none when they are equal.
+pub fn rounds(
+    old: &Partition,
+    new: &Partition,
+) -> Result<Vec<(Partition, Partition)>, ShiftFailure> {
+    let mut out = Vec::new();
+    let mut current = old.clone();
+    while current != *new {
+        let next = next_step(&current, new).map_err(ShiftFailure::Plan)?;
+        out.push((current, next.clone()));
+        current = next;
+    }
+    Ok(out)
+}
+
+/// What node `node` loads before any shift: its stored planes of the `old` cuts.
+pub fn load<T: Sample>(
+    grid: &Grid,
+    data: &[T],
+    layout: Layout,
+    old: &Partition,
+    ghost: u32,
+    node: u16,
+) -> Vec<T> {
+    let plane = grid.plane_len();
+    let j = usize::from(layout.place(node).1);
+    let s = stored_planes(grid, old.planes(j), ghost);
+    data[s.start as usize * plane..s.end as usize * plane].to_vec()
+}
+
+/// Node `node`'s part in the round `cuts` (from, to): its plan, its storage grown to the
+/// larger of its stored ranges before and after, and the kernel's [`Shift`] over it, with the
+/// samples the storage now holds (the node's peak in this round). Once the shift is done,
+/// [`Shift::stored`] is what to keep ([`keep`]).
+pub fn start<'s, T: Sample>(
+    grid: &Grid,
+    layout: Layout,
+    node: u16,
+    cuts: (&Partition, &Partition),
+    ghost: u32,
+    storage: &'s mut Vec<T>,
+) -> Result<(Shift<'s, T>, usize), ShiftFailure> {
+    let (cluster, position) = layout.place(node);
+    let p = plan(grid, cuts.0, cuts.1, ghost, usize::from(position)).map_err(ShiftFailure::Plan)?;
+    storage.resize(
+        p.old.len().max(p.new.len()) * grid.plane_len(),
+        T::default(),
+    );
+    let place = Place {
+        layout,
+        cluster,
+        position,
+    };
+    let held = storage.len();
+    let shift = Shift::new(grid, p, place, storage).map_err(ShiftFailure::Plan)?;
+    Ok((shift, held))
+}
+
+/// Cut a node's storage down to the planes `stored` after a round.
+pub fn keep<T>(grid: &Grid, storage: &mut Vec<T>, stored: &std::ops::Range<u32>) {
+    storage.truncate(stored.len() * grid.plane_len());
 }
 
 /// Shift every node of `layout` from the `old` cuts to the `new` ones, in rounds of shifts
@@ -151,15 +259,10 @@ pub fn run<T: Sample>(
     capacity: usize,
     profile: Option<&MachineProfile>,
 ) -> Result<(Vec<Vec<T>>, ShiftReport), ShiftFailure> {
-    let plane = grid.plane_len();
     let nodes = layout.nodes() as usize;
     // Each node loads its slab of the old cuts; from here on it has only its own storage.
     let mut storages: Vec<Vec<T>> = (0..nodes as u16)
-        .map(|node| {
-            let j = usize::from(layout.place(node).1);
-            let s = stored_planes(grid, old.planes(j), ghost);
-            data[s.start as usize * plane..s.end as usize * plane].to_vec()
-        })
+        .map(|node| load(grid, data, layout, old, ghost, node))
         .collect();
     let mut report = ShiftReport {
         messages: 0,
@@ -173,20 +276,17 @@ pub fn run<T: Sample>(
         peak_samples: storages.iter().map(Vec::len).max().unwrap_or(0),
         rounds: 0,
     };
-    let mut current = old.clone();
-    while current != *new {
-        let next = next_step(&current, new).map_err(ShiftFailure::Plan)?;
+    for (from, to) in rounds(old, new)? {
         round(
             grid,
             &mut storages,
             layout,
-            (&current, &next),
+            (&from, &to),
             ghost,
             capacity,
             profile,
             &mut report,
         )?;
-        current = next;
     }
     Ok((storages, report))
 }
@@ -206,22 +306,12 @@ fn round<T: Sample>(
     profile: Option<&MachineProfile>,
     report: &mut ShiftReport,
 ) -> Result<(), ShiftFailure> {
-    let plane = grid.plane_len();
     let nodes = storages.len();
     let mut shifts = Vec::with_capacity(nodes);
     for (node, storage) in storages.iter_mut().enumerate() {
-        let (cluster, position) = layout.place(node as u16);
-        let p =
-            plan(grid, cuts.0, cuts.1, ghost, usize::from(position)).map_err(ShiftFailure::Plan)?;
-        // The node's storage holds the larger of its slabs before and after the round.
-        storage.resize(p.old.len().max(p.new.len()) * plane, T::default());
-        report.peak_samples = report.peak_samples.max(storage.len());
-        let place = Place {
-            layout,
-            cluster,
-            position,
-        };
-        shifts.push(Shift::new(grid, p, place, storage).map_err(ShiftFailure::Plan)?);
+        let (shift, held) = start(grid, layout, node as u16, cuts, ghost, storage)?;
+        report.peak_samples = report.peak_samples.max(held);
+        shifts.push(shift);
     }
     let mut inboxes: Vec<Inbox> = (0..nodes).map(|_| Inbox::default()).collect();
     let (mut sent, mut sent_bytes, mut received) =
@@ -233,14 +323,11 @@ fn round<T: Sample>(
         }
         let mut moved = false;
         for (node, shift) in shifts.iter_mut().enumerate() {
-            let mut port = ShiftPort {
+            let mut port = Counted::new(ShiftPort {
                 inboxes: &mut inboxes,
                 capacity,
                 me: node as u16,
-                sent: 0,
-                sent_bytes: 0,
-                received: 0,
-            };
+            });
             moved |= shift.poll(&mut port) == Progress::Busy;
             sent[node] += port.sent;
             sent_bytes[node] += port.sent_bytes;
@@ -256,7 +343,7 @@ fn round<T: Sample>(
     let stored: Vec<_> = shifts.iter().map(Shift::stored).collect();
     drop(shifts);
     for (storage, s) in storages.iter_mut().zip(&stored) {
-        storage.truncate(s.len() * plane);
+        keep(grid, storage, s);
     }
     report.rounds += 1;
     report.messages += sent.iter().sum::<u64>();

@@ -458,25 +458,15 @@ fn run_typed<T: Sample>(
         }
         _ => None,
     };
-    let storage: Vec<&[T]> = (0..nodes as u16)
-        .map(|node| {
-            let j = usize::from(layout.place(node).1);
-            match &shifted {
-                Some((storages, _)) => storages[usize::from(node)].as_slice(),
-                None => &data[stored[j].start as usize * plane..stored[j].end as usize * plane],
-            }
-        })
-        .collect();
-    // Blocks per ring position, from cluster 0's node at that position (every cluster holds
-    // the same planes there).
-    let block_stores: Vec<Vec<voxcube_kernel::blocks::Range>> = (0..size)
-        .map(|j| {
-            let node = usize::from(layout.node(0, j as u16));
-            Slab::new(grid, partition.planes(j), ghost, storage[node])
-                .map(|s| super::block_storage(&s, cfg.skip))
-                .unwrap_or_default()
-        })
-        .collect();
+    let (storage, block_stores) = super::node_storage(
+        &grid,
+        layout,
+        &partition,
+        ghost,
+        data,
+        shifted.as_ref().map(|(s, _)| s.as_slice()),
+        cfg.skip,
+    );
     let mut workers: Vec<Box<SimWorker<'_, T>>> = Vec::with_capacity(nodes);
     let mut reports = Vec::with_capacity(nodes);
     for node in 0..nodes as u16 {

@@ -7,12 +7,17 @@
 //! pixel. A run whose host hears nothing for [`STALL`] is reported as stalled, not left
 //! hanging.
 //!
+//! With balanced cuts the nodes first shift planes from their uniform slabs to their new ones
+//! by slab-plane messages over the same buffers ([`shift`]), in rounds that every thread
+//! finishes before any starts the next.
+//!
 //! Scheduling is up to the OS, so runs are not repeatable event for event. Images still are,
 //! bit for bit: nothing the image depends on depends on order.
 
 use super::host::Host;
 use super::{Distributed, NodeReport};
 use crate::dataset::{Volume, VolumeData};
+use crate::fabric::shift::{self as planes, Counted, ShiftFailure, ShiftReport};
 use crate::fabric::sim::{SimConfig, SimError, SimWorker};
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -20,12 +25,14 @@ use std::sync::mpsc;
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 use voxcube_kernel::flow::Class;
+use voxcube_kernel::grid::Grid;
 use voxcube_kernel::msg::Msg;
 use voxcube_kernel::partition::Partition;
 use voxcube_kernel::port::{Dest, Port};
 use voxcube_kernel::sample::Sample;
-use voxcube_kernel::slab::{stored_planes, Slab};
+use voxcube_kernel::slab::Slab;
 use voxcube_kernel::stats::NodeStats;
+use voxcube_kernel::topology::Layout;
 use voxcube_kernel::view::View;
 use voxcube_kernel::worker::{Place, Progress};
 
@@ -192,7 +199,7 @@ pub fn run_with_progress(
     }
 }
 
-fn run_typed<T: Sample + Sync>(
+fn run_typed<T: Sample + Send + Sync>(
     volume: &Volume,
     data: &[T],
     view: &View,
@@ -210,30 +217,37 @@ fn run_typed<T: Sample + Sync>(
     };
     let (flow, capacity) = super::flow_for(cfg, view)?;
     let ghost = view.ghost_planes();
-    let plane = grid.plane_len();
-    let stored: Vec<_> = (0..size)
-        .map(|j| stored_planes(&grid, partition.planes(j), ghost))
-        .collect();
-    let block_stores: Vec<Vec<voxcube_kernel::blocks::Range>> = (0..size)
-        .map(|j| {
-            let data = &data[stored[j].start as usize * plane..stored[j].end as usize * plane];
-            Slab::new(grid, partition.planes(j), ghost, data)
-                .map(|s| super::block_storage(&s, cfg.skip))
-                .unwrap_or_default()
-        })
-        .collect();
     let nodes = layout.nodes() as usize;
+    let threads = match threads {
+        0 => std::thread::available_parallelism().map_or(1, usize::from),
+        t => t,
+    }
+    .clamp(1, nodes);
+    // Balanced cuts are reached by message from uniform slabs; then each node holds its own.
+    let shifted = match (&cfg.cuts, cfg.shift) {
+        (Some(_), true) => {
+            let uniform = Partition::uniform(grid.dims()[0], size)?;
+            Some(shift(
+                &grid, data, layout, &uniform, &partition, ghost, capacity, threads,
+            )?)
+        }
+        _ => None,
+    };
+    let (storage, block_stores) = super::node_storage(
+        &grid,
+        layout,
+        &partition,
+        ghost,
+        data,
+        shifted.as_ref().map(|(s, _)| s.as_slice()),
+        cfg.skip,
+    );
     let mut workers = Vec::with_capacity(nodes);
     for node in 0..nodes as u16 {
         let (cluster, position) = layout.place(node);
         let j = usize::from(position);
         let slab = super::with_blocks(
-            Slab::new(
-                grid,
-                partition.planes(j),
-                ghost,
-                &data[stored[j].start as usize * plane..stored[j].end as usize * plane],
-            )?,
+            Slab::new(grid, partition.planes(j), ghost, storage[usize::from(node)])?,
             &block_stores[j],
         );
         let place = Place {
@@ -251,11 +265,6 @@ fn run_typed<T: Sample + Sync>(
         )?));
     }
     let buffers: Vec<Buffer> = (0..nodes).map(|_| Buffer::new()).collect();
-    let threads = match threads {
-        0 => std::thread::available_parallelism().map_or(1, usize::from),
-        t => t,
-    }
-    .clamp(1, nodes);
     let pixels = view.pixel_count() as usize;
     let done = AtomicBool::new(false);
     let (host_tx, host_rx) = mpsc::channel::<Msg>();
@@ -371,8 +380,197 @@ fn run_typed<T: Sample + Sync>(
         i_max: flow.i_max,
         wall: start.elapsed(),
         time: None,
-        shift: None,
+        shift: shifted.map(|(_, report)| report),
     })
+}
+
+/// A thread's nodes during the shift: id and storage.
+type Share<T> = Vec<(u16, Vec<T>)>;
+
+/// Shift every node of `layout` from the `old` cuts to the `new` ones by slab-plane messages
+/// between `threads` OS threads, over receive buffers of `capacity` bytes, in rounds between
+/// neighbours. Each node loads its slab of `old` from `data` and from then on has only its
+/// own storage. A round ends when every thread's nodes are done, so no chunk of the next
+/// round reaches a node still taking this one. Returns each node's storage (its new stored
+/// planes) in node-id order and the report, which has no simulated time: this fabric is
+/// timed by the clock. Nothing hangs: a thread that sees no progress for [`STALL`] fails.
+#[allow(
+    clippy::too_many_arguments,
+    reason = "the simulator's shift::run, plus the threads"
+)]
+pub fn shift<T: Sample + Send + Sync>(
+    grid: &Grid,
+    data: &[T],
+    layout: Layout,
+    old: &Partition,
+    new: &Partition,
+    ghost: u32,
+    capacity: usize,
+    threads: usize,
+) -> Result<(Vec<Vec<T>>, ShiftReport), ShiftFailure> {
+    let steps = planes::rounds(old, new)?;
+    let nodes = layout.nodes() as usize;
+    let threads = threads.clamp(1, nodes);
+    let buffers: Vec<Buffer> = (0..nodes).map(|_| Buffer::new()).collect();
+    // The shift sends nothing to the host; the ports still need somewhere to send it.
+    let (host, _unused) = mpsc::channel::<Msg>();
+    let mut shares: Vec<Share<T>> = (0..threads).map(|_| Vec::new()).collect();
+    for node in 0..nodes as u16 {
+        let storage = planes::load(grid, data, layout, old, ghost, node);
+        shares[usize::from(node) % threads].push((node, storage));
+    }
+    let arrived = AtomicUsize::new(0);
+    let failure: Mutex<Option<ShiftFailure>> = Mutex::new(None);
+    let fail = |e: ShiftFailure| {
+        let mut f = failure
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        f.get_or_insert(e);
+    };
+    let failed = || {
+        failure
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .is_some()
+    };
+    let mut report = ShiftReport {
+        messages: 0,
+        bytes: 0,
+        seconds: None,
+        per_node: Vec::new(),
+        peak_samples: 0,
+        rounds: steps.len() as u32,
+    };
+    let mut storages: Vec<Vec<T>> = vec![Vec::new(); nodes];
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = shares
+            .into_iter()
+            .map(|mut share| {
+                let (buffers, arrived, steps, host) = (&buffers, &arrived, &steps, host.clone());
+                let (fail, failed) = (&fail, &failed);
+                scope.spawn(move || {
+                    let mut counts = [0u64; 2];
+                    let mut peak = 0usize;
+                    for (r, cuts) in steps.iter().enumerate() {
+                        let ports = share
+                            .iter()
+                            .map(|(node, _)| {
+                                Counted::new(ThreadPort {
+                                    node: *node,
+                                    buffers,
+                                    capacity,
+                                    host: host.clone(),
+                                    local: Default::default(),
+                                })
+                            })
+                            .collect();
+                        let outcome = shift_round(
+                            grid,
+                            layout,
+                            (&cuts.0, &cuts.1),
+                            ghost,
+                            &mut share,
+                            ports,
+                            failed,
+                        );
+                        match outcome {
+                            Ok((sent, bytes, held)) => {
+                                counts[0] += sent;
+                                counts[1] += bytes;
+                                peak = peak.max(held);
+                            }
+                            Err(e) => {
+                                fail(e);
+                                return (share, counts, peak);
+                            }
+                        }
+                        arrived.fetch_add(1, Ordering::AcqRel);
+                        let waited = Instant::now();
+                        while arrived.load(Ordering::Acquire) < (r + 1) * threads {
+                            if failed() {
+                                return (share, counts, peak);
+                            }
+                            if waited.elapsed() > STALL {
+                                fail(ShiftFailure::Stalled { unfinished: 0 });
+                                return (share, counts, peak);
+                            }
+                            std::thread::yield_now();
+                        }
+                    }
+                    (share, counts, peak)
+                })
+            })
+            .collect();
+        for h in handles {
+            match h.join() {
+                Ok((share, counts, peak)) => {
+                    report.messages += counts[0];
+                    report.bytes += counts[1];
+                    report.peak_samples = report.peak_samples.max(peak);
+                    for (node, storage) in share {
+                        storages[usize::from(node)] = storage;
+                    }
+                }
+                Err(_) => fail(ShiftFailure::Stalled { unfinished: 0 }),
+            }
+        }
+    });
+    if let Some(e) = failure
+        .into_inner()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+    {
+        return Err(e);
+    }
+    Ok((storages, report))
+}
+
+/// One thread's nodes through one round of the shift: messages sent, their bytes, and the
+/// largest storage held.
+fn shift_round<T: Sample>(
+    grid: &Grid,
+    layout: Layout,
+    cuts: (&Partition, &Partition),
+    ghost: u32,
+    share: &mut Share<T>,
+    mut ports: Vec<Counted<ThreadPort<'_>>>,
+    failed: &dyn Fn() -> bool,
+) -> Result<(u64, u64, usize), ShiftFailure> {
+    let mut held = 0;
+    let mut shifts = Vec::with_capacity(share.len());
+    for (node, storage) in share.iter_mut() {
+        let (shift, samples) = planes::start(grid, layout, *node, cuts, ghost, storage)?;
+        held = held.max(samples);
+        shifts.push((*node, shift));
+    }
+    let mut heard = Instant::now();
+    loop {
+        let unfinished = shifts.iter().filter(|(_, s)| !s.done()).count();
+        if unfinished == 0 || failed() {
+            break;
+        }
+        let mut moved = false;
+        for ((_, shift), port) in shifts.iter_mut().zip(&mut ports) {
+            moved |= shift.poll(port) == Progress::Busy;
+        }
+        if moved {
+            heard = Instant::now();
+        } else if heard.elapsed() > STALL {
+            return Err(ShiftFailure::Stalled { unfinished });
+        } else {
+            std::thread::yield_now();
+        }
+    }
+    if let Some((node, _)) = shifts.iter().find(|(_, s)| s.strays() > 0) {
+        return Err(ShiftFailure::Strays { node: *node });
+    }
+    let stored: Vec<_> = shifts.iter().map(|(_, s)| s.stored()).collect();
+    drop(shifts);
+    for ((_, storage), s) in share.iter_mut().zip(&stored) {
+        planes::keep(grid, storage, s);
+    }
+    let sent = ports.iter().map(|p| p.sent).sum();
+    let bytes = ports.iter().map(|p| p.sent_bytes).sum();
+    Ok((sent, bytes, held))
 }
 
 type HostResult = Result<(Vec<[u8; 4]>, Vec<NodeStats>), SimError>;
