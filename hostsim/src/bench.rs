@@ -29,6 +29,7 @@ height = HEIGHT
 dt = DT
 [datasets.views.camera]
 azimuth = 45.0
+width = SPAN
 [[datasets.views.surfaces]]
 iso = ISO
 color = [0.95, 0.78, 0.45]
@@ -45,6 +46,7 @@ dt = DT
 mode = "composite"
 [datasets.views.camera]
 azimuth = 45.0
+width = SPAN
 [[datasets.views.transfer]]
 value = 10.0
 color = [0.2, 0.3, 0.8]
@@ -60,7 +62,7 @@ opacity = 0.8
 "#;
 
 /// An image size and step benchmarked.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Size {
     /// Pixels across.
     pub width: u32,
@@ -68,6 +70,10 @@ pub struct Size {
     pub height: u32,
     /// Step, in cell edges, as a fraction `1 / dt_inverse`.
     pub dt_inverse: u32,
+    /// World units across the image, framing SOD as the paper did: its 97×97×116 voxels
+    /// cover 301×194 pixels of 350×250 (2 pixels per grid unit) and 748×482 of 1024×768
+    /// (4.97).
+    pub span: f32,
 }
 
 impl Size {
@@ -76,12 +82,14 @@ impl Size {
         width: 350,
         height: 250,
         dt_inverse: 2,
+        span: 175.0,
     };
     /// The paper's large image at a fine step: 1024×768, Δt = ⅕.
     pub const LARGE: Size = Size {
         width: 1024,
         height: 768,
         dt_inverse: 5,
+        span: 206.2,
     };
 
     fn label(self) -> String {
@@ -283,6 +291,7 @@ pub fn run(
     let mut rows = Vec::new();
     for &size in sizes {
         let views = VIEWS
+            .replace("SPAN", &format!("{:.1}", size.span))
             .replace("WIDTH", &size.width.to_string())
             .replace("HEIGHT", &size.height.to_string())
             .replace("DT", &format!("{}", 1.0 / f64::from(size.dt_inverse)));

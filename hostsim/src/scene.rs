@@ -766,7 +766,8 @@ fn build_camera(
                 ));
             }
             // The width at which the box's projection fills `fit` of the image in its tighter
-            // direction. 0.86 reproduces the paper's 301×194 of 350×250 for SOD.
+            // direction. The paper's own framing of SOD is `width = 175` (2 pixels per grid
+            // unit: its voxels cover 301×194 of 350×250), which `fit` approximates to 1%.
             let (right, up) = cam.image_axes();
             let (mut w, mut h) = (0.0f32, 0.0f32);
             for corner in 0..8 {
