@@ -420,19 +420,17 @@ pub fn shift<T: Sample + Send + Sync>(
         shares[usize::from(node) % threads].push((node, storage));
     }
     let arrived = AtomicUsize::new(0);
+    // The first failure is kept; the flag lets the polling loops see it without a lock.
     let failure: Mutex<Option<ShiftFailure>> = Mutex::new(None);
+    let stop = AtomicBool::new(false);
     let fail = |e: ShiftFailure| {
         let mut f = failure
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner);
         f.get_or_insert(e);
+        stop.store(true, Ordering::Release);
     };
-    let failed = || {
-        failure
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .is_some()
-    };
+    let failed = || stop.load(Ordering::Acquire);
     let mut report = ShiftReport {
         messages: 0,
         bytes: 0,
