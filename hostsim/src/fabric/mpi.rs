@@ -189,6 +189,14 @@ impl Port for RoundPort<'_> {
     }
 }
 
+/// Tell the host this node is alive, if [`HEARTBEAT`] has passed since `last`.
+fn heartbeat(world: &SimpleCommunicator, last: &mut Instant) {
+    if last.elapsed() >= HEARTBEAT {
+        world.process_at_rank(0).send_with_tag(&[0u8][..], TAG_BEAT);
+        *last = Instant::now();
+    }
+}
+
 /// Node `node`'s plane shift from the `old` cuts to the `new` ones: its storage (its new
 /// stored planes) and its account (messages, bytes, peak samples, rounds). It heartbeats to
 /// the host while it waits, as it does while rendering.
@@ -223,10 +231,7 @@ fn shift<T: Sample>(
             if let Some(e) = port.port.error.take() {
                 return Err(e);
             }
-            if beat.elapsed() >= HEARTBEAT {
-                world.process_at_rank(0).send_with_tag(&[0u8][..], TAG_BEAT);
-                *beat = Instant::now();
-            }
+            heartbeat(world, beat);
             if progress == Progress::Idle {
                 std::thread::sleep(Duration::from_micros(20));
             }
@@ -367,10 +372,7 @@ fn serve_typed<T: Sample>(
             });
         }
         let progress = worker.poll(&mut port);
-        if beat.elapsed() >= HEARTBEAT {
-            host.send_with_tag(&[0u8][..], TAG_BEAT);
-            beat = Instant::now();
-        }
+        heartbeat(world, &mut beat);
         if progress == Progress::Idle {
             std::thread::sleep(Duration::from_micros(20));
         }

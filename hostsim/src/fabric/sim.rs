@@ -436,11 +436,11 @@ fn run_typed<T: Sample>(
     let ghost = view.ghost_planes();
     let plane = grid.plane_len();
     let nodes = layout.nodes() as usize;
-    // Each ring position loads only its slab (the same for every cluster, so shared here),
-    // unless the nodes shift planes to their slabs by message: then each holds its own.
+    // Each position's stored planes, for the reports.
     let stored: Vec<_> = (0..size)
         .map(|j| stored_planes(&grid, partition.planes(j), ghost))
         .collect();
+    // Balanced cuts are reached by message from uniform slabs; then each node holds its own.
     let shifted = match (&cfg.cuts, cfg.shift) {
         (Some(_), true) => {
             let uniform = Partition::uniform(nx, size)?;
