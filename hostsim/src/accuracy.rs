@@ -8,6 +8,7 @@
 //! - error against a fine reference at the same image size (Δt = 1/16, cell model): PSNR and
 //!   maximum absolute error, in 8-bit levels.
 
+use crate::fabric::SkipMode;
 use crate::profile::MachineProfile;
 use crate::render::render_skipping;
 use crate::scene::DatasetJob;
@@ -97,7 +98,7 @@ fn measure(
     let mut walls = Vec::new();
     let mut last = None;
     for _ in 0..3 {
-        let r = render_skipping(&job.volume, view, false).ok()?;
+        let r = render_skipping(&job.volume, view, SkipMode::OFF).ok()?;
         walls.push(r.wall.as_secs_f64() * 1e3);
         last = Some(r);
     }
@@ -124,7 +125,7 @@ pub fn sweep(job: &DatasetJob, profile: &MachineProfile) -> Vec<Point> {
             s.dt = 1.0 / 16.0;
             s.model = Model::Cell;
         })
-        .and_then(|r| render_skipping(&job.volume, &r, false).ok())
+        .and_then(|r| render_skipping(&job.volume, &r, SkipMode::OFF).ok())
         .map(|r| r.pixels)
         .unwrap_or_default()
     };

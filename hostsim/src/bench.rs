@@ -174,6 +174,19 @@ pub fn machines(cores: u32, size: Size) -> Vec<(String, Machine, u32)> {
         ),
     ];
     if size == Size::PAPER {
+        // What leaping over empty blocks gains: the same render, one block per jump. Not a
+        // candidate for the targets (its name starts with neither "direct" nor "threads").
+        all.insert(
+            1,
+            (
+                "no leaps, direct, 1 node".into(),
+                Machine {
+                    leap: false,
+                    ..Machine::new(Fabric::Direct, 1, 1, 1)
+                },
+                1,
+            ),
+        );
         all.push((
             "threads, 1 cluster of 16".into(),
             Machine::new(Fabric::Threads, 16, 1, 1),

@@ -63,9 +63,11 @@ pub fn worker_bytes() -> usize {
     size_of::<SimWorker<'static, u8>>()
 }
 
-/// Bytes of the min/max blocks a slab storing planes `stored` of `grid` keeps.
+/// Bytes of the min/max blocks a slab storing planes `stored` of `grid` keeps, with one
+/// view's chessboard distance per block for leaping ([`voxcube_kernel::leaps`]).
 pub fn block_bytes(grid: &Grid, stored: std::ops::Range<u32>) -> usize {
-    voxcube_kernel::blocks::extent_for(grid, stored).2 * size_of::<voxcube_kernel::blocks::Range>()
+    voxcube_kernel::blocks::extent_for(grid, stored).2
+        * (size_of::<voxcube_kernel::blocks::Range>() + size_of::<u8>())
 }
 
 /// One node's memory, by part.

@@ -71,6 +71,10 @@ pub enum Command {
         /// Do not skip empty space (a debug option: it changes no pixel, only the time).
         #[arg(long)]
         no_skip: bool,
+        /// Skip empty space one block per jump, not leaping over every empty block around
+        /// (a debug option: it changes no pixel, only the time).
+        #[arg(long)]
+        no_leap: bool,
         /// Balance every view's slabs first, as the paper does: one cluster traces a probe
         /// of about 32x32 primary rays, timed by the --machine profile, and the slab sizes
         /// follow the workers' times. The nodes start on uniform slabs and shift planes to
@@ -335,6 +339,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             machine: profile,
             threads,
             no_skip,
+            no_leap,
             balance,
         } => {
             let (scene, name) = match &scene {
@@ -353,6 +358,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                         .map_err(|e| format!("{}/{}: {e}", job.name, v.name))?;
                     m.threads = threads;
                     m.skip = !no_skip;
+                    m.leap = !no_leap;
                     m.profile = match profile {
                         ProfileArg::Ncube2 => Profile::ncube2(),
                         ProfileArg::Modern => Profile::builtin("modern")

@@ -9,7 +9,7 @@ use crate::budget::{self, BudgetError, Profile};
 use crate::dataset::{Volume, VolumeData};
 use crate::fabric::sim::{self, SimConfig, SimError};
 use crate::fabric::threads;
-use crate::fabric::Distributed;
+use crate::fabric::{Distributed, SkipMode, Skipping};
 use std::time::{Duration, Instant};
 use voxcube_kernel::counters::Counters;
 use voxcube_kernel::flow;
@@ -69,6 +69,8 @@ pub struct Machine {
     pub threads: usize,
     /// Skip provably empty samples (changes no pixel; off to compare or to debug).
     pub skip: bool,
+    /// Leap over every empty block around when skipping (changes no pixel; off to compare).
+    pub leap: bool,
 }
 
 impl Machine {
@@ -86,6 +88,15 @@ impl Machine {
             profile: Profile::ncube2(),
             threads: 0,
             skip: true,
+            leap: true,
+        }
+    }
+
+    /// How the nodes skip empty space.
+    pub fn skip_mode(&self) -> SkipMode {
+        SkipMode {
+            skip: self.skip,
+            leap: self.leap,
         }
     }
 
@@ -101,6 +112,7 @@ impl Machine {
             buffer_bytes: self.buffer_bytes,
             flow_control: self.flow_control,
             skip: self.skip,
+            leap: self.leap,
             ..SimConfig::machine(self.clusters, self.cluster_size(), self.seed)?
         })
     }
@@ -180,24 +192,28 @@ pub type OnProgress<'a> = &'a dyn Fn(u64);
 
 /// Render `view` of `volume` directly, on one node, skipping empty space.
 pub fn render(volume: &Volume, view: &View) -> Result<Rendered, SlabError> {
-    render_direct(volume, view, true, &|_| {})
+    render_direct(volume, view, SkipMode::LEAPS, &|_| {})
 }
 
-/// [`render`], with empty-space skipping on or off.
-pub fn render_skipping(volume: &Volume, view: &View, skip: bool) -> Result<Rendered, SlabError> {
-    render_direct(volume, view, skip, &|_| {})
+/// [`render`], skipping empty space as `mode` says.
+pub fn render_skipping(
+    volume: &Volume,
+    view: &View,
+    mode: SkipMode,
+) -> Result<Rendered, SlabError> {
+    render_direct(volume, view, mode, &|_| {})
 }
 
 fn render_direct(
     volume: &Volume,
     view: &View,
-    skip: bool,
+    mode: SkipMode,
     progress: OnProgress<'_>,
 ) -> Result<Rendered, SlabError> {
     match &volume.data {
-        VolumeData::U8(d) => render_typed(volume, d, view, skip, progress),
-        VolumeData::U16(d) => render_typed(volume, d, view, skip, progress),
-        VolumeData::F32(d) => render_typed(volume, d, view, skip, progress),
+        VolumeData::U8(d) => render_typed(volume, d, view, mode, progress),
+        VolumeData::U16(d) => render_typed(volume, d, view, mode, progress),
+        VolumeData::F32(d) => render_typed(volume, d, view, mode, progress),
     }
 }
 
@@ -281,7 +297,7 @@ pub fn render_cut(
 ) -> Result<Rendered, RenderError> {
     preflight(volume, view, machine)?;
     match machine.fabric {
-        Fabric::Direct => Ok(render_direct(volume, view, machine.skip, progress)?),
+        Fabric::Direct => Ok(render_direct(volume, view, machine.skip_mode(), progress)?),
         Fabric::Mpi => Err(RenderError::Machine(
             "the MPI fabric renders through `voxcube render --fabric mpi` under mpirun".into(),
         )),
@@ -319,12 +335,12 @@ fn render_typed<T: Sample>(
     volume: &Volume,
     data: &[T],
     view: &View,
-    skip: bool,
+    mode: SkipMode,
     progress: OnProgress<'_>,
 ) -> Result<Rendered, SlabError> {
     let slab = Slab::whole(volume.grid, data)?;
-    let block_store = crate::fabric::block_storage(&slab, skip);
-    let slab = crate::fabric::with_blocks(slab, &block_store);
+    let skipping = Skipping::build(&slab, view, mode);
+    let slab = skipping.apply(slab);
     let start = Instant::now();
     let mut counters = Counters::default();
     let n = view.pixel_count();

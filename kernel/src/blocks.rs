@@ -60,6 +60,8 @@ impl core::error::Error for BlocksError {}
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Blocks<'a> {
     data: &'a [Range],
+    /// One view's chessboard distances ([`crate::leaps`]), when the marcher may leap.
+    leaps: Option<&'a [u8]>,
     x0: u32,
     x1: u32,
     ny: u32,
@@ -106,6 +108,7 @@ impl<'a> Blocks<'a> {
         let [_, ny, nz] = slab.grid().dims();
         Ok(Blocks {
             data,
+            leaps: None,
             x0,
             x1,
             ny: count(ny),
@@ -180,13 +183,23 @@ impl<'a> Blocks<'a> {
     /// The index-space box of block `(bx, by, bz)` under `model`, for estimating where a ray
     /// leaves it (the estimate is always checked exactly).
     pub fn bounds(&self, block: (u32, u32, u32), model: Model) -> (Vec3, Vec3) {
+        self.reach_bounds(block, 0, model)
+    }
+
+    /// The index-space box of the blocks within chessboard distance `reach` of `block`
+    /// under `model` (an estimate, as [`Blocks::bounds`]).
+    pub fn reach_bounds(&self, block: (u32, u32, u32), reach: u32, model: Model) -> (Vec3, Vec3) {
         let shift = match model {
             Model::Voxel => 0.5,
             Model::Cell => 0.0,
         };
-        let lo = Vec3::new(block.0 as f32, block.1 as f32, block.2 as f32) * BLOCK as f32
+        let corner = |b: u32| b.saturating_sub(reach) as f32;
+        let lo = Vec3::new(corner(block.0), corner(block.1), corner(block.2)) * BLOCK as f32
             - Vec3::splat(shift);
-        (lo, lo + Vec3::splat(BLOCK as f32))
+        let far = |b: u32| b.saturating_add(reach).saturating_add(1) as f32;
+        let hi =
+            Vec3::new(far(block.0), far(block.1), far(block.2)) * BLOCK as f32 - Vec3::splat(shift);
+        (lo, hi)
     }
 
     /// The range of the block holding `site` (unknown outside the slab's columns).
@@ -199,13 +212,60 @@ impl<'a> Blocks<'a> {
 
     /// The range of block `(bx, by, bz)` (global block coordinates; unknown outside).
     #[inline]
-    pub fn range(&self, (bx, by, bz): (u32, u32, u32)) -> Range {
+    pub fn range(&self, block: (u32, u32, u32)) -> Range {
+        self.index(block)
+            .and_then(|i| self.data.get(i).copied())
+            .unwrap_or(Range::UNKNOWN)
+    }
+
+    /// Where block `(bx, by, bz)` sits in the storage order (X columns slowest, then Z, then
+    /// Y), or `None` outside the slab's columns.
+    #[inline]
+    fn index(&self, (bx, by, bz): (u32, u32, u32)) -> Option<usize> {
         if bx < self.x0 || bx >= self.x1 {
-            return Range::UNKNOWN;
+            return None;
         }
-        let i = ((bx - self.x0) as usize * self.nz as usize + bz as usize) * self.ny as usize
-            + by as usize;
-        self.data.get(i).copied().unwrap_or(Range::UNKNOWN)
+        Some(
+            ((bx - self.x0) as usize * self.nz as usize + bz as usize) * self.ny as usize
+                + by as usize,
+        )
+    }
+
+    /// Every block's range, in storage order.
+    pub fn ranges(&self) -> &'a [Range] {
+        self.data
+    }
+
+    /// Blocks along X (the slab's columns), Y and Z.
+    pub fn shape(&self) -> (u32, u32, u32) {
+        (self.x1 - self.x0, self.ny, self.nz)
+    }
+
+    /// The same blocks, leaping by the distances in `leaps` ([`crate::leaps::build`] for the
+    /// view being traced: a map built for another view may skip samples that show).
+    pub fn with_leaps(self, leaps: &'a [u8]) -> Result<Blocks<'a>, BlocksError> {
+        if leaps.len() != self.data.len() {
+            return Err(BlocksError {
+                needed: self.data.len(),
+                given: leaps.len(),
+            });
+        }
+        Ok(Blocks {
+            leaps: Some(leaps),
+            ..self
+        })
+    }
+
+    /// Block `(bx, by, bz)`'s chessboard distance to the nearest block the view cannot skip
+    /// (0 outside the slab's columns), or `None` without a leap map.
+    #[inline]
+    pub fn leap(&self, block: (u32, u32, u32)) -> Option<u8> {
+        let leaps = self.leaps?;
+        Some(
+            self.index(block)
+                .and_then(|i| leaps.get(i).copied())
+                .unwrap_or(0),
+        )
     }
 }
 

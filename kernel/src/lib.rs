@@ -30,6 +30,7 @@ pub mod field;
 pub mod flow;
 pub mod grid;
 pub mod lattice;
+pub mod leaps;
 pub mod lighting;
 pub mod march;
 pub mod msg;

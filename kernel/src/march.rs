@@ -151,18 +151,25 @@ pub fn march<T: Sample>(
         }
         if let Some(blocks) = slab.blocks() {
             let block = blocks.block_of(&site);
-            let empty = match known {
-                Some((b, empty)) if b == block => empty,
-                _ => {
-                    let empty = view.empty(blocks.range(block));
-                    known = Some((block, empty));
-                    empty
+            // How far around this block every block is empty, in blocks; `None`: this one is not.
+            let reach = match blocks.leap(block) {
+                Some(distance) => distance.checked_sub(1).map(u32::from),
+                None => {
+                    let empty = match known {
+                        Some((b, empty)) if b == block => empty,
+                        _ => {
+                            let empty = view.empty(blocks.range(block));
+                            known = Some((block, empty));
+                            empty
+                        }
+                    };
+                    empty.then_some(0)
                 }
             };
-            if empty && view.may_skip(ray) {
+            if let Some(reach) = reach.filter(|_| view.may_skip(ray)) {
                 // Provably nothing here: no crossing, no opacity. The lattice index moves on,
-                // over every further sample in the same block and slab at once.
-                let last = skip_run(ray, slab, blocks, block, spec.model);
+                // over every further sample in the same slab whose block is within `reach`.
+                let last = skip_run(ray, slab, blocks, block, reach, spec.model);
                 counters.skipped += u64::from(last - ray.k + 1);
                 ray.k = last;
                 if view.effects().surfaces {
@@ -240,18 +247,28 @@ pub fn march<T: Sample>(
     }
 }
 
-/// The last sample of the run starting at `ray.k` that stays in that sample's `block`
-/// and in `slab`: every sample between lies there too, since positions, cells and owner
-/// planes are monotone along the lattice. The exit point is only an estimate; each candidate
-/// is checked with the exact arithmetic of the samples themselves, halving on failure.
+/// The last sample of the run starting at `ray.k` that stays in `slab` and in the blocks
+/// within chessboard distance `reach` of that sample's `block`: every sample between lies
+/// there too, since positions, cells and owner planes are monotone along the lattice and
+/// those blocks form a box. The exit point is only an estimate; each candidate is checked
+/// with the exact arithmetic of the samples themselves, halving on failure.
 fn skip_run<T: Sample>(
     ray: &RayState,
     slab: &Slab<'_, T>,
     blocks: &crate::blocks::Blocks<'_>,
     block: (u32, u32, u32),
+    reach: u32,
     model: crate::grid::Model,
 ) -> u32 {
-    let (lo, hi) = blocks.bounds(block, model);
+    let (mut lo, mut hi) = blocks.reach_bounds(block, reach, model);
+    // Nor past the owned planes (their faces, under the model's ownership rule).
+    let shift = match model {
+        crate::grid::Model::Voxel => 0.5,
+        crate::grid::Model::Cell => 0.0,
+    };
+    let owned = slab.owned();
+    lo.x = lo.x.max(owned.start as f32 - shift);
+    hi.x = hi.x.min(owned.end as f32 - shift);
     let (o, d, t) = (ray.ray.origin, ray.ray.dir, ray.lattice.t(ray.k));
     let mut t_out = f32::INFINITY;
     for a in 0..3 {
@@ -271,12 +288,21 @@ fn skip_run<T: Sample>(
     while n > 0 {
         let q = ray.ray.at(ray.lattice.t(ray.k + n));
         let site = field::locate(grid, model, q);
-        if slab.owns(site.plane()) && blocks.block_of(&site) == block {
+        let landing = blocks.block_of(&site);
+        // A leap lands only in a block the map itself calls empty: a voxel-model sample on
+        // the grid's last X face reads a column past the blocks', whose range is unknown.
+        let empty = landing == block || blocks.leap(landing).is_some_and(|d| d > 0);
+        if slab.owns(site.plane()) && within(landing, block, reach) && empty {
             return ray.k + n;
         }
         n /= 2;
     }
     ray.k
+}
+
+/// Whether block `b` lies within chessboard distance `reach` of block `c`.
+fn within(b: (u32, u32, u32), c: (u32, u32, u32), reach: u32) -> bool {
+    b.0.abs_diff(c.0) <= reach && b.1.abs_diff(c.1) <= reach && b.2.abs_diff(c.2) <= reach
 }
 
 /// The nearest surface crossing not yet reported on the segment ending at sample `k` (value

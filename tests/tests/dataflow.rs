@@ -4,6 +4,7 @@
 
 use proptest::prelude::*;
 use voxcube::fabric::sim::{self, SimConfig};
+use voxcube::fabric::SkipMode;
 use voxcube::render::{render, render_skipping};
 use voxcube::scene::{DatasetJob, Scene};
 use voxcube_kernel::grid::Model;
@@ -34,7 +35,7 @@ fn every_test_scene_is_bit_identical_on_every_cluster_size_and_seed() {
     for (v, view) in job.views.iter().enumerate() {
         // Without skipping, so the work counters must match exactly too (skipping changes
         // which samples are evaluated, never the image: tests/skipping.rs).
-        let one = render_skipping(&job.volume, &view.view, false).expect("renders");
+        let one = render_skipping(&job.volume, &view.view, SkipMode::OFF).expect("renders");
         assert_eq!(one.counters.non_finite_pixels, 0);
         for size in [1u32, 2, 3, 4, 8, 16] {
             for seed in [1u64, 2, 3] {

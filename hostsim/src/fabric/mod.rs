@@ -250,27 +250,98 @@ pub fn flow_for(
     Ok((control, capacity))
 }
 
-/// Min/max block storage for `slab` when empty space is skipped (`skip`), else empty.
-pub fn block_storage<T: voxcube_kernel::sample::Sample>(
-    slab: &voxcube_kernel::slab::Slab<'_, T>,
-    skip: bool,
-) -> Vec<voxcube_kernel::blocks::Range> {
-    use voxcube_kernel::blocks::{extent, Blocks, Range};
-    if !skip {
-        return Vec::new();
+/// How a node skips empty space: whether it does, and whether its jumps leap over every
+/// empty block around (a debug option each; neither changes a pixel).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SkipMode {
+    /// Skip provably empty samples with min/max blocks.
+    pub skip: bool,
+    /// Leap by chessboard distances over empty blocks (only when skipping).
+    pub leap: bool,
+}
+
+impl SkipMode {
+    /// Every sample evaluated.
+    pub const OFF: SkipMode = SkipMode {
+        skip: false,
+        leap: false,
+    };
+    /// Empty samples skipped, each jump ending at its block's faces.
+    pub const BLOCKS: SkipMode = SkipMode {
+        skip: true,
+        leap: false,
+    };
+    /// Empty samples skipped, each jump leaping over every empty block around (the default).
+    pub const LEAPS: SkipMode = SkipMode {
+        skip: true,
+        leap: true,
+    };
+}
+
+/// A node's storage for skipping empty space in one view: its min/max blocks and their
+/// chessboard distances, each empty when that acceleration is off.
+#[derive(Clone, Debug, Default)]
+pub struct Skipping {
+    ranges: Vec<voxcube_kernel::blocks::Range>,
+    leaps: Vec<u8>,
+}
+
+impl Skipping {
+    /// The blocks of `slab` (`mode.skip`) and their distances for `view` (`mode.leap`).
+    pub fn build<T: voxcube_kernel::sample::Sample>(
+        slab: &voxcube_kernel::slab::Slab<'_, T>,
+        view: &voxcube_kernel::view::View,
+        mode: SkipMode,
+    ) -> Skipping {
+        use voxcube_kernel::blocks::{extent, Blocks, Range};
+        if !mode.skip {
+            return Skipping::default();
+        }
+        let mut ranges = vec![Range::UNKNOWN; extent(slab).2];
+        // Both lengths come from the slab: neither build can fail; without blocks nothing is
+        // skipped, without distances each jump ends at its block's faces.
+        if Blocks::build(slab, &mut ranges).is_err() {
+            return Skipping::default();
+        }
+        let mut leaps = Vec::new();
+        if mode.leap {
+            leaps = vec![0; ranges.len()];
+            let built = Blocks::new(slab, &ranges)
+                .map_err(|_| ())
+                .and_then(|b| voxcube_kernel::leaps::build(&b, view, &mut leaps).map_err(|_| ()));
+            if built.is_err() {
+                leaps.clear();
+            }
+        }
+        Skipping { ranges, leaps }
     }
-    let mut out = vec![Range::UNKNOWN; extent(slab).2];
-    match Blocks::build(slab, &mut out) {
-        Ok(()) => out,
-        // The length comes from `extent`: this cannot fail; without blocks nothing is skipped.
-        Err(_) => Vec::new(),
+
+    /// `slab`, skipping empty space with this storage (unchanged when it holds none).
+    pub fn apply<'a, T: voxcube_kernel::sample::Sample>(
+        &'a self,
+        slab: voxcube_kernel::slab::Slab<'a, T>,
+    ) -> voxcube_kernel::slab::Slab<'a, T> {
+        let Ok(blocks) = voxcube_kernel::blocks::Blocks::new(&slab, &self.ranges) else {
+            return slab;
+        };
+        if self.ranges.is_empty() {
+            return slab;
+        }
+        match blocks.with_leaps(&self.leaps) {
+            Ok(leaping) if !self.leaps.is_empty() => slab.with_blocks(leaping),
+            _ => slab.with_blocks(blocks),
+        }
     }
 }
 
 /// Each node's stored planes, in node-id order: its own storage after a plane shift
 /// (`shifted`), else its slab of `partition` in `data`, which every cluster holds alike at a
-/// ring position; and the min/max blocks of each ring position (`skip`), built from cluster
-/// 0's node there.
+/// ring position; and the skipping storage of each ring position for `view` (`mode`), built
+/// from cluster 0's node there.
+#[allow(
+    clippy::too_many_arguments,
+    reason = "the fabrics' one set-up step; the arguments are the machine's shape and the view"
+)]
 pub fn node_storage<'d, T: voxcube_kernel::sample::Sample>(
     grid: &Grid,
     layout: Layout,
@@ -278,8 +349,9 @@ pub fn node_storage<'d, T: voxcube_kernel::sample::Sample>(
     ghost: u32,
     data: &'d [T],
     shifted: Option<&'d [Vec<T>]>,
-    skip: bool,
-) -> (Vec<&'d [T]>, Vec<Vec<voxcube_kernel::blocks::Range>>) {
+    view: &voxcube_kernel::view::View,
+    mode: SkipMode,
+) -> (Vec<&'d [T]>, Vec<Skipping>) {
     let plane = grid.plane_len();
     let storage: Vec<&[T]> = (0..layout.nodes() as u16)
         .map(|node| match shifted {
@@ -291,7 +363,7 @@ pub fn node_storage<'d, T: voxcube_kernel::sample::Sample>(
             }
         })
         .collect();
-    let blocks = (0..layout.size())
+    let skipping = (0..layout.size())
         .map(|j| {
             let node = usize::from(layout.node(0, j));
             voxcube_kernel::slab::Slab::new(
@@ -300,20 +372,9 @@ pub fn node_storage<'d, T: voxcube_kernel::sample::Sample>(
                 ghost,
                 storage[node],
             )
-            .map(|s| block_storage(&s, skip))
+            .map(|s| Skipping::build(&s, view, mode))
             .unwrap_or_default()
         })
         .collect();
-    (storage, blocks)
-}
-
-/// `slab`, skipping empty space with the blocks in `storage` (none when it is empty).
-pub fn with_blocks<'a, T: voxcube_kernel::sample::Sample>(
-    slab: voxcube_kernel::slab::Slab<'a, T>,
-    storage: &'a [voxcube_kernel::blocks::Range],
-) -> voxcube_kernel::slab::Slab<'a, T> {
-    match voxcube_kernel::blocks::Blocks::new(&slab, storage) {
-        Ok(blocks) if !storage.is_empty() => slab.with_blocks(blocks),
-        _ => slab,
-    }
+    (storage, skipping)
 }

@@ -324,8 +324,8 @@ fn serve_typed<T: Sample>(
             None => &data[stored.start as usize * plane..stored.end as usize * plane],
         },
     )?;
-    let block_store = super::block_storage(&slab, cfg.skip);
-    let slab = super::with_blocks(slab, &block_store);
+    let skipping = super::Skipping::build(&slab, view, cfg.skip_mode());
+    let slab = skipping.apply(slab);
     let mut worker = Box::new(SimWorker::new(
         view,
         slab,

@@ -105,6 +105,8 @@ pub struct SimConfig {
     pub stop: Option<(u16, u64)>,
     /// Skip provably empty samples with min/max blocks (changes no pixel; off to compare).
     pub skip: bool,
+    /// Leap over every empty block around when skipping (changes no pixel; off to compare).
+    pub leap: bool,
     /// Test-only faults, applied to every worker.
     #[cfg(feature = "mutants")]
     pub mutants: voxcube_kernel::worker::Mutants,
@@ -137,9 +139,18 @@ impl SimConfig {
             time: None,
             stop: None,
             skip: true,
+            leap: true,
             #[cfg(feature = "mutants")]
             mutants: Default::default(),
         })
+    }
+
+    /// How the nodes skip empty space.
+    pub fn skip_mode(&self) -> super::SkipMode {
+        super::SkipMode {
+            skip: self.skip,
+            leap: self.leap,
+        }
     }
 
     /// The receive-buffer bytes this configuration gives each node.
@@ -458,24 +469,27 @@ fn run_typed<T: Sample>(
         }
         _ => None,
     };
-    let (storage, block_stores) = super::node_storage(
+    let (storage, skipping) = super::node_storage(
         &grid,
         layout,
         &partition,
         ghost,
         data,
         shifted.as_ref().map(|(s, _)| s.as_slice()),
-        cfg.skip,
+        view,
+        cfg.skip_mode(),
     );
     let mut workers: Vec<Box<SimWorker<'_, T>>> = Vec::with_capacity(nodes);
     let mut reports = Vec::with_capacity(nodes);
     for node in 0..nodes as u16 {
         let (cluster, position) = layout.place(node);
         let j = usize::from(position);
-        let slab = super::with_blocks(
-            Slab::new(grid, partition.planes(j), ghost, storage[usize::from(node)])?,
-            &block_stores[j],
-        );
+        let slab = skipping[j].apply(Slab::new(
+            grid,
+            partition.planes(j),
+            ghost,
+            storage[usize::from(node)],
+        )?);
         let place = Place {
             layout,
             cluster,

@@ -233,23 +233,26 @@ fn run_typed<T: Sample + Send + Sync>(
         }
         _ => None,
     };
-    let (storage, block_stores) = super::node_storage(
+    let (storage, skipping) = super::node_storage(
         &grid,
         layout,
         &partition,
         ghost,
         data,
         shifted.as_ref().map(|(s, _)| s.as_slice()),
-        cfg.skip,
+        view,
+        cfg.skip_mode(),
     );
     let mut workers = Vec::with_capacity(nodes);
     for node in 0..nodes as u16 {
         let (cluster, position) = layout.place(node);
         let j = usize::from(position);
-        let slab = super::with_blocks(
-            Slab::new(grid, partition.planes(j), ghost, storage[usize::from(node)])?,
-            &block_stores[j],
-        );
+        let slab = skipping[j].apply(Slab::new(
+            grid,
+            partition.planes(j),
+            ghost,
+            storage[usize::from(node)],
+        )?);
         let place = Place {
             layout,
             cluster,
