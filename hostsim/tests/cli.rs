@@ -45,6 +45,26 @@ fn default_render_writes_a_png_and_a_report() {
 }
 
 #[test]
+fn the_skipping_switches_change_no_pixel_and_no_count() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (on, _) = render_ok(dir.path(), &[], "on.json");
+    let (no_leap, _) = render_ok(dir.path(), &["--no-leap"], "no-leap.json");
+    let (off, _) = render_ok(dir.path(), &["--no-skip"], "off.json");
+    let view = |j: &serde_json::Value| j["views"][0].clone();
+    for other in [&no_leap, &off] {
+        assert_eq!(view(&on)["pixels_sha256"], view(other)["pixels_sha256"]);
+    }
+    // Leaping skips the same samples as one block per jump; without skipping none are.
+    assert_eq!(view(&on)["operations"], view(&no_leap)["operations"]);
+    assert!(
+        view(&on)["operations"]["skipped"].as_u64().unwrap_or(0) > 0,
+        "{}",
+        view(&on)
+    );
+    assert_eq!(view(&off)["operations"]["skipped"], 0, "{}", view(&off));
+}
+
+#[test]
 fn a_bad_scene_fails_cleanly_and_writes_nothing() {
     let dir = tempfile::tempdir().expect("tempdir");
     let scene = dir.path().join("bad.toml");

@@ -6,7 +6,8 @@
 //! needs a plane the node does not store is marked unknown (an infinite range) and is never
 //! skipped. The tracer skips a sample only when the block says it provably contributes
 //! nothing, and skipping never changes an image; which samples a node skips is therefore free
-//! to differ from node to node.
+//! to differ from node to node. Blocks may carry one view's chessboard distances
+//! ([`crate::leaps`]), so that a jump crosses every empty block around at once.
 
 use crate::field::Site;
 use crate::grid::Model;

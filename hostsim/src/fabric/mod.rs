@@ -303,16 +303,16 @@ impl Skipping {
         if Blocks::build(slab, &mut ranges).is_err() {
             return Skipping::default();
         }
-        let mut leaps = Vec::new();
-        if mode.leap {
-            leaps = vec![0; ranges.len()];
-            let built = Blocks::new(slab, &ranges)
-                .map_err(|_| ())
-                .and_then(|b| voxcube_kernel::leaps::build(&b, view, &mut leaps).map_err(|_| ()));
-            if built.is_err() {
-                leaps.clear();
+        let leaps = match Blocks::new(slab, &ranges) {
+            Ok(blocks) if mode.leap => {
+                let mut leaps = vec![0; ranges.len()];
+                match voxcube_kernel::leaps::build(&blocks, view, &mut leaps) {
+                    Ok(()) => leaps,
+                    Err(_) => Vec::new(),
+                }
             }
-        }
+            _ => Vec::new(),
+        };
         Skipping { ranges, leaps }
     }
 
@@ -321,12 +321,12 @@ impl Skipping {
         &'a self,
         slab: voxcube_kernel::slab::Slab<'a, T>,
     ) -> voxcube_kernel::slab::Slab<'a, T> {
-        let Ok(blocks) = voxcube_kernel::blocks::Blocks::new(&slab, &self.ranges) else {
-            return slab;
-        };
         if self.ranges.is_empty() {
             return slab;
         }
+        let Ok(blocks) = voxcube_kernel::blocks::Blocks::new(&slab, &self.ranges) else {
+            return slab;
+        };
         match blocks.with_leaps(&self.leaps) {
             Ok(leaping) if !self.leaps.is_empty() => slab.with_blocks(leaping),
             _ => slab.with_blocks(blocks),
