@@ -69,6 +69,15 @@ pub struct Blocks<'a> {
     nz: u32,
 }
 
+/// How far below an integer coordinate `i` the points reading cell or node `i` begin under
+/// `model`: a voxel-model node is read from half a unit before it, a cell from its corner.
+pub fn face_shift(model: Model) -> f32 {
+    match model {
+        Model::Voxel => 0.5,
+        Model::Cell => 0.0,
+    }
+}
+
 /// Blocks along an axis of `n` nodes (`n − 1` cells, at least one block).
 fn count(n: u32) -> u32 {
     n.saturating_sub(1).div_ceil(BLOCK).max(1)
@@ -181,19 +190,11 @@ impl<'a> Blocks<'a> {
         )
     }
 
-    /// The index-space box of block `(bx, by, bz)` under `model`, for estimating where a ray
-    /// leaves it (the estimate is always checked exactly).
-    pub fn bounds(&self, block: (u32, u32, u32), model: Model) -> (Vec3, Vec3) {
-        self.reach_bounds(block, 0, model)
-    }
-
-    /// The index-space box of the blocks within chessboard distance `reach` of `block`
-    /// under `model` (an estimate, as [`Blocks::bounds`]).
-    pub fn reach_bounds(&self, block: (u32, u32, u32), reach: u32, model: Model) -> (Vec3, Vec3) {
-        let shift = match model {
-            Model::Voxel => 0.5,
-            Model::Cell => 0.0,
-        };
+    /// The index-space box of the blocks within chessboard distance `reach` of block
+    /// `(bx, by, bz)` under `model`, for estimating where a ray leaves it (the estimate is
+    /// always checked exactly).
+    pub fn bounds(&self, block: (u32, u32, u32), reach: u32, model: Model) -> (Vec3, Vec3) {
+        let shift = face_shift(model);
         let corner = |b: u32| b.saturating_sub(reach) as f32;
         let lo = Vec3::new(corner(block.0), corner(block.1), corner(block.2)) * BLOCK as f32
             - Vec3::splat(shift);

@@ -260,12 +260,9 @@ fn skip_run<T: Sample>(
     reach: u32,
     model: crate::grid::Model,
 ) -> u32 {
-    let (mut lo, mut hi) = blocks.reach_bounds(block, reach, model);
+    let (mut lo, mut hi) = blocks.bounds(block, reach, model);
     // Nor past the owned planes (their faces, under the model's ownership rule).
-    let shift = match model {
-        crate::grid::Model::Voxel => 0.5,
-        crate::grid::Model::Cell => 0.0,
-    };
+    let shift = crate::blocks::face_shift(model);
     let owned = slab.owned();
     lo.x = lo.x.max(owned.start as f32 - shift);
     hi.x = hi.x.min(owned.end as f32 - shift);

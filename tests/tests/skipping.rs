@@ -2,7 +2,7 @@
 //! render the same bits with skipping off, with one block per jump and with leaps over every
 //! empty block around, while skipping really skips and leaping really leaps.
 
-use voxcube::dataset::VolumeData;
+use voxcube::dataset::{Volume, VolumeData};
 use voxcube::fabric::sim::{self, SimConfig};
 use voxcube::fabric::{SkipMode, Skipping};
 use voxcube::render::render_skipping;
@@ -90,13 +90,17 @@ fn skipping_changes_no_pixel_on_sod() {
     check(&text, "sod.toml");
 }
 
-/// Every pixel of `traced`, on one slab whose blocks leap by the distances built for `leaps_of`.
-fn trace_with_leaps_of<T: Sample>(
-    grid: Grid,
-    data: &[T],
-    traced: &View,
-    leaps_of: &View,
-) -> Vec<[u8; 4]> {
+/// Every pixel of `traced` on `volume`, whose blocks leap by the distances built for
+/// `leaps_of`.
+fn trace_with_leaps_of(volume: &Volume, traced: &View, leaps_of: &View) -> Vec<[u8; 4]> {
+    match &volume.data {
+        VolumeData::U8(d) => trace_typed(volume.grid, d, traced, leaps_of),
+        VolumeData::U16(d) => trace_typed(volume.grid, d, traced, leaps_of),
+        VolumeData::F32(d) => trace_typed(volume.grid, d, traced, leaps_of),
+    }
+}
+
+fn trace_typed<T: Sample>(grid: Grid, data: &[T], traced: &View, leaps_of: &View) -> Vec<[u8; 4]> {
     let slab = Slab::whole(grid, data).expect("slab");
     let skipping = Skipping::build(&slab, leaps_of, SkipMode::LEAPS);
     let slab = skipping.apply(slab);
@@ -132,21 +136,8 @@ iso = 200.0
         .unwrap_or_else(|e| panic!("{e}"));
     let job = &jobs[0];
     let (low, high) = (&job.views[0].view, &job.views[1].view);
-    let grid = job.volume.grid;
-    let (own, foreign) = match &job.volume.data {
-        VolumeData::U8(d) => (
-            trace_with_leaps_of(grid, d, low, low),
-            trace_with_leaps_of(grid, d, low, high),
-        ),
-        VolumeData::U16(d) => (
-            trace_with_leaps_of(grid, d, low, low),
-            trace_with_leaps_of(grid, d, low, high),
-        ),
-        VolumeData::F32(d) => (
-            trace_with_leaps_of(grid, d, low, low),
-            trace_with_leaps_of(grid, d, low, high),
-        ),
-    };
+    let own = trace_with_leaps_of(&job.volume, low, low);
+    let foreign = trace_with_leaps_of(&job.volume, low, high);
     let reference = render_skipping(&job.volume, low, SkipMode::OFF).expect("renders");
     assert!(
         own == reference.pixels,
