@@ -235,15 +235,141 @@ pub fn gradient<T: Sample>(
     counters: &mut Counters,
 ) -> Vec3 {
     counters.gradients += 1;
-    let mut g = [0.0f32; 3];
-    for (axis, slot) in g.iter_mut().enumerate() {
-        let mut offset = Vec3::ZERO;
-        offset[axis] = d;
-        let ahead = value(slab, model, p + offset, counters);
-        let behind = value(slab, model, p - offset, counters);
-        *slot = (ahead - behind) / (2.0 * d);
-    }
+    let shared = match model {
+        Model::Cell if d == 1.0 => unit_differences(slab, p),
+        _ => None,
+    };
+    let pairs = match shared {
+        Some(pairs) => {
+            counters.interpolations += 6;
+            pairs
+        }
+        None => core::array::from_fn(|axis| {
+            let mut offset = Vec3::ZERO;
+            offset[axis] = d;
+            (
+                value(slab, model, p + offset, counters),
+                value(slab, model, p - offset, counters),
+            )
+        }),
+    };
+    let g = pairs.map(|(ahead, behind)| (ahead - behind) / (2.0 * d));
     Vec3::from_array(g) * slab.grid().inv_spacing()
+}
+
+/// The six trilinear reads of a central difference at a distance of one cell, `(ahead,
+/// behind)` per axis, each equal in every bit to [`value`] at `p ± e_axis`; `None` where that
+/// cannot be shown cheaply (the caller then reads them one by one).
+///
+/// Where no read is clamped and `x ± 1` lands exactly one cell over with the same fraction
+/// (true unless the sum rounds, as it can where the exponent changes), the six cells are
+/// neighbours of `p`'s own with `p`'s fractions: they span 32 distinct nodes, not 48, and
+/// the lerps along x of the four cells that share planes `i` and `i + 1` overlap. Every lerp
+/// is the one [`interpolate`] performs, on the same operands in the same order, in lanes that
+/// all hold data.
+fn unit_differences<T: Sample>(slab: &Slab<'_, T>, p: Vec3) -> Option<[(f32, f32); 3]> {
+    let grid = slab.grid();
+    let dims = grid.dims();
+    let site = locate(grid, Model::Cell, p);
+    for a in 0..3 {
+        let (i, n) = (site.lo[a], dims[a]);
+        // Cells i - 1 and i + 1 both inside the grid: then `p[a]` is in [1, n - 2), no read
+        // clamps, and the unchanged coordinates (at least 1, never -0.0) add 0.0 exactly.
+        if i < 1 || i + 3 > n {
+            return None;
+        }
+        let frac = site.frac[a].to_bits();
+        let lands = |v: f32, cell: u32| {
+            v >= 0.0 && floor_index(v) == cell && (v - cell as f32).to_bits() == frac
+        };
+        if !(lands(p[a] + 1.0, i + 1) && lands(p[a] - 1.0, i - 1)) {
+            return None;
+        }
+    }
+    let [i, j, k] = site.lo;
+    // Rows by plane x and row z: nodes j - 1 ..= j + 2, or nodes j and j + 1.
+    let wide = |x: u32, z: u32| nodes::<T, 4>(slab, x, z, j - 1);
+    let narrow = |x: u32, z: u32| nodes::<T, 2>(slab, x, z, j);
+    let (a0, a1) = (wide(i, k)?, wide(i + 1, k)?);
+    let (b0, b1) = (wide(i, k + 1)?, wide(i + 1, k + 1)?);
+    let (c0, c1) = (narrow(i, k - 1)?, narrow(i + 1, k - 1)?);
+    let (d0, d1) = (narrow(i, k + 2)?, narrow(i + 1, k + 2)?);
+    let (behind_x, ahead_x) = (
+        (narrow(i - 1, k)?, narrow(i - 1, k + 1)?),
+        (narrow(i + 2, k)?, narrow(i + 2, k + 1)?),
+    );
+    let Vec3 {
+        x: fx,
+        y: fy,
+        z: fz,
+    } = site.frac;
+    let lerp4 = |a: Vec4, b: Vec4, t: f32| a + Vec4::splat(t) * (b - a);
+    // Along x between planes i and i + 1: rows z = k and z = k + 1 over y = j - 1 ..= j + 2,
+    // then (y, z) = (j, k - 1), (j + 1, k - 1), (j, k + 2), (j + 1, k + 2).
+    let [xa0, xa1, xa2, xa3] = lerp4(Vec4::from(a0), Vec4::from(a1), fx).to_array();
+    let [xb0, xb1, xb2, xb3] = lerp4(Vec4::from(b0), Vec4::from(b1), fx).to_array();
+    let [xc0, xc1, xd0, xd1] = lerp4(
+        Vec4::new(c0[0], c0[1], d0[0], d0[1]),
+        Vec4::new(c1[0], c1[1], d1[0], d1[1]),
+        fx,
+    )
+    .to_array();
+    // The cells one over along x: their four lerps in `interpolate`'s lane order
+    // (y0 z0, y1 z0, y0 z1, y1 z1), between planes i - 1 and i, and i + 1 and i + 2.
+    let corners = |(z0, z1): ([f32; 2], [f32; 2])| Vec4::new(z0[0], z0[1], z1[0], z1[1]);
+    let at_i = Vec4::new(a0[1], a0[2], b0[1], b0[2]);
+    let at_i1 = Vec4::new(a1[1], a1[2], b1[1], b1[2]);
+    let [xp0, xp1, xp2, xp3] = lerp4(at_i1, corners(ahead_x), fx).to_array();
+    let [xm0, xm1, xm2, xm3] = lerp4(corners(behind_x), at_i, fx).to_array();
+    // Along y, two per cell (`p` the cell ahead, `m` the one behind): at z0, then at z1.
+    let [xp_z0, xp_z1, xm_z0, xm_z1] = lerp4(
+        Vec4::new(xp0, xp2, xm0, xm2),
+        Vec4::new(xp1, xp3, xm1, xm3),
+        fy,
+    )
+    .to_array();
+    let [yp_z0, yp_z1, ym_z0, ym_z1] = lerp4(
+        Vec4::new(xa2, xb2, xa0, xb0),
+        Vec4::new(xa3, xb3, xa1, xb1),
+        fy,
+    )
+    .to_array();
+    let [zp_z0, zp_z1, zm_z0, zm_z1] = lerp4(
+        Vec4::new(xb1, xd0, xc0, xa1),
+        Vec4::new(xb2, xd1, xc1, xa2),
+        fy,
+    )
+    .to_array();
+    // Along z, one per cell.
+    let [x_ahead, x_behind, y_ahead, y_behind] = lerp4(
+        Vec4::new(xp_z0, xm_z0, yp_z0, ym_z0),
+        Vec4::new(xp_z1, xm_z1, yp_z1, ym_z1),
+        fz,
+    )
+    .to_array();
+    let [z_ahead, z_behind, _, _] = lerp4(
+        Vec4::new(zp_z0, zm_z0, zp_z0, zm_z0),
+        Vec4::new(zp_z1, zm_z1, zp_z1, zm_z1),
+        fz,
+    )
+    .to_array();
+    Some([
+        (x_ahead, x_behind),
+        (y_ahead, y_behind),
+        (z_ahead, z_behind),
+    ])
+}
+
+/// Nodes `y .. y + N` of row `z` of plane `x`, as `f32`; `None` where any is not stored.
+#[inline(always)]
+fn nodes<T: Sample, const N: usize>(
+    slab: &Slab<'_, T>,
+    x: u32,
+    z: u32,
+    y: u32,
+) -> Option<[f32; N]> {
+    let row = slab.row(x, z)?.get(y as usize..y as usize + N)?;
+    Some(core::array::from_fn(|n| row[n].to_f32()))
 }
 
 #[cfg(test)]
@@ -373,6 +499,76 @@ mod tests {
         let mut c = Counters::default();
         let g = gradient(&slab, Model::Cell, Vec3::splat(1.0), 0.5, &mut c);
         assert!((g - Vec3::new(1.0, 5.0, 25.0)).length() < 1e-4, "{g}");
+    }
+
+    /// The gradient as defined: six reads, one by one.
+    fn reference<T: Sample>(slab: &Slab<'_, T>, p: Vec3, d: f32, c: &mut Counters) -> Vec3 {
+        let g: [f32; 3] = core::array::from_fn(|axis| {
+            let mut offset = Vec3::ZERO;
+            offset[axis] = d;
+            let ahead = value(slab, Model::Cell, p + offset, c);
+            let behind = value(slab, Model::Cell, p - offset, c);
+            (ahead - behind) / (2.0 * d)
+        });
+        Vec3::from_array(g) * slab.grid().inv_spacing()
+    }
+
+    #[test]
+    fn shared_gradient_reads_equal_six_reads_in_every_bit() {
+        // A field with no structure to hide behind: every node a different hash.
+        const DIMS: [u32; 3] = [9, 7, 8];
+        let hash = |i: usize| ((i as u32).wrapping_mul(2_654_435_761) >> 7) as f32 * 1e-3;
+        let data: [f32; 9 * 7 * 8] = core::array::from_fn(hash);
+        let grid = Grid::new(DIMS, Vec3::new(1.0, 0.5, 2.0)).unwrap();
+        let whole = Slab::whole(grid, &data).unwrap();
+        // Planes 3 and 4 owned, 2 to 5 stored: neighbours past those are not stored.
+        let part = Slab::new(grid, 3..5, 1, &data[2 * 56..6 * 56]).unwrap();
+        let (mut shared, mut fallback) = (0, 0);
+        let mut next = crate::testing::xorshift(0x2545_f491);
+        let whole_number = |r: u32, n: u32| (1 + r % (n - 1)) as f32;
+        for n in 0..20_000 {
+            let mut p = Vec3::ZERO;
+            for a in 0..3 {
+                let r = next();
+                let extent = DIMS[a] as f32;
+                p[a] = match n % 4 {
+                    // Anywhere, out of the grid included.
+                    0 => (r >> 8) as f32 / (1 << 24) as f32 * (extent + 2.0) - 1.0,
+                    // Where all six neighbours' cells lie in the grid.
+                    1 => (r >> 8) as f32 / (1 << 24) as f32 * (extent - 3.0) + 1.0,
+                    // Just above a whole number, where `x + 1` may round.
+                    2 => f32::from_bits(whole_number(r, DIMS[a]).to_bits() + r % 5),
+                    // Just below one.
+                    _ => f32::from_bits(whole_number(r, DIMS[a]).to_bits() - r % 5),
+                };
+            }
+            for slab in [&whole, &part] {
+                let (mut c, mut d) = (Counters::default(), Counters::default());
+                let bits = |g: Vec3| g.to_array().map(f32::to_bits);
+                let g = gradient(slab, Model::Cell, p, 1.0, &mut c);
+                assert_eq!(bits(g), bits(reference(slab, p, 1.0, &mut d)), "{p}");
+                // The same reads counted, misses of neighbours past the stored planes too.
+                d.gradients = 1;
+                assert_eq!(c, d, "{p}");
+                match unit_differences(slab, p) {
+                    Some(_) => shared += 1,
+                    None => fallback += 1,
+                }
+            }
+        }
+        // Both ways were taken, each many times.
+        assert!(
+            shared > 5_000 && fallback > 5_000,
+            "{shared} shared, {fallback} not"
+        );
+        // Where `x + 1` rounds the reads are not shared: 1 + 2^-23 + 1 is 2, not 2 + 2^-23.
+        let p = Vec3::new(1.0 + f32::EPSILON, 3.5, 3.5);
+        assert_eq!(unit_differences(&whole, p), None);
+        assert!(unit_differences(&whole, Vec3::new(1.5, 3.5, 3.5)).is_some());
+        // Other distances and the voxel model read one by one.
+        let (mut c, mut d) = (Counters::default(), Counters::default());
+        let g = gradient(&whole, Model::Cell, Vec3::splat(3.3), 0.5, &mut c);
+        assert_eq!(g, reference(&whole, Vec3::splat(3.3), 0.5, &mut d));
     }
 
     #[test]

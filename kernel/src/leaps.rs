@@ -120,13 +120,7 @@ mod tests {
 
     #[test]
     fn the_two_passes_give_exact_chessboard_distances() {
-        let mut state = 0x2545_f491u32;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 17;
-            state ^= state << 5;
-            state
-        };
+        let mut next = crate::testing::xorshift(0x2545_f491);
         for round in 0..300 {
             let dims = [1 + next() % 6, 1 + next() % 6, 1 + next() % 6];
             let len = dims.iter().product::<u32>() as usize;

@@ -45,6 +45,8 @@ pub mod shift;
 pub mod slab;
 pub mod stats;
 pub mod surface;
+#[cfg(test)]
+mod testing;
 pub mod topology;
 pub mod trace;
 pub mod transfer;

@@ -148,7 +148,7 @@ impl<'a, T: Sample> Slab<'a, T> {
 
     /// The samples of row `z` of plane `x`, in Y order; `None` outside the stored planes or
     /// the grid.
-    #[inline]
+    #[inline(always)]
     pub fn row(&self, x: u32, z: u32) -> Option<&'a [T]> {
         let [_, ny, nz] = self.grid.dims();
         if x < self.stored_start || x >= self.stored_end || z >= nz {
