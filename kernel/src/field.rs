@@ -1,22 +1,15 @@
 //! The continuous field a slab defines under a model: nearest (voxel) or trilinear (cell)
 //! reads at index-space points, and the object-space gradient by central differences.
 //!
-//! Invariants: positions are clamped into the grid before any read, so a finite position
-//! never reads outside the grid; a non-finite coordinate is clamped to the grid's low edge
-//! (`f32::max`/`min` discard NaN) and still yields a finite value. Each read is counted.
+//! Invariants: positions are clamped into the grid before any read, so no position reads
+//! outside the grid: infinities clamp to the nearer edge and NaN to the low edge, and still
+//! yield a finite value. Each read is counted.
 
 use crate::counters::Counters;
 use crate::grid::{floor_index, Grid, Model};
 use crate::sample::Sample;
 use crate::slab::Slab;
 use glam::{Vec3, Vec4};
-
-/// Clamp `v` into `[0, n - 1]`; NaN becomes 0.
-#[inline]
-fn clamp_axis(v: f32, n: u32) -> f32 {
-    // `max` returns the other operand for NaN, so NaN lands on 0.
-    v.max(0.0).min((n - 1) as f32)
-}
 
 #[inline]
 fn read<T: Sample>(slab: &Slab<'_, T>, x: u32, y: u32, z: u32, counters: &mut Counters) -> f32 {
@@ -54,13 +47,19 @@ impl Site {
 /// The [`Site`] of index-space point `p` in `grid` under `model`.
 #[inline]
 pub fn locate(grid: &Grid, model: Model, p: Vec3) -> Site {
+    // The three axes in the lanes of one vector, for every sample and every read: clamped
+    // into [0, n - 1] (`q > 0` is false for NaN and -0.0, which land on +0.0), where
+    // truncation is the floor and exact (n ≤ 2^24). Equal to the per-axis definition in the
+    // tests for every kind of f32.
     let dims = grid.dims();
-    let p = p.to_array();
+    let q = p.extend(0.0);
+    let (last_node, last_cell) = grid.last_planes();
     match model {
         Model::Voxel => {
-            let lo: [u32; 3] = core::array::from_fn(|a| {
-                floor_index(clamp_axis(p[a], dims[a]) + 0.5).min(dims[a] - 1)
-            });
+            // The nearest node, halves rounding up: `v + 0.5` truncated, kept in the grid.
+            let v = Vec4::select(q.cmpgt(Vec4::ZERO), q, Vec4::ZERO).min(last_node);
+            let lo = (v + Vec4::splat(0.5)).min(last_node).as_ivec4();
+            let lo = lo.truncate().as_uvec3().to_array();
             Site {
                 lo,
                 hi: lo,
@@ -68,13 +67,13 @@ pub fn locate(grid: &Grid, model: Model, p: Vec3) -> Site {
             }
         }
         Model::Cell => {
-            let [(x0, x1, fx), (y0, y1, fy), (z0, z1, fz)] =
-                core::array::from_fn(|a| cell_axis(p[a], dims[a]));
-            Site {
-                lo: [x0, y0, z0],
-                hi: [x1, y1, z1],
-                frac: Vec3::new(fx, fy, fz),
-            }
+            let v = Vec4::select(q.cmpgt(Vec4::ZERO), q, Vec4::ZERO).min(last_node);
+            // `v` is in [0, n - 1]: truncation is the floor, and the bound keeps it exact.
+            let lo = v.min(last_cell).as_ivec4();
+            let frac = (v - lo.as_vec4()).truncate();
+            let lo = lo.truncate().as_uvec3().to_array();
+            let hi = core::array::from_fn(|a| (lo[a] + 1).min(dims[a] - 1));
+            Site { lo, hi, frac }
         }
     }
 }
@@ -111,15 +110,6 @@ pub fn nearest<T: Sample>(slab: &Slab<'_, T>, p: Vec3, counters: &mut Counters) 
         &locate(slab.grid(), Model::Voxel, p),
         counters,
     )
-}
-
-/// Cell index and fraction along one axis: `i ∈ [0, n - 2]` (0 when `n = 1`), `f ∈ [0, 1]`.
-#[inline]
-fn cell_axis(v: f32, n: u32) -> (u32, u32, f32) {
-    let v = clamp_axis(v, n);
-    let i = floor_index(v).min(n.saturating_sub(2));
-    let f = v - i as f32;
-    (i, (i + 1).min(n - 1), f)
 }
 
 /// The trilinear interpolation of the eight nodes of the cell around `p`.
@@ -375,7 +365,83 @@ fn nodes<T: Sample, const N: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::grid::Grid;
+    use crate::grid::{Grid, MAX_DIM};
+    use heapless::Vec;
+
+    /// Clamp `v` into `[0, n - 1]`; NaN becomes 0 (`max` returns the other operand).
+    fn clamp_axis(v: f32, n: u32) -> f32 {
+        v.max(0.0).min((n - 1) as f32)
+    }
+
+    /// The definition of a cell-model site, one axis at a time: cell index `i ∈ [0, n - 2]`
+    /// (0 when `n = 1`), the next node, and the fraction `f ∈ [0, 1]`.
+    fn cell_axis(v: f32, n: u32) -> (u32, u32, f32) {
+        let v = clamp_axis(v, n);
+        let i = floor_index(v).min(n.saturating_sub(2));
+        let f = v - i as f32;
+        (i, (i + 1).min(n - 1), f)
+    }
+
+    /// The definition of a voxel-model site's node along one axis: nearest, halves up.
+    fn voxel_axis(v: f32, n: u32) -> u32 {
+        floor_index(clamp_axis(v, n) + 0.5).min(n - 1)
+    }
+
+    #[test]
+    fn a_site_is_the_per_axis_definition_for_every_kind_of_coordinate() {
+        let mut next = crate::testing::xorshift(0x9e37_79b9);
+        for dims in [
+            [1, 1, 1],
+            [2, 3, 1],
+            [5, 4, 3],
+            [97, 97, 116],
+            [MAX_DIM, 2, 3],
+        ] {
+            let grid = Grid::new(dims, Vec3::ONE).unwrap();
+            let mut xs = Vec::<f32, 4096>::new();
+            for n in dims.map(|n| n as f32) {
+                for edge in [0.0, 0.5, 1.0, n - 2.0, n - 1.5, n - 1.0, n - 0.5, n] {
+                    for ulps in -2i32..=2 {
+                        let bits = f32::to_bits(edge).wrapping_add_signed(ulps);
+                        xs.extend([edge, f32::from_bits(bits), -f32::from_bits(bits)]);
+                    }
+                }
+            }
+            let special = [
+                f32::NAN,
+                f32::INFINITY,
+                f32::NEG_INFINITY,
+                -0.0,
+                1e-45,
+                1e30,
+                -1e30,
+            ];
+            xs.extend(special);
+            while !xs.is_full() {
+                // Any bit pattern, and any position in or near the grid.
+                let r = next();
+                let _ = xs.push(f32::from_bits(r));
+                let _ = xs.push((r >> 8) as f32 / (1 << 24) as f32 * (dims[0] as f32 + 4.0) - 2.0);
+            }
+            for (n, &x) in xs.iter().enumerate() {
+                // Each value on each axis, beside others.
+                let p = Vec3::new(x, xs[(n * 7 + 1) % xs.len()], xs[(n * 13 + 2) % xs.len()]);
+                let cell = locate(&grid, Model::Cell, p);
+                let voxel = locate(&grid, Model::Voxel, p);
+                for a in 0..3 {
+                    let (lo, hi, f) = cell_axis(p[a], dims[a]);
+                    // Equal as numbers: the definition's `max(-0.0, 0.0)` may keep either zero.
+                    assert_eq!(
+                        (cell.lo[a], cell.hi[a], cell.frac[a]),
+                        (lo, hi, f),
+                        "{p} {dims:?}"
+                    );
+                    let node = voxel_axis(p[a], dims[a]);
+                    assert_eq!((voxel.lo[a], voxel.hi[a], voxel.frac[a]), (node, node, 0.0));
+                }
+            }
+        }
+    }
 
     fn ramp() -> ([f32; 27], Grid) {
         // f(x, y, z) = x + 10y + 100z, plane-major (x slowest, then z, then y).

@@ -6,7 +6,7 @@
 //! `(0, 0, 0)` sits at the world origin.
 
 use core::fmt;
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 
 /// How values between grid nodes are defined (the paper's two readings of a regular dataset).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -29,6 +29,13 @@ pub enum GridError {
     },
     /// The product of the dimensions overflows `usize`.
     TooManySamples,
+    /// A dimension exceeds [`MAX_DIM`].
+    TooLong {
+        /// Axis index (0 = X).
+        axis: usize,
+        /// The dimension.
+        n: u32,
+    },
     /// A spacing component is not finite and positive.
     BadSpacing {
         /// Axis index (0 = X).
@@ -52,6 +59,11 @@ impl fmt::Display for GridError {
             GridError::TooManySamples => {
                 write!(f, "the dimensions' product overflows the address space")
             }
+            GridError::TooLong { axis, n } => write!(
+                f,
+                "dimension {} is {n}; at most {MAX_DIM} samples per axis",
+                AXES[axis % 3]
+            ),
             GridError::BadSpacing { axis, value } => write!(
                 f,
                 "spacing {} is {value}; it must be finite and greater than zero",
@@ -63,12 +75,18 @@ impl fmt::Display for GridError {
 
 impl core::error::Error for GridError {}
 
+/// Most samples along one axis: index-space positions are `f32`, which hold every whole
+/// number up to 2^24 exactly, so every node and cell boundary has its own coordinate.
+pub const MAX_DIM: u32 = 1 << 24;
+
 /// A regular grid of `dims[0] × dims[1] × dims[2]` samples, X fastest in files.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Grid {
     dims: [u32; 3],
     spacing: Vec3,
     inv_spacing: Vec3,
+    /// `n - 1` and `max(n - 2, 0)` per axis, as floats, in the lanes the sample loop uses.
+    last: (Vec4, Vec4),
 }
 
 impl Grid {
@@ -78,6 +96,9 @@ impl Grid {
         for (axis, &n) in dims.iter().enumerate() {
             if n == 0 {
                 return Err(GridError::ZeroDimension { axis });
+            }
+            if n > MAX_DIM {
+                return Err(GridError::TooLong { axis, n });
             }
             count = count
                 .checked_mul(n as usize)
@@ -101,10 +122,14 @@ impl Grid {
                 value: spacing[axis],
             });
         }
+        let lanes = |f: fn(u32) -> u32| {
+            Vec4::new(f(dims[0]) as f32, f(dims[1]) as f32, f(dims[2]) as f32, 0.0)
+        };
         Ok(Grid {
             dims,
             spacing,
             inv_spacing,
+            last: (lanes(|n| n - 1), lanes(|n| n.saturating_sub(2))),
         })
     }
 
@@ -150,6 +175,13 @@ impl Grid {
     pub fn world_box(&self, model: Model) -> (Vec3, Vec3) {
         let (lo, hi) = self.index_box(model);
         (lo * self.spacing, hi * self.spacing)
+    }
+
+    /// The last node and the last cell's low node per axis (`n - 1` and `max(n - 2, 0)`),
+    /// as floats in lanes x, y, z (w is 0): where index-space points clamp.
+    #[inline]
+    pub fn last_planes(&self) -> (Vec4, Vec4) {
+        self.last
     }
 
     /// The X plane that owns a sample at index-space `x`: the lower plane of its cell (cell
@@ -252,5 +284,13 @@ mod tests {
             Err(GridError::BadSpacing { axis: 2, .. })
         ));
         assert!(Grid::new([u32::MAX, u32::MAX, u32::MAX], Vec3::ONE).is_err());
+        assert_eq!(
+            Grid::new([2, MAX_DIM + 1, 1], Vec3::ONE),
+            Err(GridError::TooLong {
+                axis: 1,
+                n: MAX_DIM + 1
+            })
+        );
+        assert!(Grid::new([MAX_DIM, 1, 1], Vec3::ONE).is_ok());
     }
 }
