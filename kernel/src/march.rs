@@ -335,6 +335,10 @@ fn nearest_crossing<T: Sample>(
             cap_normal: Some(normal),
         });
     }
+    if view.below_surfaces(ray.prev) && view.below_surfaces(v) {
+        // Both ends outside every surface: nothing crosses (most samples, in one test).
+        return None;
+    }
     let t_prev = ray.lattice.t(ray.k.saturating_sub(1));
     let model = view.spec().model;
     let mut best: Option<(f32, usize)> = None;

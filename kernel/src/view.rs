@@ -253,6 +253,13 @@ impl View {
         }
     }
 
+    /// Whether value `v` lies below every iso value, outside every surface (false for NaN,
+    /// and for every value of a composited view).
+    #[inline]
+    pub fn below_surfaces(&self, v: f32) -> bool {
+        v < self.min_iso
+    }
+
     /// The ray's half of the skipping test: a surface ray may skip only where no crossing
     /// from its previous sample is pending (that sample was below every iso value, or itself
     /// skipped) and nothing on the current segment has been reported.
@@ -260,7 +267,8 @@ impl View {
     pub fn may_skip(&self, ray: &RayState) -> bool {
         match &self.spec.mode {
             Mode::Surfaces(_) => {
-                ray.done_here == 0 && (!ray.primed || ray.prev_stale || ray.prev < self.min_iso)
+                ray.done_here == 0
+                    && (!ray.primed || ray.prev_stale || self.below_surfaces(ray.prev))
             }
             Mode::Composite(_) => true,
         }
