@@ -49,15 +49,15 @@ impl Site {
 pub fn locate(grid: &Grid, model: Model, p: Vec3) -> Site {
     // The three axes in the lanes of one vector, for every sample and every read: clamped
     // into [0, n - 1] (`q > 0` is false for NaN and -0.0, which land on +0.0), where
-    // truncation is the floor and exact (n ≤ 2^24). Equal to the per-axis definition in the
-    // tests for every kind of f32.
+    // truncation is the floor and exact (n ≤ 2^24, `Grid::new` checks). Equal to the
+    // per-axis definition in the tests for every kind of f32.
     let dims = grid.dims();
     let q = p.extend(0.0);
-    let (last_node, last_cell) = grid.last_planes();
+    let (last_node, last_cell) = grid.last_indices();
+    let v = Vec4::select(q.cmpgt(Vec4::ZERO), q, Vec4::ZERO).min(last_node);
     match model {
         Model::Voxel => {
             // The nearest node, halves rounding up: `v + 0.5` truncated, kept in the grid.
-            let v = Vec4::select(q.cmpgt(Vec4::ZERO), q, Vec4::ZERO).min(last_node);
             let lo = (v + Vec4::splat(0.5)).min(last_node).as_ivec4();
             let lo = lo.truncate().as_uvec3().to_array();
             Site {
@@ -67,8 +67,6 @@ pub fn locate(grid: &Grid, model: Model, p: Vec3) -> Site {
             }
         }
         Model::Cell => {
-            let v = Vec4::select(q.cmpgt(Vec4::ZERO), q, Vec4::ZERO).min(last_node);
-            // `v` is in [0, n - 1]: truncation is the floor, and the bound keeps it exact.
             let lo = v.min(last_cell).as_ivec4();
             let frac = (v - lo.as_vec4()).truncate();
             let lo = lo.truncate().as_uvec3().to_array();

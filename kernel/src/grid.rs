@@ -180,7 +180,7 @@ impl Grid {
     /// The last node and the last cell's low node per axis (`n - 1` and `max(n - 2, 0)`),
     /// as floats in lanes x, y, z (w is 0): where index-space points clamp.
     #[inline]
-    pub fn last_planes(&self) -> (Vec4, Vec4) {
+    pub fn last_indices(&self) -> (Vec4, Vec4) {
         self.last
     }
 
