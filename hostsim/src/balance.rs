@@ -12,7 +12,7 @@
 
 use crate::dataset::Volume;
 use crate::fabric::sim::{self, SimConfig};
-use crate::fabric::{Category, VirtualTime};
+use crate::fabric::{Category, SkipMode, VirtualTime};
 use crate::profile::MachineProfile;
 use std::fmt;
 use voxcube_kernel::partition::Partition;
@@ -142,13 +142,13 @@ pub fn probe(
     profile: &MachineProfile,
     size: u32,
     cuts: Option<Vec<u32>>,
-    skip: bool,
+    skipping: SkipMode,
 ) -> Result<(Vec<f64>, f64), BalanceError> {
     let base = SimConfig::machine(1, size, 1).map_err(|e| BalanceError::Setup(e.to_string()))?;
     let cfg = SimConfig {
         time: Some(profile.clone()),
         cuts,
-        skip,
+        skipping,
         ..base
     };
     let run = sim::run(volume, probe, &cfg).map_err(BalanceError::Probe)?;
@@ -182,7 +182,7 @@ pub fn balance(
     view: &View,
     profile: &MachineProfile,
     size: u32,
-    skip: bool,
+    skipping: SkipMode,
     max_planes: u32,
 ) -> Result<Balance, BalanceError> {
     let nx = volume.grid.dims()[0];
@@ -190,7 +190,7 @@ pub fn balance(
         Partition::uniform(nx, size as usize).map_err(|e| BalanceError::Setup(e.to_string()))?;
     let before = old.cuts().to_vec();
     let probe_view = probe_view(view, volume)?;
-    let (times_before, frame_before) = probe(volume, &probe_view, profile, size, None, skip)?;
+    let (times_before, frame_before) = probe(volume, &probe_view, profile, size, None, skipping)?;
     let proposed = new_cuts(&old, &times_before, max_planes);
     let (times_proposed, frame_proposed) = if proposed == before {
         (times_before.clone(), frame_before)
@@ -201,7 +201,7 @@ pub fn balance(
             profile,
             size,
             Some(proposed.clone()),
-            skip,
+            skipping,
         )?
     };
     let after = if frame_proposed < frame_before {

@@ -8,6 +8,7 @@
 //! with each target of the issue "Speed" and whether this run met it.
 
 use crate::dataset::{Volume, VolumeData};
+use crate::fabric::SkipMode;
 use crate::render::{render_on, Fabric, Machine, RenderError};
 use crate::scene::{Scene, SceneError};
 use std::fmt::Write;
@@ -181,7 +182,7 @@ pub fn machines(cores: u32, size: Size) -> Vec<(String, Machine, u32)> {
             (
                 "no leaps, direct, 1 node".into(),
                 Machine {
-                    leap: false,
+                    skipping: SkipMode::BLOCKS,
                     ..Machine::new(Fabric::Direct, 1, 1, 1)
                 },
                 1,

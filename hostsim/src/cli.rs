@@ -5,6 +5,7 @@
 use crate::bench;
 use crate::budget::Profile;
 use crate::explore;
+use crate::fabric::SkipMode;
 use crate::output::{write_atomic, write_png};
 use crate::render::{preflight, render_cut, Fabric, Machine};
 use crate::report::{summary, BalanceReport, Report, ViewReport};
@@ -357,8 +358,10 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                     let mut m = machine(v, nodes, clusters, fabric, seed, generation, buffer)
                         .map_err(|e| format!("{}/{}: {e}", job.name, v.name))?;
                     m.threads = threads;
-                    m.skip = !no_skip;
-                    m.leap = !no_leap;
+                    m.skipping = SkipMode {
+                        skip: !no_skip,
+                        leap: !no_leap,
+                    };
                     m.profile = match profile {
                         ProfileArg::Ncube2 => Profile::ncube2(),
                         ProfileArg::Modern => Profile::builtin("modern")
@@ -496,7 +499,7 @@ fn balance_view(
         view.ghost_planes(),
         buffer,
     );
-    let b = crate::balance::balance(volume, view, &timing, size, machine.skip, cap)
+    let b = crate::balance::balance(volume, view, &timing, size, machine.skipping, cap)
         .map_err(|e| e.to_string())?;
     let probe = crate::balance::probe_view(view, volume).map_err(|e| e.to_string())?;
     let rays = [probe.spec().width, probe.spec().height];

@@ -137,7 +137,7 @@ pub fn timed(
         time: Some(profile.clone()),
         shift: cuts.is_some(),
         cuts,
-        skip: false,
+        skipping: crate::fabric::SkipMode::OFF,
         ..base
     };
     let run = sim::run(&job.volume, view, &cfg)?;
@@ -154,8 +154,15 @@ pub fn balance(
     size: u32,
 ) -> Result<Vec<u32>, PaperError> {
     let nx = job.volume.grid.dims()[0];
-    let b = crate::balance::balance(&job.volume, view, profile, size, false, nx)
-        .map_err(|e| PaperError::Write(e.to_string()))?;
+    let b = crate::balance::balance(
+        &job.volume,
+        view,
+        profile,
+        size,
+        crate::fabric::SkipMode::OFF,
+        nx,
+    )
+    .map_err(|e| PaperError::Write(e.to_string()))?;
     Ok(b.after)
 }
 

@@ -67,10 +67,8 @@ pub struct Machine {
     pub profile: Profile,
     /// OS threads for the threads fabric (0: one per core).
     pub threads: usize,
-    /// Skip provably empty samples (changes no pixel; off to compare or to debug).
-    pub skip: bool,
-    /// Leap over every empty block around when skipping (changes no pixel; off to compare).
-    pub leap: bool,
+    /// How provably empty samples are skipped (changes no pixel; off to compare or debug).
+    pub skipping: SkipMode,
 }
 
 impl Machine {
@@ -87,16 +85,7 @@ impl Machine {
             flow_control: true,
             profile: Profile::ncube2(),
             threads: 0,
-            skip: true,
-            leap: true,
-        }
-    }
-
-    /// How the nodes skip empty space.
-    pub fn skip_mode(&self) -> SkipMode {
-        SkipMode {
-            skip: self.skip,
-            leap: self.leap,
+            skipping: SkipMode::LEAPS,
         }
     }
 
@@ -111,8 +100,7 @@ impl Machine {
             generation: self.generation,
             buffer_bytes: self.buffer_bytes,
             flow_control: self.flow_control,
-            skip: self.skip,
-            leap: self.leap,
+            skipping: self.skipping,
             ..SimConfig::machine(self.clusters, self.cluster_size(), self.seed)?
         })
     }
@@ -297,7 +285,7 @@ pub fn render_cut(
 ) -> Result<Rendered, RenderError> {
     preflight(volume, view, machine)?;
     match machine.fabric {
-        Fabric::Direct => Ok(render_direct(volume, view, machine.skip_mode(), progress)?),
+        Fabric::Direct => Ok(render_direct(volume, view, machine.skipping, progress)?),
         Fabric::Mpi => Err(RenderError::Machine(
             "the MPI fabric renders through `voxcube render --fabric mpi` under mpirun".into(),
         )),

@@ -248,7 +248,7 @@ impl View {
     pub fn empty(&self, r: Range) -> bool {
         match &self.spec.mode {
             // Below every iso value is below the least of them (NaN is below none).
-            Mode::Surfaces(_) => r.max < self.min_iso,
+            Mode::Surfaces(_) => self.below_surfaces(r.max),
             Mode::Composite(tf) => !(tf.max_opacity(r.min, r.max) > 0.0),
         }
     }

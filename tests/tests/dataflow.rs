@@ -43,7 +43,7 @@ fn every_test_scene_is_bit_identical_on_every_cluster_size_and_seed() {
                     &job.volume,
                     &view.view,
                     &SimConfig {
-                        skip: false,
+                        skipping: SkipMode::OFF,
                         ..config(size, seed + 100 * v as u64)
                     },
                 )

@@ -3,6 +3,7 @@
 //! tests skip with a message — except under CI (`CI` set), where a missing folder fails.
 
 use std::path::{Path, PathBuf};
+use voxcube::fabric::SkipMode;
 use voxcube::render::render;
 use voxcube::scene::Scene;
 
@@ -161,7 +162,7 @@ fn the_ncube2_profile_is_calibrated_to_the_papers_one_node_time() {
     // The paper's tracer, without empty-space skipping.
     let cfg = SimConfig {
         time: Some(MachineProfile::ncube2()),
-        skip: false,
+        skipping: SkipMode::OFF,
         ..SimConfig::cluster(1, 1).expect("layout")
     };
     let t = sim::run(&job.volume, &job.views[0].view, &cfg)

@@ -36,8 +36,11 @@ fn check(text: &str, file: &str) {
             assert_eq!(on.counters, blocks.counters, "{}/{}", job.name, v.name);
             for (size, seed, leap) in [(3u32, 1u64, true), (8, 2, true), (3, 3, false)] {
                 let cfg = SimConfig {
-                    skip: true,
-                    leap,
+                    skipping: if leap {
+                        SkipMode::LEAPS
+                    } else {
+                        SkipMode::BLOCKS
+                    },
                     ..SimConfig::cluster(size, seed).expect("layout")
                 };
                 let run = sim::run(&job.volume, &v.view, &cfg).expect("runs");

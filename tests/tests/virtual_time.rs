@@ -2,6 +2,7 @@
 //! node's time to categories that add up to the frame time, and get faster with more nodes.
 
 use voxcube::fabric::sim::{self, SimConfig};
+use voxcube::fabric::SkipMode;
 use voxcube::profile::MachineProfile;
 use voxcube::render::render;
 use voxcube::scene::Scene;
@@ -72,7 +73,7 @@ fn static_load_balancing_lowers_the_time_of_an_unbalanced_cluster() {
             time: Some(profile.clone()),
             cuts: Some(cuts.clone()),
             shift,
-            skip: false,
+            skipping: SkipMode::OFF,
             ..SimConfig::cluster(4, 1).expect("layout")
         };
         sim::run(&job.volume, v, &cfg).expect("runs")

@@ -334,47 +334,92 @@ impl Skipping {
     }
 }
 
-/// Each node's stored planes, in node-id order: its own storage after a plane shift
-/// (`shifted`), else its slab of `partition` in `data`, which every cluster holds alike at a
-/// ring position; and the skipping storage of each ring position for `view` (`mode`), built
-/// from cluster 0's node there.
-#[allow(
-    clippy::too_many_arguments,
-    reason = "the fabrics' one set-up step; the arguments are the machine's shape and the view"
-)]
-pub fn node_storage<'d, T: voxcube_kernel::sample::Sample>(
-    grid: &Grid,
+/// What every node of an in-process machine holds before its first message: its stored
+/// planes, and the skipping storage of its ring position for the view.
+#[derive(Debug)]
+pub struct NodeStorage<'d, T> {
+    grid: Grid,
     layout: Layout,
-    partition: &Partition,
     ghost: u32,
-    data: &'d [T],
-    shifted: Option<&'d [Vec<T>]>,
-    view: &voxcube_kernel::view::View,
-    mode: SkipMode,
-) -> (Vec<&'d [T]>, Vec<Skipping>) {
-    let plane = grid.plane_len();
-    let storage: Vec<&[T]> = (0..layout.nodes() as u16)
-        .map(|node| match shifted {
-            Some(storages) => storages[usize::from(node)].as_slice(),
-            None => {
-                let j = usize::from(layout.place(node).1);
-                let s = stored_planes(grid, partition.planes(j), ghost);
-                &data[s.start as usize * plane..s.end as usize * plane]
-            }
-        })
-        .collect();
-    let skipping = (0..layout.size())
-        .map(|j| {
-            let node = usize::from(layout.node(0, j));
-            voxcube_kernel::slab::Slab::new(
-                *grid,
-                partition.planes(usize::from(j)),
-                ghost,
-                storage[node],
-            )
-            .map(|s| Skipping::build(&s, view, mode))
-            .unwrap_or_default()
-        })
-        .collect();
-    (storage, skipping)
+    /// Owned planes by ring position.
+    planes: Vec<Range<u32>>,
+    /// Stored planes by node id.
+    storage: Vec<&'d [T]>,
+    /// By ring position: every cluster holds the same slab there.
+    skipping: Vec<Skipping>,
+}
+
+impl<'d, T: voxcube_kernel::sample::Sample> NodeStorage<'d, T> {
+    /// Each node's stored planes: its own storage after a plane shift (`shifted`, by node
+    /// id), else its slab of `partition` in `data`, which every cluster holds alike at a ring
+    /// position; and the skipping storage of each ring position for `view` (`mode`), built
+    /// from cluster 0's node there.
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "the fabrics' one set-up step; the arguments are the machine's shape and the view"
+    )]
+    pub fn new(
+        grid: &Grid,
+        layout: Layout,
+        partition: &Partition,
+        ghost: u32,
+        data: &'d [T],
+        shifted: Option<&'d [Vec<T>]>,
+        view: &voxcube_kernel::view::View,
+        mode: SkipMode,
+    ) -> NodeStorage<'d, T> {
+        let plane = grid.plane_len();
+        let planes: Vec<Range<u32>> = (0..partition.slabs())
+            .map(|j| partition.planes(j))
+            .collect();
+        let storage = (0..layout.nodes() as u16)
+            .map(|node| match shifted {
+                Some(storages) => storages[usize::from(node)].as_slice(),
+                None => {
+                    let j = usize::from(layout.place(node).1);
+                    let s = stored_planes(grid, planes[j].clone(), ghost);
+                    &data[s.start as usize * plane..s.end as usize * plane]
+                }
+            })
+            .collect();
+        let mut nodes = NodeStorage {
+            grid: *grid,
+            layout,
+            ghost,
+            planes,
+            storage,
+            skipping: Vec::new(),
+        };
+        nodes.skipping = (0..layout.size())
+            .map(|j| {
+                nodes
+                    .bare_slab(layout.node(0, j))
+                    .map(|s| Skipping::build(&s, view, mode))
+                    .unwrap_or_default()
+            })
+            .collect();
+        nodes
+    }
+
+    /// Node `node`'s slab, skipping empty space as its ring position's storage says.
+    pub fn slab(
+        &self,
+        node: u16,
+    ) -> Result<voxcube_kernel::slab::Slab<'_, T>, voxcube_kernel::slab::SlabError> {
+        let j = usize::from(self.layout.place(node).1);
+        Ok(self.skipping[j].apply(self.bare_slab(node)?))
+    }
+
+    fn bare_slab(
+        &self,
+        node: u16,
+    ) -> Result<voxcube_kernel::slab::Slab<'d, T>, voxcube_kernel::slab::SlabError> {
+        let j = usize::from(self.layout.place(node).1);
+        voxcube_kernel::slab::Slab::new(
+            self.grid,
+            self.planes[j].clone(),
+            self.ghost,
+            self.storage[usize::from(node)],
+        )
+    }
 }

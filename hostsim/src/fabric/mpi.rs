@@ -26,7 +26,7 @@ use super::host::Host;
 use super::{Distributed, NodeReport};
 use crate::dataset::{Volume, VolumeData};
 use crate::fabric::shift::{self as planes, Counted, ShiftFailure, ShiftReport};
-use crate::fabric::sim::{SimConfig, SimError, SimWorker};
+use crate::fabric::sim::{SimConfig, SimError};
 use mpi::collective::{CommunicatorCollectives, Root};
 use mpi::datatype::Equivalence;
 use mpi::point_to_point::{Destination, Source};
@@ -42,7 +42,7 @@ use voxcube_kernel::sample::Sample;
 use voxcube_kernel::slab::{stored_planes, Slab};
 use voxcube_kernel::topology::Layout;
 use voxcube_kernel::view::View;
-use voxcube_kernel::worker::{Place, Progress};
+use voxcube_kernel::worker::Progress;
 
 /// Tag of kernel messages.
 const TAG_MSG: i32 = 1;
@@ -286,7 +286,7 @@ fn serve_typed<T: Sample>(
     let (nx, size) = (grid.dims()[0], usize::from(layout.size()));
     let uniform = Partition::uniform(nx, size)?;
     let (flow, capacity) = super::flow_for(cfg, view)?;
-    let (cluster, position) = layout.place(node);
+    let position = layout.place(node).1;
     let j = usize::from(position);
     let ghost = view.ghost_planes();
     let plane = grid.plane_len();
@@ -324,20 +324,9 @@ fn serve_typed<T: Sample>(
             None => &data[stored.start as usize * plane..stored.end as usize * plane],
         },
     )?;
-    let skipping = super::Skipping::build(&slab, view, cfg.skip_mode());
+    let skipping = super::Skipping::build(&slab, view, cfg.skipping);
     let slab = skipping.apply(slab);
-    let mut worker = Box::new(SimWorker::new(
-        view,
-        slab,
-        &partition,
-        Place {
-            layout,
-            cluster,
-            position,
-        },
-        cfg.generation,
-        flow,
-    )?);
+    let mut worker = super::sim::node_worker(view, slab, &partition, cfg, node, flow)?;
     let mut port = MpiPort {
         world,
         local: Default::default(),

@@ -103,10 +103,8 @@ pub struct SimConfig {
     pub time: Option<MachineProfile>,
     /// A fault to inject: this node stops answering after this many of its own steps.
     pub stop: Option<(u16, u64)>,
-    /// Skip provably empty samples with min/max blocks (changes no pixel; off to compare).
-    pub skip: bool,
-    /// Leap over every empty block around when skipping (changes no pixel; off to compare).
-    pub leap: bool,
+    /// How the nodes skip provably empty samples (changes no pixel; off to compare).
+    pub skipping: super::SkipMode,
     /// Test-only faults, applied to every worker.
     #[cfg(feature = "mutants")]
     pub mutants: voxcube_kernel::worker::Mutants,
@@ -138,18 +136,17 @@ impl SimConfig {
             flow_control: true,
             time: None,
             stop: None,
-            skip: true,
-            leap: true,
+            skipping: super::SkipMode::LEAPS,
             #[cfg(feature = "mutants")]
             mutants: Default::default(),
         })
     }
 
-    /// How the nodes skip empty space.
-    pub fn skip_mode(&self) -> super::SkipMode {
-        super::SkipMode {
-            skip: self.skip,
-            leap: self.leap,
+    /// The slabs of a grid `nx` planes long: the configured cuts, else uniform.
+    pub fn partition(&self, nx: u32) -> Result<Partition, PartitionError> {
+        match &self.cuts {
+            Some(cuts) => Partition::new(cuts, nx),
+            None => Partition::uniform(nx, usize::from(self.layout.size())),
         }
     }
 
@@ -427,6 +424,33 @@ pub fn run_with_progress(
     }
 }
 
+/// Node `node`'s worker in `cfg`'s machine: `slab` is its slab of `partition`, at the ring
+/// position `node` holds. Every fabric builds its workers here.
+pub fn node_worker<'a, T: Sample>(
+    view: &'a View,
+    slab: Slab<'a, T>,
+    partition: &'a Partition,
+    cfg: &SimConfig,
+    node: u16,
+    flow: flow::FlowControl,
+) -> Result<Box<SimWorker<'a, T>>, WorkerError> {
+    let layout = cfg.layout;
+    let (cluster, position) = layout.place(node);
+    let place = Place {
+        layout,
+        cluster,
+        position,
+    };
+    Ok(Box::new(SimWorker::new(
+        view,
+        slab,
+        partition,
+        place,
+        cfg.generation,
+        flow,
+    )?))
+}
+
 fn run_typed<T: Sample>(
     volume: &Volume,
     data: &[T],
@@ -439,10 +463,7 @@ fn run_typed<T: Sample>(
     let layout = cfg.layout;
     let size = usize::from(layout.size());
     let nx = grid.dims()[0];
-    let partition = match &cfg.cuts {
-        Some(cuts) => Partition::new(cuts, nx)?,
-        None => Partition::uniform(nx, size)?,
-    };
+    let partition = cfg.partition(nx)?;
     let (flow, capacity) = super::flow_for(cfg, view)?;
     let ghost = view.ghost_planes();
     let plane = grid.plane_len();
@@ -469,7 +490,7 @@ fn run_typed<T: Sample>(
         }
         _ => None,
     };
-    let (storage, skipping) = super::node_storage(
+    let nodes_storage = super::NodeStorage::new(
         &grid,
         layout,
         &partition,
@@ -477,33 +498,16 @@ fn run_typed<T: Sample>(
         data,
         shifted.as_ref().map(|(s, _)| s.as_slice()),
         view,
-        cfg.skip_mode(),
+        cfg.skipping,
     );
     let mut workers: Vec<Box<SimWorker<'_, T>>> = Vec::with_capacity(nodes);
     let mut reports = Vec::with_capacity(nodes);
     for node in 0..nodes as u16 {
         let (cluster, position) = layout.place(node);
         let j = usize::from(position);
-        let slab = skipping[j].apply(Slab::new(
-            grid,
-            partition.planes(j),
-            ghost,
-            storage[usize::from(node)],
-        )?);
-        let place = Place {
-            layout,
-            cluster,
-            position,
-        };
+        let slab = nodes_storage.slab(node)?;
         #[allow(unused_mut, reason = "mutable only to switch on test faults")]
-        let mut worker = Box::new(SimWorker::new(
-            view,
-            slab,
-            &partition,
-            place,
-            cfg.generation,
-            flow,
-        )?);
+        let mut worker = node_worker(view, slab, &partition, cfg, node, flow)?;
         #[cfg(feature = "mutants")]
         {
             worker.mutants = cfg.mutants;

@@ -18,7 +18,7 @@ use super::host::Host;
 use super::{Distributed, NodeReport};
 use crate::dataset::{Volume, VolumeData};
 use crate::fabric::shift::{self as planes, Counted, ShiftFailure, ShiftReport};
-use crate::fabric::sim::{SimConfig, SimError, SimWorker};
+use crate::fabric::sim::{self, SimConfig, SimError, SimWorker};
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc;
@@ -30,11 +30,10 @@ use voxcube_kernel::msg::Msg;
 use voxcube_kernel::partition::Partition;
 use voxcube_kernel::port::{Dest, Port};
 use voxcube_kernel::sample::Sample;
-use voxcube_kernel::slab::Slab;
 use voxcube_kernel::stats::NodeStats;
 use voxcube_kernel::topology::Layout;
 use voxcube_kernel::view::View;
-use voxcube_kernel::worker::{Place, Progress};
+use voxcube_kernel::worker::Progress;
 
 /// How long the host waits without hearing from any node before it reports a stall.
 pub const STALL: Duration = Duration::from_secs(20);
@@ -211,10 +210,7 @@ fn run_typed<T: Sample + Send + Sync>(
     let grid = volume.grid;
     let layout = cfg.layout;
     let size = usize::from(layout.size());
-    let partition = match &cfg.cuts {
-        Some(cuts) => Partition::new(cuts, grid.dims()[0])?,
-        None => Partition::uniform(grid.dims()[0], size)?,
-    };
+    let partition = cfg.partition(grid.dims()[0])?;
     let (flow, capacity) = super::flow_for(cfg, view)?;
     let ghost = view.ghost_planes();
     let nodes = layout.nodes() as usize;
@@ -233,7 +229,7 @@ fn run_typed<T: Sample + Send + Sync>(
         }
         _ => None,
     };
-    let (storage, skipping) = super::node_storage(
+    let nodes_storage = super::NodeStorage::new(
         &grid,
         layout,
         &partition,
@@ -241,31 +237,12 @@ fn run_typed<T: Sample + Send + Sync>(
         data,
         shifted.as_ref().map(|(s, _)| s.as_slice()),
         view,
-        cfg.skip_mode(),
+        cfg.skipping,
     );
     let mut workers = Vec::with_capacity(nodes);
     for node in 0..nodes as u16 {
-        let (cluster, position) = layout.place(node);
-        let j = usize::from(position);
-        let slab = skipping[j].apply(Slab::new(
-            grid,
-            partition.planes(j),
-            ghost,
-            storage[usize::from(node)],
-        )?);
-        let place = Place {
-            layout,
-            cluster,
-            position,
-        };
-        workers.push(Box::new(SimWorker::new(
-            view,
-            slab,
-            &partition,
-            place,
-            cfg.generation,
-            flow,
-        )?));
+        let slab = nodes_storage.slab(node)?;
+        workers.push(sim::node_worker(view, slab, &partition, cfg, node, flow)?);
     }
     let buffers: Vec<Buffer> = (0..nodes).map(|_| Buffer::new()).collect();
     let pixels = view.pixel_count() as usize;
@@ -592,7 +569,7 @@ fn host(
         what,
         events: 0,
         seed: 0,
-        scheduler: crate::fabric::sim::Scheduler::Uniform,
+        scheduler: sim::Scheduler::Uniform,
         trace: Default::default(),
     };
     let mut host = Host::new(pixels, width, clusters, nodes);
