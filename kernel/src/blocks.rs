@@ -19,6 +19,10 @@ use glam::Vec3;
 /// Cells per block edge.
 pub const BLOCK: u32 = 4;
 
+/// Y nodes of a column gathered at a time by [`Blocks::build`] (sixteen blocks), on the
+/// stack: the kernel's memory stays fixed for any grid.
+const GATHER: usize = 16 * BLOCK as usize;
+
 /// The values a block's field can take.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Range {
@@ -83,6 +87,12 @@ fn count(n: u32) -> u32 {
     n.saturating_sub(1).div_ceil(BLOCK).max(1)
 }
 
+/// The nodes of block `b` along an axis of `n` nodes: its cells' corners, so neighbouring
+/// blocks share a plane of nodes.
+fn nodes(b: u32, n: u32) -> core::ops::Range<u32> {
+    b * BLOCK..((b + 1) * BLOCK).min(n.saturating_sub(1)) + 1
+}
+
 /// The global block columns a slab's stored planes touch, and the storage they need.
 pub fn extent<T: Sample>(slab: &Slab<'_, T>) -> (u32, u32, usize) {
     extent_for(slab.grid(), slab.stored())
@@ -128,7 +138,7 @@ impl<'a> Blocks<'a> {
 
     /// Fill `out` (exactly [`extent`]'s length) with `slab`'s blocks.
     pub fn build<T: Sample>(slab: &Slab<'_, T>, out: &mut [Range]) -> Result<(), BlocksError> {
-        let (x0, x1, needed) = extent(slab);
+        let (x0, _, needed) = extent(slab);
         if out.len() != needed {
             return Err(BlocksError {
                 needed,
@@ -136,40 +146,47 @@ impl<'a> Blocks<'a> {
             });
         }
         let [nx, ny, nz] = slab.grid().dims();
-        let (by, bz) = (count(ny), count(nz));
-        let stored = slab.stored();
-        let mut i = 0;
-        for bx in x0..x1 {
-            let xs = bx * BLOCK..((bx + 1) * BLOCK).min(nx - 1) + 1;
-            let known = stored.start <= xs.start && xs.end <= stored.end;
-            for cz in 0..bz {
-                for cy in 0..by {
-                    let mut r = Range {
-                        min: f32::INFINITY,
-                        max: f32::NEG_INFINITY,
-                    };
-                    if known {
-                        let ys = (cy * BLOCK) as usize..((cy + 1) * BLOCK).min(ny - 1) as usize + 1;
-                        for x in xs.clone() {
-                            for z in cz * BLOCK..((cz + 1) * BLOCK).min(nz - 1) + 1 {
-                                // The block's nodes on one Y row lie side by side in storage.
-                                match slab.row(x, z).and_then(|row| row.get(ys.clone())) {
-                                    Some(values) => {
-                                        for v in values {
-                                            let v = v.to_f32();
-                                            r.min = r.min.min(v);
-                                            r.max = r.max.max(v);
-                                        }
-                                    }
-                                    None => r = Range::UNKNOWN,
-                                }
-                            }
+        let bz = count(nz) as usize;
+        // The blocks of one column (one block in X and in Z, every Y) lie side by side in
+        // `out`, and the column's nodes on one Y row side by side in storage. So the column's
+        // least and greatest value at each Y node are gathered over its rows first, in
+        // straight passes along the rows that the compiler vectorises, and then each block
+        // takes those of its own Y nodes. Gathering block by block instead, five values of a
+        // row at a time, took seven times the instructions.
+        for (k, column) in out.chunks_exact_mut(count(ny) as usize).enumerate() {
+            let xs = nodes(x0 + (k / bz) as u32, nx);
+            let zs = nodes((k % bz) as u32, nz);
+            for (c, blocks) in column.chunks_mut(GATHER / BLOCK as usize).enumerate() {
+                // Nodes y0..y1: these blocks' own, and the plane they share with the next.
+                let y0 = c * GATHER;
+                let y1 = (y0 + GATHER + 1).min(ny as usize);
+                let mut lo = [f32::INFINITY; GATHER + 1];
+                let mut hi = [f32::NEG_INFINITY; GATHER + 1];
+                // A row the slab does not store makes the blocks unknown.
+                let mut complete = true;
+                for x in xs.clone() {
+                    for z in zs.clone() {
+                        let Some(values) = slab.row(x, z).and_then(|row| row.get(y0..y1)) else {
+                            complete = false;
+                            continue;
+                        };
+                        for ((l, h), v) in lo.iter_mut().zip(&mut hi).zip(values) {
+                            let v = v.to_f32();
+                            *l = l.min(v);
+                            *h = h.max(v);
                         }
-                    } else {
-                        r = Range::UNKNOWN;
                     }
-                    out[i] = r;
-                    i += 1;
+                }
+                for (b, r) in blocks.iter_mut().enumerate() {
+                    let ys =
+                        b * BLOCK as usize..(b * BLOCK as usize + BLOCK as usize + 1).min(y1 - y0);
+                    *r = match (complete, lo.get(ys.clone()), hi.get(ys)) {
+                        (true, Some(lo), Some(hi)) => Range {
+                            min: lo.iter().copied().fold(f32::INFINITY, f32::min),
+                            max: hi.iter().copied().fold(f32::NEG_INFINITY, f32::max),
+                        },
+                        _ => Range::UNKNOWN,
+                    };
                 }
             }
         }
@@ -299,6 +316,91 @@ mod tests {
                 assert!(r.min <= v && v <= r.max, "{p} {model:?}: {v} outside {r:?}");
             }
         }
+    }
+
+    /// A block's range by definition: the least and greatest of its nodes (the corners of
+    /// its cells, `4b ..= 4b + 4` on each axis, cut at the grid's last node), or unknown when
+    /// the slab does not store them all.
+    fn defined<T: Sample>(slab: &Slab<'_, T>, block: [u32; 3]) -> Range {
+        let dims = slab.grid().dims();
+        let span = |a: usize| block[a] * BLOCK..=(block[a] * BLOCK + BLOCK).min(dims[a] - 1);
+        let mut r = Range {
+            min: f32::INFINITY,
+            max: f32::NEG_INFINITY,
+        };
+        for x in span(0) {
+            for y in span(1) {
+                for z in span(2) {
+                    let Some(v) = slab.get(x, y, z) else {
+                        return Range::UNKNOWN;
+                    };
+                    r.min = r.min.min(v.to_f32());
+                    r.max = r.max.max(v.to_f32());
+                }
+            }
+        }
+        r
+    }
+
+    /// Every block of `slab` as [`Blocks::build`] makes it equals the definition; returns
+    /// how many are known and unknown.
+    fn check<T: Sample>(slab: &Slab<'_, T>) -> [usize; 2] {
+        let mut storage = [Range::UNKNOWN; 256];
+        let (x0, x1, n) = extent(slab);
+        Blocks::build(slab, &mut storage[..n]).unwrap();
+        let blocks = Blocks::new(slab, &storage[..n]).unwrap();
+        let (_, by, bz) = blocks.shape();
+        let mut seen = [0; 2];
+        for bx in x0..x1 {
+            for cy in 0..by {
+                for cz in 0..bz {
+                    let want = defined(slab, [bx, cy, cz]);
+                    assert_eq!(blocks.range((bx, cy, cz)), want, "block {bx} {cy} {cz}");
+                    seen[usize::from(want == Range::UNKNOWN)] += 1;
+                }
+            }
+        }
+        seen
+    }
+
+    #[test]
+    fn every_block_is_the_range_of_its_nodes() {
+        let mut next = crate::testing::xorshift(0x5eed_b10c);
+        // Y (along the rows) longer than one gathering, and one node past it; X and Z with
+        // a short last block; a single node along Y.
+        let shapes = [[9, 140, 7], [6, 66, 5], [5, 65, 9], [3, 1, 2], [13, 20, 3]];
+        let mut bytes = [0u8; 9 * 140 * 7];
+        let mut floats = [0f32; 9 * 140 * 7];
+        let mut seen = [0; 2];
+        for dims in shapes {
+            let grid = Grid::new(dims, Vec3::ONE).unwrap();
+            for (b, f) in bytes.iter_mut().zip(&mut floats) {
+                *b = next() as u8;
+                *f = (next() % 20_001) as f32 * 0.1 - 1000.0;
+            }
+            let n = grid.plane_len() * dims[0] as usize;
+            let mut add = |[k, u]: [usize; 2]| seen = [seen[0] + k, seen[1] + u];
+            add(check(&Slab::whole(grid, &bytes[..n]).unwrap()));
+            add(check(&Slab::whole(grid, &floats[..n]).unwrap()));
+            // Partial slabs: ghost planes on either side, so blocks at their edges are unknown.
+            let [nx, ..] = dims;
+            for (owned, ghost) in [(1..nx / 2, 1), (nx / 2..nx, 0), (0..nx.div_ceil(3), 2)] {
+                if owned.is_empty() {
+                    continue;
+                }
+                let stored = crate::slab::stored_planes(&grid, owned.clone(), ghost);
+                let part = stored.start as usize * grid.plane_len()
+                    ..stored.end as usize * grid.plane_len();
+                add(check(
+                    &Slab::new(grid, owned.clone(), ghost, &bytes[part.clone()]).unwrap(),
+                ));
+                add(check(
+                    &Slab::new(grid, owned, ghost, &floats[part]).unwrap(),
+                ));
+            }
+        }
+        // Both kinds were compared, in numbers.
+        assert!(seen[0] > 500 && seen[1] > 50, "known, unknown: {seen:?}");
     }
 
     #[test]
