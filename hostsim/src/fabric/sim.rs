@@ -340,6 +340,12 @@ struct Network {
     /// Bytes each node's receive buffer holds or has promised (in flight to it, or unread).
     used: Vec<usize>,
     peak: Vec<usize>,
+    /// Bytes a receive buffer may hold.
+    capacity: usize,
+    /// The first node whose buffer was pushed past `capacity`, and the bytes it then held.
+    /// Buffers only grow in [`Network::push`], so watching there sees every overflow, at the
+    /// cost of one comparison a message instead of a scan of every node each event.
+    overflow: Option<(u16, usize)>,
     sent: u64,
     delivered: u64,
     seq: u64,
@@ -354,6 +360,9 @@ impl Network {
             if let Some(u) = self.used.get_mut(usize::from(n)) {
                 *u += len;
                 self.peak[usize::from(n)] = self.peak[usize::from(n)].max(*u);
+                if *u > self.capacity && self.overflow.is_none() {
+                    self.overflow = Some((n, *u));
+                }
             }
         }
         self.seq += 1;
@@ -520,6 +529,8 @@ fn run_typed<T: Sample>(
         inflight: Vec::new(),
         used: vec![0; nodes],
         peak: vec![0; nodes],
+        capacity,
+        overflow: None,
         sent: 0,
         delivered: 0,
         seq: 0,
@@ -725,12 +736,9 @@ fn run_typed<T: Sample>(
                 }
             }
         }
-        if let Some(n) = net.used.iter().position(|&u| u > capacity) {
+        if let Some((n, held)) = net.overflow {
             return Err(fail(
-                format!(
-                    "node {n}'s receive buffer holds {} bytes, capacity {capacity}",
-                    net.used[n]
-                ),
+                format!("node {n}'s receive buffer holds {held} bytes, capacity {capacity}"),
                 events,
                 &trace,
             ));
@@ -1029,4 +1037,38 @@ pub fn missing_rows(image: &[Option<[u8; 4]>], width: u32) -> String {
         out.push(format!("... ({n} runs in all)"));
     }
     out.join(", ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_push_past_capacity_is_an_overflow_even_when_the_buffer_drains_later() {
+        let len = Msg::Collect.kind().encoded_len();
+        let mut net = Network {
+            inflight: Vec::new(),
+            used: vec![0; 2],
+            peak: vec![0; 2],
+            capacity: 2 * len,
+            overflow: None,
+            sent: 0,
+            delivered: 0,
+            seq: 0,
+            refused: None,
+        };
+        for _ in 0..2 {
+            net.push(None, Dest::Node(1), &Msg::Collect);
+        }
+        net.push(None, Dest::Host, &Msg::Collect);
+        assert_eq!(net.overflow, None, "full is not over");
+        net.push(None, Dest::Node(1), &Msg::Collect);
+        net.used[1] = 0;
+        net.push(None, Dest::Node(1), &Msg::Collect);
+        assert_eq!(
+            net.overflow,
+            Some((1, 3 * len)),
+            "the first overflow is kept"
+        );
+    }
 }
