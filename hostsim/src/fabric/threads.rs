@@ -111,15 +111,25 @@ struct ThreadPort<'s> {
 
 impl ThreadPort<'_> {
     /// Move every message of `class` from the shared inbox into the local queue.
+    #[inline]
     fn fetch(&mut self, class: Class) {
         let i = class.index();
         if !self.local[i].is_empty() {
             return;
         }
-        let me = &self.buffers[usize::from(self.node)];
+        let buffers = self.buffers;
+        let me = &buffers[usize::from(self.node)];
         if me.queued.load(Ordering::Acquire) == 0 {
             return;
         }
+        self.take(i, me);
+    }
+
+    /// The locked part of [`ThreadPort::fetch`], out of line: most polls find nothing queued
+    /// and pay only for the two checks above (a call each took 17.8 M instructions of a
+    /// 690 M one-node SOD frame).
+    #[inline(never)]
+    fn take(&mut self, i: usize, me: &Buffer) {
         let mut inbox = me
             .inbox
             .lock()
