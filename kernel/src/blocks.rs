@@ -152,7 +152,7 @@ impl<'a> Blocks<'a> {
         // least and greatest value at each Y node are gathered over its rows first, in
         // straight passes along the rows that the compiler vectorises, and then each block
         // takes those of its own Y nodes. Gathering block by block instead, five values of a
-        // row at a time, took three times the instructions.
+        // row at a time, took 2.7 times the instructions.
         for (k, column) in out.chunks_exact_mut(count(ny) as usize).enumerate() {
             let xs = nodes(x0 + (k / bz) as u32, nx);
             let zs = nodes((k % bz) as u32, nz);
@@ -177,9 +177,9 @@ impl<'a> Blocks<'a> {
                         }
                     }
                 }
-                for (b, r) in blocks.iter_mut().enumerate() {
-                    let ys =
-                        b * BLOCK as usize..(b * BLOCK as usize + BLOCK as usize + 1).min(y1 - y0);
+                for (by, r) in (c * GATHER / BLOCK as usize..).zip(blocks.iter_mut()) {
+                    let ys = nodes(by as u32, ny);
+                    let ys = ys.start as usize - y0..ys.end as usize - y0;
                     *r = match (complete, lo.get(ys.clone()), hi.get(ys)) {
                         (true, Some(lo), Some(hi)) => Range {
                             min: lo.iter().copied().fold(f32::INFINITY, f32::min),
