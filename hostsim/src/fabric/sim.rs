@@ -353,6 +353,21 @@ struct Network {
 }
 
 impl Network {
+    /// An empty network of `nodes` receive buffers of `capacity` bytes each.
+    fn new(nodes: usize, capacity: usize) -> Network {
+        Network {
+            inflight: Vec::new(),
+            used: vec![0; nodes],
+            peak: vec![0; nodes],
+            capacity,
+            overflow: None,
+            sent: 0,
+            delivered: 0,
+            seq: 0,
+            refused: None,
+        }
+    }
+
     fn push(&mut self, from: Option<u16>, to: Dest, msg: &Msg) {
         let mut bytes = [0u8; MAX_MSG_LEN];
         let len = msg.encode(&mut bytes);
@@ -525,17 +540,7 @@ fn run_typed<T: Sample>(
         reports.push((cluster, position, partition.planes(j), stored[j].clone()));
     }
     let mut mailboxes: Vec<Mailbox> = (0..nodes).map(|_| Mailbox::default()).collect();
-    let mut net = Network {
-        inflight: Vec::new(),
-        used: vec![0; nodes],
-        peak: vec![0; nodes],
-        capacity,
-        overflow: None,
-        sent: 0,
-        delivered: 0,
-        seq: 0,
-        refused: None,
-    };
+    let mut net = Network::new(nodes, capacity);
     let mut active: Vec<usize> = (0..nodes).collect();
     let mut is_active = vec![true; nodes];
     let pixels = view.pixel_count() as usize;
@@ -1046,17 +1051,7 @@ mod tests {
     #[test]
     fn a_push_past_capacity_is_an_overflow_even_when_the_buffer_drains_later() {
         let len = Msg::Collect.kind().encoded_len();
-        let mut net = Network {
-            inflight: Vec::new(),
-            used: vec![0; 2],
-            peak: vec![0; 2],
-            capacity: 2 * len,
-            overflow: None,
-            sent: 0,
-            delivered: 0,
-            seq: 0,
-            refused: None,
-        };
+        let mut net = Network::new(2, 2 * len);
         for _ in 0..2 {
             net.push(None, Dest::Node(1), &Msg::Collect);
         }
