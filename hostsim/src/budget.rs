@@ -64,10 +64,13 @@ pub fn worker_bytes() -> usize {
 }
 
 /// Bytes of the min/max blocks a slab storing planes `stored` of `grid` keeps, with one
-/// view's chessboard distance per block for leaping ([`voxcube_kernel::leaps`]).
+/// view's chessboard distance per block for leaping ([`voxcube_kernel::leaps`]) and its cell
+/// mask ([`voxcube_kernel::cells`]).
 pub fn block_bytes(grid: &Grid, stored: std::ops::Range<u32>) -> usize {
     voxcube_kernel::blocks::extent_for(grid, stored).2
-        * (size_of::<voxcube_kernel::blocks::Range>() + size_of::<u8>())
+        * (size_of::<voxcube_kernel::blocks::Range>()
+            + size_of::<u8>()
+            + size_of::<voxcube_kernel::cells::CellMask>())
 }
 
 /// One node's memory, by part.

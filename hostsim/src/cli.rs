@@ -76,6 +76,10 @@ pub enum Command {
         /// (a debug option: it changes no pixel, only the time).
         #[arg(long)]
         no_leap: bool,
+        /// Skip no single empty cell inside a block that is not empty (a debug option: it
+        /// changes no pixel, only the time).
+        #[arg(long)]
+        no_cells: bool,
         /// Balance every view's slabs first, as the paper does: one cluster traces a probe
         /// of about 32x32 primary rays, timed by the --machine profile, and the slab sizes
         /// follow the workers' times. The nodes start on uniform slabs and shift planes to
@@ -341,6 +345,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             threads,
             no_skip,
             no_leap,
+            no_cells,
             balance,
         } => {
             let (scene, name) = match &scene {
@@ -361,6 +366,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                     m.skipping = SkipMode {
                         skip: !no_skip,
                         leap: !no_leap,
+                        cells: !no_cells,
                     };
                     m.profile = match profile {
                         ProfileArg::Ncube2 => Profile::ncube2(),

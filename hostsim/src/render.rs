@@ -85,7 +85,7 @@ impl Machine {
             flow_control: true,
             profile: Profile::ncube2(),
             threads: 0,
-            skipping: SkipMode::LEAPS,
+            skipping: SkipMode::ALL,
         }
     }
 
@@ -180,7 +180,7 @@ pub type OnProgress<'a> = &'a dyn Fn(u64);
 
 /// Render `view` of `volume` directly, on one node, skipping empty space.
 pub fn render(volume: &Volume, view: &View) -> Result<Rendered, SlabError> {
-    render_direct(volume, view, SkipMode::LEAPS, &|_| {})
+    render_direct(volume, view, SkipMode::ALL, &|_| {})
 }
 
 /// [`render`], skipping empty space as `mode` says.

@@ -49,13 +49,17 @@ fn the_skipping_switches_change_no_pixel_and_no_count() {
     let dir = tempfile::tempdir().expect("tempdir");
     let (on, _) = render_ok(dir.path(), &[], "on.json");
     let (no_leap, _) = render_ok(dir.path(), &["--no-leap"], "no-leap.json");
+    let (no_cells, _) = render_ok(dir.path(), &["--no-cells"], "no-cells.json");
     let (off, _) = render_ok(dir.path(), &["--no-skip"], "off.json");
     let view = |j: &serde_json::Value| j["views"][0].clone();
-    for other in [&no_leap, &off] {
+    for other in [&no_leap, &no_cells, &off] {
         assert_eq!(view(&on)["pixels_sha256"], view(other)["pixels_sha256"]);
     }
-    // Leaping skips the same samples as one block per jump; without skipping none are.
+    // Leaping skips the same samples as one block per jump; cell masks skip more; without
+    // skipping none are.
     assert_eq!(view(&on)["operations"], view(&no_leap)["operations"]);
+    let skipped = |j: &serde_json::Value| view(j)["operations"]["skipped"].as_u64().unwrap_or(0);
+    assert!(skipped(&on) > skipped(&no_cells), "{}", view(&no_cells));
     assert!(
         view(&on)["operations"]["skipped"].as_u64().unwrap_or(0) > 0,
         "{}",

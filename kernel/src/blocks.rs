@@ -7,8 +7,11 @@
 //! skipped. The tracer skips a sample only when the block says it provably contributes
 //! nothing, and skipping never changes an image; which samples a node skips is therefore free
 //! to differ from node to node. Blocks may carry one view's chessboard distances
-//! ([`crate::leaps`]), so that a jump crosses every empty block around at once.
+//! ([`crate::leaps`]), so that a jump crosses every empty block around at once, and one
+//! view's cell masks ([`crate::cells`]), so that an empty cell inside a block that is not
+//! empty is skipped too.
 
+use crate::cells::CellMask;
 use crate::field::Site;
 use crate::grid::Model;
 use crate::sample::Sample;
@@ -67,6 +70,8 @@ pub struct Blocks<'a> {
     data: &'a [Range],
     /// One view's chessboard distances ([`crate::leaps`]), when the marcher may leap.
     leaps: Option<&'a [u8]>,
+    /// One view's cell masks ([`crate::cells`]), when the marcher may skip single cells.
+    cells: Option<&'a [CellMask]>,
     x0: u32,
     x1: u32,
     ny: u32,
@@ -129,6 +134,7 @@ impl<'a> Blocks<'a> {
         Ok(Blocks {
             data,
             leaps: None,
+            cells: None,
             x0,
             x1,
             ny: count(ny),
@@ -260,6 +266,11 @@ impl<'a> Blocks<'a> {
         (self.x1 - self.x0, self.ny, self.nz)
     }
 
+    /// The global X coordinate of the slab's first block column.
+    pub fn first_column(&self) -> u32 {
+        self.x0
+    }
+
     /// The same blocks, leaping by the distances in `leaps` ([`crate::leaps::build`] for the
     /// view being traced: a map built for another view may skip samples that show).
     pub fn with_leaps(self, leaps: &'a [u8]) -> Result<Blocks<'a>, BlocksError> {
@@ -273,6 +284,35 @@ impl<'a> Blocks<'a> {
             leaps: Some(leaps),
             ..self
         })
+    }
+
+    /// The same blocks, skipping single cells by the masks in `cells` ([`crate::cells::build`]
+    /// for the view being traced, like a leap map).
+    pub fn with_cells(self, cells: &'a [CellMask]) -> Result<Blocks<'a>, BlocksError> {
+        if cells.len() != self.data.len() {
+            return Err(BlocksError {
+                needed: self.data.len(),
+                given: cells.len(),
+            });
+        }
+        Ok(Blocks {
+            cells: Some(cells),
+            ..self
+        })
+    }
+
+    /// The cells of block `(bx, by, bz)` the view cannot skip: every cell without masks or
+    /// outside the slab's columns.
+    #[inline]
+    pub fn cells(&self, block: (u32, u32, u32)) -> CellMask {
+        self.cells
+            .and_then(|cells| cells.get(self.index(block)?).copied())
+            .unwrap_or(crate::cells::ALL)
+    }
+
+    /// Whether the blocks carry cell masks.
+    pub fn has_cells(&self) -> bool {
+        self.cells.is_some()
     }
 
     /// Block `(bx, by, bz)`'s chessboard distance to the nearest block the view cannot skip

@@ -11,8 +11,11 @@
 //! surface, the cut face is the surface ("capping"): the outside of the volume counts as below
 //! every iso value, and the cut face is lit with the face's normal.
 
+use crate::blocks::Blocks;
+use crate::cells::{self, CellMask};
 use crate::counters::Counters;
 use crate::field;
+use crate::grid::Model;
 use crate::lattice::Lattice;
 use crate::lighting::lighting;
 use crate::ray::{Entry, Ray};
@@ -135,9 +138,12 @@ pub fn march<T: Sample>(
 ) -> Stop {
     let spec = view.spec();
     let grid = slab.grid();
-    // The block of the last sample and whether it is empty: consecutive samples mostly share
-    // a block, and the test against the transfer function is not free.
-    let mut known: Option<((u32, u32, u32), bool)> = None;
+    // Single empty cells are skipped in the cell model only: a voxel-model sample reads one
+    // node, no more than the mask would.
+    let by_cell = spec.model == Model::Cell;
+    // What the last sample's block says: consecutive samples mostly share a block, and its
+    // verdict (a leap distance or the test against the view) is not free.
+    let mut known: Option<Verdict> = None;
     loop {
         if ray.k > ray.lattice.last {
             return Stop::Exit;
@@ -151,50 +157,51 @@ pub fn march<T: Sample>(
         }
         if let Some(blocks) = slab.blocks() {
             let block = blocks.block_of(&site);
-            // How far around this block every block is empty, in blocks; `None`: this one is not.
-            let reach = match blocks.leap(block) {
-                Some(distance) => distance.checked_sub(1).map(u32::from),
-                None => {
-                    let empty = match known {
-                        Some((b, empty)) if b == block => empty,
-                        _ => {
-                            let empty = view.empty(blocks.range(block));
-                            known = Some((block, empty));
-                            empty
-                        }
-                    };
-                    empty.then_some(0)
+            let here = match known {
+                Some(v) if v.block == block => v,
+                _ => {
+                    let v = Verdict::of(view, blocks, block);
+                    known = Some(v);
+                    v
                 }
             };
-            if let Some(reach) = reach.filter(|_| view.may_skip(ray)) {
-                // Provably nothing here: no crossing, no opacity. The lattice index moves on,
-                // over every further sample in the same slab whose block is within `reach`.
-                let last = skip_run(ray, slab, blocks, block, reach, spec.model);
-                counters.skipped += u64::from(last - ray.k + 1);
-                ray.k = last;
-                if view.effects().surfaces {
-                    ray.primed = true;
-                    ray.prev_stale = true;
-                    ray.done_here = 0;
+            if view.may_skip(ray) {
+                if let Some(reach) = here.reach {
+                    // Provably nothing here: no crossing, no opacity. The lattice index moves
+                    // on, over every further sample in the same slab whose block is within
+                    // `reach`.
+                    let last = skip_run(ray, slab, blocks, block, reach, spec.model);
+                    skip_to(view, ray, last, counters);
+                    continue;
                 }
-                ray.k += 1;
-                continue;
+                if by_cell && here.cells & cells::bit(&site) == 0 {
+                    // An empty cell of a block that is not empty: this one sample.
+                    skip_to(view, ray, ray.k, counters);
+                    continue;
+                }
             }
-        }
-        if ray.prev_stale {
-            // Leaving a skipped run: the previous sample's exact value, for crossing tests and
-            // refinement, from the same expression as if it had not been skipped.
-            counters.samples += 1;
-            ray.prev = field::value(
-                slab,
-                spec.model,
-                ray.ray.at(ray.lattice.t(ray.k.saturating_sub(1))),
-                counters,
-            );
-            ray.prev_stale = false;
         }
         counters.samples += 1;
         let v = field::value_at(slab, spec.model, &site, counters);
+        if ray.prev_stale {
+            ray.prev_stale = false;
+            ray.prev = if view.below_surfaces(v) {
+                // The skipped predecessor lay below every iso value too, so nothing crosses
+                // between them and its exact value is never read: a value below every iso
+                // value, as `v` is, gives every test below the same answer.
+                v
+            } else {
+                // A crossing may end here: the predecessor's exact value, for the crossing
+                // test and refinement, from the same expression as if it had not been skipped.
+                counters.samples += 1;
+                field::value(
+                    slab,
+                    spec.model,
+                    ray.ray.at(ray.lattice.t(ray.k.saturating_sub(1))),
+                    counters,
+                )
+            };
+        }
         match &spec.mode {
             Mode::Surfaces(surfaces) if ray.kind == RayKind::Shadow => {
                 if ray.primed {
@@ -247,6 +254,43 @@ pub fn march<T: Sample>(
     }
 }
 
+/// What a block says about the samples in it, for one view.
+#[derive(Clone, Copy, Debug)]
+struct Verdict {
+    block: (u32, u32, u32),
+    /// How far around this block every block is empty, in blocks; `None`: this one is not.
+    reach: Option<u32>,
+    /// Its cells the view cannot skip.
+    cells: CellMask,
+}
+
+impl Verdict {
+    #[inline]
+    fn of(view: &View, blocks: &Blocks<'_>, block: (u32, u32, u32)) -> Verdict {
+        let reach = match blocks.leap(block) {
+            Some(distance) => distance.checked_sub(1).map(u32::from),
+            None => view.empty(blocks.range(block)).then_some(0),
+        };
+        Verdict {
+            block,
+            reach,
+            cells: blocks.cells(block),
+        }
+    }
+}
+
+/// Skip samples `ray.k ..= last`, which provably contribute nothing.
+#[inline]
+fn skip_to(view: &View, ray: &mut RayState, last: u32, counters: &mut Counters) {
+    counters.skipped += u64::from(last - ray.k + 1);
+    if view.effects().surfaces {
+        ray.primed = true;
+        ray.prev_stale = true;
+        ray.done_here = 0;
+    }
+    ray.k = last + 1;
+}
+
 /// The last sample of the run starting at `ray.k` that stays in `slab` and in the blocks
 /// within chessboard distance `reach` of that sample's `block`: every sample between lies
 /// there too, since positions, cells and owner planes are monotone along the lattice and
@@ -255,10 +299,10 @@ pub fn march<T: Sample>(
 fn skip_run<T: Sample>(
     ray: &RayState,
     slab: &Slab<'_, T>,
-    blocks: &crate::blocks::Blocks<'_>,
+    blocks: &Blocks<'_>,
     block: (u32, u32, u32),
     reach: u32,
-    model: crate::grid::Model,
+    model: Model,
 ) -> u32 {
     let (mut lo, mut hi) = blocks.bounds(block, reach, model);
     // Nor past the owned planes (their faces, under the model's ownership rule).

@@ -1,6 +1,7 @@
 //! Empty-space skipping changes no pixel: every test scene, directly and on clusters, and SOD,
-//! render the same bits with skipping off, with one block per jump and with leaps over every
-//! empty block around, while skipping really skips and leaping really leaps.
+//! render the same bits with skipping off, with one block per jump, with leaps over every
+//! empty block around, and with single empty cells skipped too, while skipping really skips,
+//! leaping really leaps and cell masks really mask.
 
 use voxcube::dataset::{Volume, VolumeData};
 use voxcube::fabric::sim::{self, SimConfig};
@@ -23,7 +24,18 @@ fn check(text: &str, file: &str) {
             let off = render_skipping(&job.volume, &v.view, SkipMode::OFF).expect("renders");
             let blocks = render_skipping(&job.volume, &v.view, SkipMode::BLOCKS).expect("renders");
             let on = render_skipping(&job.volume, &v.view, SkipMode::LEAPS).expect("renders");
-            for (mode, r) in [("skipping", &blocks), ("leaping", &on)] {
+            let all = render_skipping(&job.volume, &v.view, SkipMode::ALL).expect("renders");
+            let cells_only = SkipMode {
+                leap: false,
+                ..SkipMode::ALL
+            };
+            let cells = render_skipping(&job.volume, &v.view, cells_only).expect("renders");
+            for (mode, r) in [
+                ("skipping", &blocks),
+                ("leaping", &on),
+                ("skipping cells", &cells),
+                ("leaping and skipping cells", &all),
+            ] {
                 assert!(
                     r.pixels == off.pixels,
                     "{}/{}: {mode} changed the image",
@@ -32,21 +44,30 @@ fn check(text: &str, file: &str) {
                 );
             }
             assert_eq!(off.counters.skipped, 0);
-            // A leap skips exactly the samples that one-block jumps skip, only in fewer jumps.
+            // A leap skips exactly the samples that one-block jumps skip, only in fewer jumps,
+            // with cell masks or without.
             assert_eq!(on.counters, blocks.counters, "{}/{}", job.name, v.name);
-            for (size, seed, leap) in [(3u32, 1u64, true), (8, 2, true), (3, 3, false)] {
+            assert_eq!(all.counters, cells.counters, "{}/{}", job.name, v.name);
+            assert!(
+                all.counters.skipped >= on.counters.skipped,
+                "{}/{}: cell masks skip more, never less",
+                job.name,
+                v.name
+            );
+            for (size, seed, mode) in [
+                (3u32, 1u64, SkipMode::ALL),
+                (8, 2, SkipMode::ALL),
+                (3, 3, SkipMode::BLOCKS),
+                (8, 4, SkipMode::LEAPS),
+            ] {
                 let cfg = SimConfig {
-                    skipping: if leap {
-                        SkipMode::LEAPS
-                    } else {
-                        SkipMode::BLOCKS
-                    },
+                    skipping: mode,
                     ..SimConfig::cluster(size, seed).expect("layout")
                 };
                 let run = sim::run(&job.volume, &v.view, &cfg).expect("runs");
                 assert!(
                     run.pixels == off.pixels,
-                    "{}/{} on {size} nodes (leap {leap}): skipping changed the image",
+                    "{}/{} on {size} nodes ({mode:?}): skipping changed the image",
                     job.name,
                     v.name
                 );
@@ -93,19 +114,30 @@ fn skipping_changes_no_pixel_on_sod() {
     check(&text, "sod.toml");
 }
 
-/// Every pixel of `traced` on `volume`, whose blocks leap by the distances built for
-/// `leaps_of`.
-fn trace_with_leaps_of(volume: &Volume, traced: &View, leaps_of: &View) -> Vec<[u8; 4]> {
+/// Every pixel of `traced` on `volume`, whose blocks skip by the storage `mode` builds for
+/// `built_for` (its leap map or its cell masks).
+fn trace_with_skipping_of(
+    volume: &Volume,
+    traced: &View,
+    built_for: &View,
+    mode: SkipMode,
+) -> Vec<[u8; 4]> {
     match &volume.data {
-        VolumeData::U8(d) => trace_typed(volume.grid, d, traced, leaps_of),
-        VolumeData::U16(d) => trace_typed(volume.grid, d, traced, leaps_of),
-        VolumeData::F32(d) => trace_typed(volume.grid, d, traced, leaps_of),
+        VolumeData::U8(d) => trace_typed(volume.grid, d, traced, built_for, mode),
+        VolumeData::U16(d) => trace_typed(volume.grid, d, traced, built_for, mode),
+        VolumeData::F32(d) => trace_typed(volume.grid, d, traced, built_for, mode),
     }
 }
 
-fn trace_typed<T: Sample>(grid: Grid, data: &[T], traced: &View, leaps_of: &View) -> Vec<[u8; 4]> {
+fn trace_typed<T: Sample>(
+    grid: Grid,
+    data: &[T],
+    traced: &View,
+    built_for: &View,
+    mode: SkipMode,
+) -> Vec<[u8; 4]> {
     let slab = Slab::whole(grid, data).expect("slab");
-    let skipping = Skipping::build(&slab, leaps_of, SkipMode::LEAPS);
+    let skipping = Skipping::build(&slab, built_for, mode);
     let slab = skipping.apply(slab);
     let mut counters = Default::default();
     (0..traced.pixel_count() as u32)
@@ -113,10 +145,11 @@ fn trace_typed<T: Sample>(grid: Grid, data: &[T], traced: &View, leaps_of: &View
         .collect()
 }
 
-/// Negative control: the marcher really leaps by the map it is given. A map built for a
-/// higher iso value, whose empty blocks reach further, makes it leap over the lower surface.
+/// Negative controls: the marcher really leaps by the map it is given, and really skips the
+/// cells its masks clear. A map or masks built for a higher iso value, whose empty blocks and
+/// cells reach further, make it skip parts of the lower surface.
 #[test]
-fn a_leap_map_built_for_another_view_changes_the_image() {
+fn a_leap_map_or_cell_masks_built_for_another_view_change_the_image() {
     let text = r#"
 [[datasets]]
 name = "molecule"
@@ -139,16 +172,22 @@ iso = 200.0
         .unwrap_or_else(|e| panic!("{e}"));
     let job = &jobs[0];
     let (low, high) = (&job.views[0].view, &job.views[1].view);
-    let own = trace_with_leaps_of(&job.volume, low, low);
-    let foreign = trace_with_leaps_of(&job.volume, low, high);
     let reference = render_skipping(&job.volume, low, SkipMode::OFF).expect("renders");
-    assert!(
-        own == reference.pixels,
-        "the view's own map changes no pixel"
-    );
-    let changed = own.iter().zip(&foreign).filter(|(a, b)| a != b).count();
-    assert!(
-        changed > 0,
-        "a map built for iso 200 must hide parts of the iso-40 surface"
-    );
+    let cells_only = SkipMode {
+        leap: false,
+        ..SkipMode::ALL
+    };
+    for (what, mode) in [("leap map", SkipMode::LEAPS), ("cell masks", cells_only)] {
+        let own = trace_with_skipping_of(&job.volume, low, low, mode);
+        let foreign = trace_with_skipping_of(&job.volume, low, high, mode);
+        assert!(
+            own == reference.pixels,
+            "the view's own {what} change no pixel"
+        );
+        let changed = own.iter().zip(&foreign).filter(|(a, b)| a != b).count();
+        assert!(
+            changed > 0,
+            "{what} built for iso 200 must hide parts of the iso-40 surface"
+        );
+    }
 }

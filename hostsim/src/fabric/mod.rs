@@ -250,14 +250,18 @@ pub fn flow_for(
     Ok((control, capacity))
 }
 
-/// How a node skips empty space: whether it does, and whether its jumps leap over every
-/// empty block around (a debug option each; neither changes a pixel).
+/// How a node skips empty space: whether it does, whether its jumps leap over every empty
+/// block around, and whether it skips single empty cells inside blocks that are not empty
+/// (a debug option each; none changes a pixel).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct SkipMode {
     /// Skip provably empty samples with min/max blocks.
     pub skip: bool,
     /// Leap by chessboard distances over empty blocks (only when skipping).
     pub leap: bool,
+    /// Skip samples in empty cells of blocks that are not empty, by one view's cell masks
+    /// (only when skipping, and in the cell model).
+    pub cells: bool,
 }
 
 impl SkipMode {
@@ -265,29 +269,40 @@ impl SkipMode {
     pub const OFF: SkipMode = SkipMode {
         skip: false,
         leap: false,
+        cells: false,
     };
-    /// Empty samples skipped, each jump ending at its block's faces.
+    /// Empty samples skipped by whole blocks, each jump ending at its block's faces.
     pub const BLOCKS: SkipMode = SkipMode {
         skip: true,
         leap: false,
+        cells: false,
     };
-    /// Empty samples skipped, each jump leaping over every empty block around (the default).
+    /// Empty samples skipped by whole blocks, each jump leaping over every empty block around.
     pub const LEAPS: SkipMode = SkipMode {
         skip: true,
         leap: true,
+        cells: false,
+    };
+    /// Leaps, and single empty cells skipped too (the default).
+    pub const ALL: SkipMode = SkipMode {
+        skip: true,
+        leap: true,
+        cells: true,
     };
 }
 
-/// A node's storage for skipping empty space in one view: its min/max blocks and their
-/// chessboard distances, each empty when that acceleration is off.
+/// A node's storage for skipping empty space in one view: its min/max blocks, their
+/// chessboard distances and their cell masks, each empty when that acceleration is off.
 #[derive(Clone, Debug, Default)]
 pub struct Skipping {
     ranges: Vec<voxcube_kernel::blocks::Range>,
     leaps: Vec<u8>,
+    cells: Vec<voxcube_kernel::cells::CellMask>,
 }
 
 impl Skipping {
-    /// The blocks of `slab` (`mode.skip`) and their distances for `view` (`mode.leap`).
+    /// The blocks of `slab` (`mode.skip`), their distances (`mode.leap`) and cell masks
+    /// (`mode.cells`, cell model only) for `view`.
     pub fn build<T: voxcube_kernel::sample::Sample>(
         slab: &voxcube_kernel::slab::Slab<'_, T>,
         view: &voxcube_kernel::view::View,
@@ -298,22 +313,38 @@ impl Skipping {
             return Skipping::default();
         }
         let mut ranges = vec![Range::UNKNOWN; extent(slab).2];
-        // Both lengths come from the slab: neither build can fail; without blocks nothing is
-        // skipped, without distances each jump ends at its block's faces.
+        // Every length comes from the slab: no build can fail; without blocks nothing is
+        // skipped, without distances each jump ends at its block's faces, without masks no
+        // single cell is skipped.
         if Blocks::build(slab, &mut ranges).is_err() {
             return Skipping::default();
         }
-        let leaps = match Blocks::new(slab, &ranges) {
-            Ok(blocks) if mode.leap => {
-                let mut leaps = vec![0; ranges.len()];
-                match voxcube_kernel::leaps::build(&blocks, view, &mut leaps) {
-                    Ok(()) => leaps,
-                    Err(_) => Vec::new(),
-                }
-            }
-            _ => Vec::new(),
+        let Ok(blocks) = Blocks::new(slab, &ranges) else {
+            return Skipping::default();
         };
-        Skipping { ranges, leaps }
+        let leaps = if mode.leap {
+            let mut leaps = vec![0; ranges.len()];
+            match voxcube_kernel::leaps::build(&blocks, view, &mut leaps) {
+                Ok(()) => leaps,
+                Err(_) => Vec::new(),
+            }
+        } else {
+            Vec::new()
+        };
+        let cells = if mode.cells && view.spec().model == voxcube_kernel::grid::Model::Cell {
+            let mut cells = vec![0; ranges.len()];
+            match voxcube_kernel::cells::build(slab, &blocks, view, &mut cells) {
+                Ok(()) => cells,
+                Err(_) => Vec::new(),
+            }
+        } else {
+            Vec::new()
+        };
+        Skipping {
+            ranges,
+            leaps,
+            cells,
+        }
     }
 
     /// `slab`, skipping empty space with this storage (unchanged when it holds none).
@@ -327,10 +358,15 @@ impl Skipping {
         let Ok(blocks) = voxcube_kernel::blocks::Blocks::new(&slab, &self.ranges) else {
             return slab;
         };
-        match blocks.with_leaps(&self.leaps) {
-            Ok(leaping) if !self.leaps.is_empty() => slab.with_blocks(leaping),
-            _ => slab.with_blocks(blocks),
-        }
+        let blocks = match blocks.with_leaps(&self.leaps) {
+            Ok(leaping) if !self.leaps.is_empty() => leaping,
+            _ => blocks,
+        };
+        let blocks = match blocks.with_cells(&self.cells) {
+            Ok(masked) if !self.cells.is_empty() => masked,
+            _ => blocks,
+        };
+        slab.with_blocks(blocks)
     }
 }
 

@@ -136,7 +136,7 @@ impl SimConfig {
             flow_control: true,
             time: None,
             stop: None,
-            skipping: super::SkipMode::LEAPS,
+            skipping: super::SkipMode::ALL,
             #[cfg(feature = "mutants")]
             mutants: Default::default(),
         })

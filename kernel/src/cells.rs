@@ -1,0 +1,370 @@
+//! Cell masks: for each min/max block of a slab, which of its 4³ cells a view cannot skip,
+//! one bit per cell, so that a sample in an empty cell of a block that is not empty as a
+//! whole is skipped too, without its trilinear read.
+//!
+//! Invariants: a cleared bit is a proof, the same proof a block gives: every value of the
+//! trilinear field inside the cell lies between the least and greatest of the cell's eight
+//! nodes, and the view calls that range empty ([`View::empty`]). Where that cannot be shown
+//! the bit is set: every cell of a block whose range is unknown, and of a block a row of
+//! which the slab does not store. A block the view skips as a whole has no bit set (the
+//! marcher never asks). Masks serve the cell model only; voxel-model samples read a single
+//! node, and skipping one would save nothing. Like a leap map, a mask belongs to one view.
+
+use crate::blocks::{Blocks, BlocksError, Range, BLOCK};
+use crate::field::Site;
+use crate::sample::Sample;
+use crate::slab::Slab;
+use crate::view::{Mode, View};
+
+/// One bit per cell of a block: bit `x + 4·y + 16·z` for the cell at offset `(x, y, z)` from
+/// the block's low corner.
+pub type CellMask = u64;
+
+/// Every cell may show: what a block says without a mask.
+pub const ALL: CellMask = CellMask::MAX;
+
+const EDGE: usize = BLOCK as usize;
+/// Nodes per block edge: the cells' corners.
+const NODES: usize = EDGE + 1;
+
+/// The bit of the cell a cell-model sample at `site` reads, within its block. The cell's low
+/// corner is `4·block + offset` along every axis in the cell model, so the offset is the
+/// corner modulo the block edge.
+#[inline]
+pub fn bit(site: &Site) -> CellMask {
+    let [x, y, z] = site.lo.map(|c| c % BLOCK);
+    1 << (x + BLOCK * (y + BLOCK * z))
+}
+
+/// Fill `out` (one mask per block of `blocks`, in the blocks' order) with the cells of each
+/// block that `view` cannot skip, from `slab`'s nodes (the slab the blocks were built from).
+pub fn build<T: Sample>(
+    slab: &Slab<'_, T>,
+    blocks: &Blocks<'_>,
+    view: &View,
+    out: &mut [CellMask],
+) -> Result<(), BlocksError> {
+    let ranges = blocks.ranges();
+    if out.len() != ranges.len() {
+        return Err(BlocksError {
+            needed: ranges.len(),
+            given: out.len(),
+        });
+    }
+    let (cols, ny, nz) = blocks.shape();
+    let x0 = blocks.first_column();
+    let mut verdicts = Verdicts::new(view);
+    let mut masks = out.iter_mut().zip(ranges);
+    for bx in x0..x0 + cols {
+        for bz in 0..nz {
+            for by in 0..ny {
+                let Some((mask, range)) = masks.next() else {
+                    return Ok(());
+                };
+                *mask = if view.empty(*range) {
+                    0
+                } else if *range == Range::UNKNOWN {
+                    ALL
+                } else {
+                    block_mask(slab, &mut verdicts, [bx, by, bz]).unwrap_or(ALL)
+                };
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Slots of [`Verdicts`].
+const SLOTS: usize = 1024;
+
+/// The view's verdicts on the ranges it was last asked about. Cells repeat a few ranges (a
+/// `u8` volume has at most 32,896), and the test against a transfer function walks its
+/// points; a verdict is a pure function of the range, so a remembered one is exact.
+struct Verdicts<'v> {
+    view: &'v View,
+    /// Whether to remember: a surfaces view's test is one comparison, cheaper than a lookup.
+    remember: bool,
+    /// By slot: the range's bits, and whether the view calls it empty.
+    seen: [Option<(u64, bool)>; SLOTS],
+}
+
+impl<'v> Verdicts<'v> {
+    fn new(view: &'v View) -> Verdicts<'v> {
+        Verdicts {
+            view,
+            remember: matches!(view.spec().mode, Mode::Composite(_)),
+            seen: [None; SLOTS],
+        }
+    }
+
+    #[inline]
+    fn empty(&mut self, r: Range) -> bool {
+        if !self.remember {
+            return self.view.empty(r);
+        }
+        let key = u64::from(r.min.to_bits()) << 32 | u64::from(r.max.to_bits());
+        // Fibonacci hashing: the top bits of the product mix every bit of the key.
+        let slot = (key.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 54) as usize % SLOTS;
+        match self.seen[slot] {
+            Some((seen, empty)) if seen == key => empty,
+            _ => {
+                let empty = self.view.empty(r);
+                self.seen[slot] = Some((key, empty));
+                empty
+            }
+        }
+    }
+}
+
+/// The cells of block `b` that the view cannot skip; `None` when a row of its nodes is not
+/// stored.
+fn block_mask<T: Sample>(
+    slab: &Slab<'_, T>,
+    verdicts: &mut Verdicts<'_>,
+    b: [u32; 3],
+) -> Option<CellMask> {
+    let dims = slab.grid().dims();
+    // The block's nodes along each axis, as `Blocks` counts them: its cells' corners.
+    let first = b.map(|b| b * BLOCK);
+    let len: [usize; 3] = core::array::from_fn(|a| {
+        (((b[a] + 1) * BLOCK).min(dims[a].saturating_sub(1)) + 1 - first[a]) as usize
+    });
+    // The block's nodes once (at most 5³), an axis of fewer nodes padded with its last, so
+    // that a cell's far corner along an axis of one node is its near one, as in `locate`.
+    let mut nodes = [[[0.0f32; NODES]; NODES]; NODES];
+    for (x, plane) in nodes.iter_mut().enumerate() {
+        for (z, line) in plane.iter_mut().enumerate() {
+            let (x, z) = (x.min(len[0] - 1) as u32, z.min(len[2] - 1) as u32);
+            let row = slab.row(first[0] + x, first[2] + z)?;
+            let start = first[1] as usize;
+            let values = row.get(start..start + len[1])?;
+            for (y, node) in line.iter_mut().enumerate() {
+                *node = values.get(y.min(len[1] - 1)).map_or(0.0, |v| v.to_f32());
+            }
+        }
+    }
+    // Each cell's least and greatest corner, in three passes over pairs of neighbours (along
+    // x, z, then y) instead of fourteen comparisons a cell.
+    let (mut lo, mut hi) = (nodes, nodes);
+    for x in 0..EDGE {
+        for z in 0..NODES {
+            for y in 0..NODES {
+                lo[x][z][y] = lo[x][z][y].min(nodes[x + 1][z][y]);
+                hi[x][z][y] = hi[x][z][y].max(nodes[x + 1][z][y]);
+            }
+        }
+    }
+    for x in 0..EDGE {
+        for z in 0..EDGE {
+            for y in 0..NODES {
+                lo[x][z][y] = lo[x][z][y].min(lo[x][z + 1][y]);
+                hi[x][z][y] = hi[x][z][y].max(hi[x][z + 1][y]);
+            }
+        }
+    }
+    let cells = len.map(|n| n.saturating_sub(1).max(1));
+    let mut mask = 0;
+    for x in 0..cells[0] {
+        for z in 0..cells[2] {
+            for y in 0..cells[1] {
+                let range = Range {
+                    min: lo[x][z][y].min(lo[x][z][y + 1]),
+                    max: hi[x][z][y].max(hi[x][z][y + 1]),
+                };
+                if !verdicts.empty(range) {
+                    mask |= 1 << (x + EDGE * (y + EDGE * z));
+                }
+            }
+        }
+    }
+    Some(mask)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::{Camera, Projection};
+    use crate::counters::Counters;
+    use crate::field;
+    use crate::grid::{Grid, Model};
+    use crate::surface::IsoSurface;
+    use crate::transfer::{ControlPoint, TransferFunction};
+    use crate::view::{Mode, ViewSpec};
+    use glam::Vec3;
+
+    fn view(grid: &Grid, mode: Mode) -> View {
+        let centre = Vec3::splat(4.0);
+        let camera = Camera::look_at(
+            centre + Vec3::new(20.0, 5.0, 9.0),
+            centre,
+            Vec3::Y,
+            Projection::Orthographic { width: 20.0 },
+        )
+        .unwrap();
+        let spec = ViewSpec {
+            width: 4,
+            height: 4,
+            camera,
+            model: Model::Cell,
+            dt: 0.5,
+            gradient_distance: 1.0,
+            mode,
+            shading: None,
+            lights: heapless::Vec::new(),
+            background: Vec3::ZERO,
+            cutoff: 1.0 / 512.0,
+            max_depth: 2,
+            refine_steps: 2,
+        };
+        View::new(spec, grid).unwrap()
+    }
+
+    /// Surfaces at `isos`, and compositing whose opacity is zero up to `clear`.
+    fn views(grid: &Grid, isos: &[f32], clear: f32) -> [View; 2] {
+        let mut surfaces = heapless::Vec::new();
+        for &iso in isos {
+            let _ = surfaces.push(IsoSurface {
+                iso,
+                color: Vec3::ONE,
+                transparency: 0.0,
+            });
+        }
+        let point = |value: f32, opacity: f32| ControlPoint {
+            value,
+            color: Vec3::ONE,
+            opacity,
+        };
+        let tf = TransferFunction::new(&[point(clear, 0.0), point(clear + 40.0, 0.5)]).unwrap();
+        [
+            view(grid, Mode::Surfaces(surfaces)),
+            view(grid, Mode::Composite(tf)),
+        ]
+    }
+
+    /// A cell's bit by definition: its eight nodes read one by one (the far node of an axis of
+    /// one node is the near one), set unless the view calls their range empty or a node is
+    /// not stored.
+    fn defined<T: Sample>(slab: &Slab<'_, T>, view: &View, cell: [u32; 3]) -> bool {
+        let dims = slab.grid().dims();
+        let mut r = Range {
+            min: f32::INFINITY,
+            max: f32::NEG_INFINITY,
+        };
+        for corner in 0..8 {
+            let node: [u32; 3] =
+                core::array::from_fn(|a| (cell[a] + (corner >> a & 1)).min(dims[a] - 1));
+            let Some(v) = slab.get(node[0], node[1], node[2]) else {
+                return true;
+            };
+            r.min = r.min.min(v.to_f32());
+            r.max = r.max.max(v.to_f32());
+        }
+        !view.empty(r)
+    }
+
+    #[test]
+    fn every_mask_is_its_cells_by_definition_and_every_cleared_cell_is_empty() {
+        let mut next = crate::testing::xorshift(0x0ce1_1500);
+        let (mut cleared, mut set) = (0, 0);
+        for round in 0..60 {
+            let dims = [1 + next() % 12, 1 + next() % 10, 1 + next() % 11];
+            let grid = Grid::new(dims, Vec3::ONE).unwrap();
+            // Smooth blobs over a noise floor, so that blocks hold both empty and full cells.
+            let mut data = [0u8; 12 * 10 * 11];
+            let n = grid.plane_len() * dims[0] as usize;
+            let (cx, cy, cz) = (next() % 12, next() % 10, next() % 11);
+            for (i, v) in data.iter_mut().take(n).enumerate() {
+                let (x, rest) = ((i / grid.plane_len()) as u32, i % grid.plane_len());
+                let (z, y) = (
+                    (rest / dims[1] as usize) as u32,
+                    (rest % dims[1] as usize) as u32,
+                );
+                let d2 = x.abs_diff(cx).pow(2) + y.abs_diff(cy).pow(2) + z.abs_diff(cz).pow(2);
+                *v = (200u32.saturating_sub(d2 * 12) + next() % 30) as u8;
+            }
+            let data = &data[..n];
+            // The whole volume, and a partial slab whose outer blocks lack planes.
+            let whole = Slab::whole(grid, data).unwrap();
+            let owned = dims[0] / 3..(dims[0] / 3 + 2).min(dims[0]);
+            let stored = crate::slab::stored_planes(&grid, owned.clone(), 1);
+            let part = &data[stored.start as usize * grid.plane_len()..]
+                [..(stored.end - stored.start) as usize * grid.plane_len()];
+            let partial = Slab::new(grid, owned, 1, part).unwrap();
+            let iso = 40.0 + (round % 5) as f32 * 30.0;
+            for slab in [whole, partial] {
+                let mut ranges = [Range::UNKNOWN; 3 * 3 * 3];
+                let (_, _, len) = crate::blocks::extent(&slab);
+                Blocks::build(&slab, &mut ranges[..len]).unwrap();
+                let blocks = Blocks::new(&slab, &ranges[..len]).unwrap();
+                for view in views(&grid, &[iso, iso + 50.0], iso - 20.0) {
+                    let mut masks = [0; 3 * 3 * 3];
+                    build(&slab, &blocks, &view, &mut masks[..len]).unwrap();
+                    let masked = blocks.with_cells(&masks[..len]).unwrap();
+                    // Every cell of every stored block against the definition.
+                    let cells = dims.map(|n| n.saturating_sub(1).max(1));
+                    for x in slab.stored() {
+                        for y in 0..cells[1] {
+                            for z in 0..cells[2] {
+                                let x = x.min(cells[0] - 1);
+                                let site = Site {
+                                    lo: [x, y, z],
+                                    hi: [x, y, z],
+                                    frac: Vec3::ZERO,
+                                };
+                                let block = masked.block_of(&site);
+                                let shows = masked.cells(block) & bit(&site) != 0;
+                                // A block of unknown range proves nothing of its cells.
+                                let range = masked.range(block);
+                                let expected = !view.empty(range)
+                                    && (range == Range::UNKNOWN
+                                        || defined(&slab, &view, [x, y, z]));
+                                assert_eq!(shows, expected, "{dims:?} cell {x} {y} {z}");
+                            }
+                        }
+                    }
+                    // Every value read in a cleared cell is one the view calls empty.
+                    let mut c = Counters::default();
+                    for _ in 0..400 {
+                        let p = Vec3::new(
+                            (next() % 1000) as f32 / 1000.0 * dims[0] as f32,
+                            (next() % 1000) as f32 / 1000.0 * dims[1] as f32,
+                            (next() % 1000) as f32 / 1000.0 * dims[2] as f32,
+                        );
+                        let site = field::locate(&grid, Model::Cell, p);
+                        if !slab.owns(site.plane()) {
+                            continue;
+                        }
+                        let block = masked.block_of(&site);
+                        if masked.cells(block) & bit(&site) != 0 {
+                            set += 1;
+                            continue;
+                        }
+                        cleared += 1;
+                        let v = field::value_at(&slab, Model::Cell, &site, &mut c);
+                        let r = Range { min: v, max: v };
+                        assert!(view.empty(r), "{dims:?} {p}: {v} shows in a cleared cell");
+                    }
+                }
+            }
+        }
+        // Both outcomes are exercised.
+        assert!(cleared > 1000 && set > 1000, "{cleared} cleared, {set} set");
+    }
+
+    #[test]
+    fn blocks_without_masks_skip_no_cell() {
+        let grid = Grid::new([5, 5, 5], Vec3::ONE).unwrap();
+        let data = [7u8; 125];
+        let slab = Slab::whole(grid, &data).unwrap();
+        let mut ranges = [Range::UNKNOWN; 1];
+        Blocks::build(&slab, &mut ranges).unwrap();
+        let blocks = Blocks::new(&slab, &ranges).unwrap();
+        assert_eq!(blocks.cells((0, 0, 0)), ALL);
+        let [surfaces, _] = views(&grid, &[100.0], 50.0);
+        let mut masks = [ALL; 1];
+        build(&slab, &blocks, &surfaces, &mut masks).unwrap();
+        // The block lies below the surface as a whole: no cell of it is asked about.
+        assert_eq!(masks, [0]);
+        assert!(build(&slab, &blocks, &surfaces, &mut [0; 2]).is_err());
+    }
+}
