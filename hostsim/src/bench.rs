@@ -175,19 +175,32 @@ pub fn machines(cores: u32, size: Size) -> Vec<(String, Machine, u32)> {
         ),
     ];
     if size == Size::PAPER {
-        // What leaping over empty blocks gains: the same render, one block per jump. Not a
-        // candidate for the targets (its name starts with neither "direct" nor "threads").
-        all.insert(
-            1,
+        // What leaping over empty blocks and skipping single empty cells gain: the same
+        // render, one block per jump, and without cell masks. Not candidates for the targets
+        // (their names start with neither "direct" nor "threads").
+        for (at, name, skipping) in [
             (
-                "no leaps, direct, 1 node".into(),
-                Machine {
-                    skipping: SkipMode::BLOCKS,
-                    ..Machine::new(Fabric::Direct, 1, 1, 1)
-                },
                 1,
+                "no leaps",
+                SkipMode {
+                    leap: false,
+                    ..SkipMode::ALL
+                },
             ),
-        );
+            (2, "no cell masks", SkipMode::LEAPS),
+        ] {
+            all.insert(
+                at,
+                (
+                    format!("{name}, direct, 1 node"),
+                    Machine {
+                        skipping,
+                        ..Machine::new(Fabric::Direct, 1, 1, 1)
+                    },
+                    1,
+                ),
+            );
+        }
         all.push((
             "threads, 1 cluster of 16".into(),
             Machine::new(Fabric::Threads, 16, 1, 1),
