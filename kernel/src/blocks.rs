@@ -310,11 +310,6 @@ impl<'a> Blocks<'a> {
             .unwrap_or(crate::cells::ALL)
     }
 
-    /// Whether the blocks carry cell masks.
-    pub fn has_cells(&self) -> bool {
-        self.cells.is_some()
-    }
-
     /// Block `(bx, by, bz)`'s chessboard distance to the nearest block the view cannot skip
     /// (0 outside the slab's columns), or `None` without a leap map.
     #[inline]

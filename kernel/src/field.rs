@@ -47,12 +47,18 @@ impl Site {
 /// The [`Site`] of index-space point `p` in `grid` under `model`.
 #[inline]
 pub fn locate(grid: &Grid, model: Model, p: Vec3) -> Site {
+    locate4(grid, model, p.extend(0.0))
+}
+
+/// [`locate`] of the point in the first three lanes of `q`: the sample loop computes its
+/// positions in four lanes and passes them on as they are.
+#[inline]
+pub fn locate4(grid: &Grid, model: Model, q: Vec4) -> Site {
     // The three axes in the lanes of one vector, for every sample and every read: clamped
     // into [0, n - 1] (`q > 0` is false for NaN and -0.0, which land on +0.0), where
     // truncation is the floor and exact (n ≤ 2^23, `Grid::new` checks). Equal to the
     // per-axis definition in the tests for every kind of f32.
     let dims = grid.dims();
-    let q = p.extend(0.0);
     let (last_node, last_cell) = grid.last_indices();
     let v = Vec4::select(q.cmpgt(Vec4::ZERO), q, Vec4::ZERO).min(last_node);
     match model {

@@ -149,8 +149,9 @@ pub fn march<T: Sample>(
             return Stop::Exit;
         }
         let t = ray.lattice.t(ray.k);
-        let p = ray.ray.at(t);
-        let site = field::locate(grid, spec.model, p);
+        // In four lanes, straight into `locate`'s vector.
+        let p4 = ray.ray.at4(t);
+        let site = field::locate4(grid, spec.model, p4);
         let plane = site.plane();
         if !slab.owns(plane) {
             return Stop::Leave { plane };
@@ -218,7 +219,9 @@ pub fn march<T: Sample>(
                 }
             }
             Mode::Surfaces(surfaces) => {
-                if let Some(hit) = nearest_crossing(view, slab, surfaces, ray, t, p, v, counters) {
+                if let Some(hit) =
+                    nearest_crossing(view, slab, surfaces, ray, t, p4.truncate(), v, counters)
+                {
                     ray.done_here |= 1 << hit.surface;
                     counters.crossings += 1;
                     return Stop::Hit(hit);
@@ -235,7 +238,15 @@ pub fn march<T: Sample>(
                 if alpha > 0.0 {
                     let base = tf.color_at(span);
                     // Compositing casts no shadows: every light is fully visible.
-                    let light = lighting(view, slab, base, p, None, ray.ray.dir_world, counters);
+                    let light = lighting(
+                        view,
+                        slab,
+                        base,
+                        p4.truncate(),
+                        None,
+                        ray.ray.dir_world,
+                        counters,
+                    );
                     let color = light.color(&[1.0; MAX_LIGHTS]);
                     ray.color += color * (ray.weight * alpha);
                     ray.weight *= 1.0 - alpha;

@@ -5,7 +5,7 @@
 //! component never divides), rays lying on a face or an edge (the box is closed), grazing rays
 //! (an interval of zero length is a hit), and non-finite input (no hit, never NaN).
 
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 
 /// A ray: `origin + t·dir` in index space, `t` in world units along `dir_world`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -33,6 +33,13 @@ impl Ray {
     #[inline]
     pub fn at(&self, t: f32) -> Vec3 {
         self.origin + self.dir * t
+    }
+
+    /// [`Ray::at`] in the first three lanes of a vector (`w` is zero): each lane the same
+    /// multiply and add, so the same bits, ready for [`crate::field::locate4`].
+    #[inline]
+    pub fn at4(&self, t: f32) -> Vec4 {
+        self.origin.extend(0.0) + self.dir.extend(0.0) * Vec4::splat(t)
     }
 }
 
@@ -127,6 +134,32 @@ pub fn clip(ray: &Ray, lo: Vec3, hi: Vec3, t_min: f32, t_max: f32) -> Option<Spa
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_point_in_four_lanes_is_the_point_in_every_bit() {
+        let mut next = crate::testing::xorshift(0x0a74_0004);
+        let mut float = || {
+            let r = next();
+            // Ordinary magnitudes mostly, any bit pattern sometimes.
+            if r % 8 == 0 {
+                f32::from_bits(next())
+            } else {
+                (r >> 8) as f32 / 65_536.0 - 128.0
+            }
+        };
+        for _ in 0..20_000 {
+            let r = Ray {
+                origin: Vec3::new(float(), float(), float()),
+                dir: Vec3::new(float(), float(), float()),
+                dir_world: Vec3::X,
+            };
+            let t = float();
+            let (three, four) = (r.at(t), r.at4(t));
+            for a in 0..3 {
+                assert_eq!(three[a].to_bits(), four[a].to_bits(), "{r:?} at {t}");
+            }
+        }
+    }
 
     fn ray(o: [f32; 3], d: [f32; 3]) -> Ray {
         let d = Vec3::from_array(d).normalize();
