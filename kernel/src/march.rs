@@ -14,8 +14,8 @@
 use crate::blocks::Blocks;
 use crate::cells::{self, CellMask};
 use crate::counters::Counters;
-use crate::field;
-use crate::grid::Model;
+use crate::field::{self, Site};
+use crate::grid::{Grid, Model};
 use crate::lattice::Lattice;
 use crate::lighting::lighting;
 use crate::ray::{Entry, Ray};
@@ -25,7 +25,7 @@ use crate::slab::Slab;
 use crate::surface::{self, IsoSurface};
 use crate::transfer::corrected_opacity;
 use crate::view::{Mode, View};
-use glam::Vec3;
+use glam::{BVec4A, Vec3, Vec4};
 
 /// What a ray is for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -144,6 +144,8 @@ pub fn march<T: Sample>(
     // What the last sample's block says: consecutive samples mostly share a block, and its
     // verdict (a leap distance or the test against the view) is not free.
     let mut known: Option<Verdict> = None;
+    // Found at the first run through an empty cell: many calls end before one.
+    let mut exits: Option<Exits> = None;
     loop {
         if ray.k > ray.lattice.last {
             return Stop::Exit;
@@ -176,8 +178,11 @@ pub fn march<T: Sample>(
                     continue;
                 }
                 if by_cell && here.cells & cells::bit(&site) == 0 {
-                    // An empty cell of a block that is not empty: this one sample.
-                    skip_to(view, ray, ray.k, counters);
+                    // An empty cell of a block that is not empty: this sample and the ones
+                    // after it in the same cell.
+                    let exits = exits.get_or_insert_with(|| Exits::new(ray));
+                    let last = cell_run(ray, grid, &site, exits);
+                    skip_to(view, ray, last, counters);
                     continue;
                 }
             }
@@ -300,6 +305,72 @@ fn skip_to(view: &View, ray: &mut RayState, last: u32, counters: &mut Counters) 
         ray.done_here = 0;
     }
     ray.k = last + 1;
+}
+
+/// What estimating where a ray leaves a cell needs of it, found once per call of [`march`]:
+/// the estimate multiplies by reciprocals instead of dividing. It is only an estimate: every
+/// landing is checked with the samples' own arithmetic, so its rounding decides how far a
+/// jump goes, never whether a sample that shows is skipped.
+#[derive(Clone, Copy, Debug)]
+struct Exits {
+    origin: Vec4,
+    /// `1 / dir` per axis (infinite where the ray does not move along it; not read there).
+    inv_dir: Vec4,
+    /// Axes the ray moves along (never `w`), and those it moves up.
+    moving: BVec4A,
+    rising: BVec4A,
+    inv_dt: f32,
+}
+
+impl Exits {
+    fn new(ray: &RayState) -> Exits {
+        let dir = ray.ray.dir.extend(0.0);
+        Exits {
+            origin: ray.ray.origin.extend(0.0),
+            inv_dir: Vec4::ONE / dir,
+            moving: dir.cmpne(Vec4::ZERO),
+            rising: dir.cmpgt(Vec4::ZERO),
+            inv_dt: 1.0 / ray.lattice.dt,
+        }
+    }
+
+    /// About how many lattice steps after parameter `t` the ray leaves the box `[lo, hi]`:
+    /// zero where that cannot be told.
+    #[inline]
+    fn steps(&self, t: f32, lo: Vec4, hi: Vec4) -> u32 {
+        let faces = Vec4::select(self.rising, hi, lo);
+        let at = Vec4::select(
+            self.moving,
+            (faces - self.origin) * self.inv_dir,
+            Vec4::INFINITY,
+        );
+        let ahead = ((at.min_element() - t) * self.inv_dt).max(0.0);
+        if ahead.is_finite() {
+            ahead as u32
+        } else {
+            0
+        }
+    }
+}
+
+/// The last sample of the run starting at `ray.k` (a cell-model sample at `site`) that reads
+/// the same cell: every sample between reads it too, since cell corners are monotone along
+/// the lattice. The cell's exit is only an estimate; each candidate is checked with the
+/// samples' own arithmetic, halving on failure. The same cell means the same owner plane.
+#[inline]
+fn cell_run(ray: &RayState, grid: &Grid, site: &Site, exits: &Exits) -> u32 {
+    let [x, y, z] = site.lo.map(|c| c as f32);
+    let lo = Vec4::new(x, y, z, 0.0);
+    let ahead = exits.steps(ray.lattice.t(ray.k), lo, lo + Vec4::ONE);
+    let mut n = ahead.min(ray.lattice.last - ray.k.min(ray.lattice.last));
+    while n > 0 {
+        let q = ray.ray.at4(ray.lattice.t(ray.k + n));
+        if field::locate4(grid, Model::Cell, q).lo == site.lo {
+            return ray.k + n;
+        }
+        n /= 2;
+    }
+    ray.k
 }
 
 /// The last sample of the run starting at `ray.k` that stays in `slab` and in the blocks
