@@ -274,27 +274,28 @@ impl<'a> Blocks<'a> {
     /// The same blocks, leaping by the distances in `leaps` ([`crate::leaps::build`] for the
     /// view being traced: a map built for another view may skip samples that show).
     pub fn with_leaps(self, leaps: &'a [u8]) -> Result<Blocks<'a>, BlocksError> {
-        if leaps.len() != self.data.len() {
-            return Err(BlocksError {
-                needed: self.data.len(),
-                given: leaps.len(),
-            });
-        }
+        self.one_per_block(leaps.len())?;
         Ok(Blocks {
             leaps: Some(leaps),
             ..self
         })
     }
 
+    /// `Ok` when `given` entries are one per block.
+    fn one_per_block(&self, given: usize) -> Result<(), BlocksError> {
+        match given == self.data.len() {
+            true => Ok(()),
+            false => Err(BlocksError {
+                needed: self.data.len(),
+                given,
+            }),
+        }
+    }
+
     /// The same blocks, skipping single cells by the masks in `cells` ([`crate::cells::build`]
     /// for the view being traced, like a leap map).
     pub fn with_cells(self, cells: &'a [CellMask]) -> Result<Blocks<'a>, BlocksError> {
-        if cells.len() != self.data.len() {
-            return Err(BlocksError {
-                needed: self.data.len(),
-                given: cells.len(),
-            });
-        }
+        self.one_per_block(cells.len())?;
         Ok(Blocks {
             cells: Some(cells),
             ..self
