@@ -307,8 +307,9 @@ fn skip_to(view: &View, ray: &mut RayState, last: u32, counters: &mut Counters) 
     ray.k = last + 1;
 }
 
-/// What estimating where a ray leaves a cell needs of it, found once per call of [`march`]:
-/// the estimate multiplies by reciprocals instead of dividing. It is only an estimate: every
+/// What estimating where a ray leaves a cell needs of it, found at the first run through an
+/// empty cell in a call of [`march`]: the estimate multiplies by reciprocals instead of
+/// dividing. It is only an estimate: every
 /// landing is checked with the samples' own arithmetic, so its rounding decides how far a
 /// jump goes, never whether a sample that shows is skipped.
 #[derive(Clone, Copy, Debug)]
