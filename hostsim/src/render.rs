@@ -319,7 +319,7 @@ pub fn render_cut(
     }
 }
 
-fn render_typed<T: Sample>(
+fn render_typed<T: Sample + Sync>(
     volume: &Volume,
     data: &[T],
     view: &View,

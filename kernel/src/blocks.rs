@@ -22,7 +22,7 @@ use glam::Vec3;
 /// Cells per block edge.
 pub const BLOCK: u32 = 4;
 
-/// Y nodes of a column gathered at a time by [`Blocks::build`] (sixteen blocks), on the
+/// Y nodes of a line of blocks gathered at a time by [`Blocks::build`] (sixteen blocks), on the
 /// stack: the kernel's memory stays fixed for any grid.
 const GATHER: usize = 16 * BLOCK as usize;
 
@@ -45,20 +45,41 @@ impl Range {
 
 /// Why blocks cannot be built.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct BlocksError {
-    /// Entries needed.
-    pub needed: usize,
-    /// Entries given.
-    pub given: usize,
+pub enum BlocksError {
+    /// Storage of the wrong length.
+    Storage {
+        /// Entries needed.
+        needed: usize,
+        /// Entries given.
+        given: usize,
+    },
+    /// Block columns `start..end` asked for, past the slab's `columns`.
+    Columns {
+        /// First column asked for (from the slab's first).
+        start: u32,
+        /// One past the last.
+        end: u32,
+        /// The slab's block columns.
+        columns: u32,
+    },
 }
 
 impl fmt::Display for BlocksError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "block storage holds {} ranges, the slab needs {}",
-            self.given, self.needed
-        )
+        match self {
+            BlocksError::Storage { needed, given } => write!(
+                f,
+                "block storage holds {given} ranges, the slab needs {needed}"
+            ),
+            BlocksError::Columns {
+                start,
+                end,
+                columns,
+            } => write!(
+                f,
+                "block columns {start}..{end} asked for, the slab has {columns}"
+            ),
+        }
     }
 }
 
@@ -117,6 +138,29 @@ pub fn extent_for(grid: &crate::grid::Grid, stored: core::ops::Range<u32>) -> (u
     )
 }
 
+/// Blocks in one block column of `grid` (one block along X, every Y and Z): the unit in
+/// which a build may be split.
+pub fn column_len(grid: &crate::grid::Grid) -> usize {
+    let [_, ny, nz] = grid.dims();
+    count(ny) as usize * count(nz) as usize
+}
+
+/// The storage block columns `columns` of a slab with `slab_columns` need.
+fn columns_storage(
+    grid: &crate::grid::Grid,
+    slab_columns: u32,
+    columns: &core::ops::Range<u32>,
+) -> Result<usize, BlocksError> {
+    if columns.start > columns.end || columns.end > slab_columns {
+        return Err(BlocksError::Columns {
+            start: columns.start,
+            end: columns.end,
+            columns: slab_columns,
+        });
+    }
+    Ok(columns.len() * column_len(grid))
+}
+
 impl<'a> Blocks<'a> {
     /// The blocks in `data`, filled for `slab` by [`Blocks::build`].
     pub fn new<T: Sample>(
@@ -125,7 +169,7 @@ impl<'a> Blocks<'a> {
     ) -> Result<Blocks<'a>, BlocksError> {
         let (x0, x1, needed) = extent(slab);
         if data.len() != needed {
-            return Err(BlocksError {
+            return Err(BlocksError::Storage {
                 needed,
                 given: data.len(),
             });
@@ -144,25 +188,39 @@ impl<'a> Blocks<'a> {
 
     /// Fill `out` (exactly [`extent`]'s length) with `slab`'s blocks.
     pub fn build<T: Sample>(slab: &Slab<'_, T>, out: &mut [Range]) -> Result<(), BlocksError> {
-        let (x0, _, needed) = extent(slab);
+        let (x0, x1, _) = extent(slab);
+        Blocks::build_columns(slab, 0..x1 - x0, out)
+    }
+
+    /// Fill `out` with the blocks of `slab`'s block columns `columns` (counted from its first;
+    /// [`column_len`] blocks each, the storage order's slowest axis), as [`Blocks::build`]
+    /// fills their part of its storage: a build split by columns gives the same bits.
+    pub fn build_columns<T: Sample>(
+        slab: &Slab<'_, T>,
+        columns: core::ops::Range<u32>,
+        out: &mut [Range],
+    ) -> Result<(), BlocksError> {
+        let (x0, x1, _) = extent(slab);
+        let needed = columns_storage(slab.grid(), x1 - x0, &columns)?;
         if out.len() != needed {
-            return Err(BlocksError {
+            return Err(BlocksError::Storage {
                 needed,
                 given: out.len(),
             });
         }
+        let x0 = x0 + columns.start;
         let [nx, ny, nz] = slab.grid().dims();
         let bz = count(nz) as usize;
-        // The blocks of one column (one block in X and in Z, every Y) lie side by side in
-        // `out`, and the column's nodes on one Y row side by side in storage. So the column's
+        // The blocks of one line along Y (one block in X and in Z, every Y) lie side by side in
+        // `out`, and the line's nodes on one Y row side by side in storage. So the line's
         // least and greatest value at each Y node are gathered over its rows first, in
         // straight passes along the rows that the compiler vectorises, and then each block
         // takes those of its own Y nodes. Gathering block by block instead, five values of a
         // row at a time, took 2.7 times the instructions.
-        for (k, column) in out.chunks_exact_mut(count(ny) as usize).enumerate() {
+        for (k, line) in out.chunks_exact_mut(count(ny) as usize).enumerate() {
             let xs = nodes(x0 + (k / bz) as u32, nx);
             let zs = nodes((k % bz) as u32, nz);
-            for (c, blocks) in column.chunks_mut(GATHER / BLOCK as usize).enumerate() {
+            for (c, blocks) in line.chunks_mut(GATHER / BLOCK as usize).enumerate() {
                 // Nodes y0..y1: these blocks' own, and the plane they share with the next.
                 let y0 = c * GATHER;
                 let y1 = (y0 + GATHER + 1).min(ny as usize);
@@ -261,6 +319,19 @@ impl<'a> Blocks<'a> {
         self.data
     }
 
+    /// The ranges of block columns `columns` (counted from the slab's first), in storage order.
+    pub fn columns(&self, columns: core::ops::Range<u32>) -> Result<&'a [Range], BlocksError> {
+        let len = (self.ny * self.nz) as usize;
+        if columns.start > columns.end || columns.end > self.x1 - self.x0 {
+            return Err(BlocksError::Columns {
+                start: columns.start,
+                end: columns.end,
+                columns: self.x1 - self.x0,
+            });
+        }
+        Ok(&self.data[columns.start as usize * len..columns.end as usize * len])
+    }
+
     /// Blocks along X (the slab's columns), Y and Z.
     pub fn shape(&self) -> (u32, u32, u32) {
         (self.x1 - self.x0, self.ny, self.nz)
@@ -285,7 +356,7 @@ impl<'a> Blocks<'a> {
     fn one_per_block(&self, given: usize) -> Result<(), BlocksError> {
         match given == self.data.len() {
             true => Ok(()),
-            false => Err(BlocksError {
+            false => Err(BlocksError::Storage {
                 needed: self.data.len(),
                 given,
             }),
@@ -385,6 +456,22 @@ mod tests {
         let (x0, x1, n) = extent(slab);
         Blocks::build(slab, &mut storage[..n]).unwrap();
         let blocks = Blocks::new(slab, &storage[..n]).unwrap();
+        // Built in two parts, cut at every column: the same bits.
+        let (cols, len) = (x1 - x0, column_len(slab.grid()));
+        let bits = |r: &[Range]| {
+            r.iter()
+                .map(|r| (r.min.to_bits(), r.max.to_bits()))
+                .eq(storage[..n]
+                    .iter()
+                    .map(|r| (r.min.to_bits(), r.max.to_bits())))
+        };
+        for cut in 0..=cols {
+            let mut split = [Range { min: 7.0, max: 7.0 }; 256];
+            let (a, b) = split[..n].split_at_mut(cut as usize * len);
+            Blocks::build_columns(slab, 0..cut, a).unwrap();
+            Blocks::build_columns(slab, cut..cols, b).unwrap();
+            assert!(bits(&split[..n]), "cut at column {cut} of {cols}");
+        }
         let (_, by, bz) = blocks.shape();
         let mut seen = [0; 2];
         for bx in x0..x1 {
@@ -456,5 +543,47 @@ mod tests {
             Range::UNKNOWN
         );
         assert!(Blocks::build(&slab, &mut [Range::UNKNOWN; 3]).is_err());
+    }
+
+    #[test]
+    fn columns_past_the_slab_or_the_wrong_storage_are_refused() {
+        let grid = Grid::new([13, 2, 2], Vec3::ONE).unwrap();
+        let data = [5u8; 13 * 4];
+        let slab = Slab::whole(grid, &data).unwrap();
+        let (x0, x1, n) = extent(&slab);
+        assert_eq!((x1 - x0, n), (3, 3));
+        let mut one = [Range::UNKNOWN; 1];
+        let past = BlocksError::Columns {
+            start: 3,
+            end: 4,
+            columns: 3,
+        };
+        assert_eq!(Blocks::build_columns(&slab, 3..4, &mut one), Err(past));
+        let mut said = heapless::String::<80>::new();
+        fmt::Write::write_fmt(&mut said, format_args!("{past}")).unwrap();
+        assert_eq!(said, "block columns 3..4 asked for, the slab has 3");
+        #[allow(
+            clippy::reversed_empty_ranges,
+            reason = "the reversed range is the bad input"
+        )]
+        let reversed = Blocks::build_columns(&slab, 2..1, &mut one);
+        assert!(matches!(reversed, Err(BlocksError::Columns { .. })));
+        assert_eq!(
+            Blocks::build_columns(&slab, 1..3, &mut one),
+            Err(BlocksError::Storage {
+                needed: 2,
+                given: 1
+            })
+        );
+        Blocks::build_columns(&slab, 2..3, &mut one).unwrap();
+        assert_eq!(one[0], Range { min: 5.0, max: 5.0 });
+        let mut all = [Range::UNKNOWN; 3];
+        Blocks::build(&slab, &mut all).unwrap();
+        let blocks = Blocks::new(&slab, &all).unwrap();
+        assert_eq!(blocks.columns(1..3).map(<[Range]>::len), Ok(2));
+        assert!(matches!(
+            blocks.columns(0..4),
+            Err(BlocksError::Columns { .. })
+        ));
     }
 }

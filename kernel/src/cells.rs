@@ -46,18 +46,31 @@ pub fn build<T: Sample>(
     view: &View,
     out: &mut [CellMask],
 ) -> Result<(), BlocksError> {
-    let ranges = blocks.ranges();
+    build_columns(slab, blocks, view, 0..blocks.shape().0, out)
+}
+
+/// Fill `out` with the masks of block columns `columns` of `blocks` (counted from the slab's
+/// first), as [`build`] fills their part of its storage: a build split by columns gives the
+/// same bits.
+pub fn build_columns<T: Sample>(
+    slab: &Slab<'_, T>,
+    blocks: &Blocks<'_>,
+    view: &View,
+    columns: core::ops::Range<u32>,
+    out: &mut [CellMask],
+) -> Result<(), BlocksError> {
+    let ranges = blocks.columns(columns.clone())?;
     if out.len() != ranges.len() {
-        return Err(BlocksError {
+        return Err(BlocksError::Storage {
             needed: ranges.len(),
             given: out.len(),
         });
     }
-    let (cols, ny, nz) = blocks.shape();
-    let x0 = blocks.first_column();
+    let (_, ny, nz) = blocks.shape();
+    let x0 = blocks.first_column() + columns.start;
     let mut verdicts = Verdicts::new(view);
     let mut masks = out.iter_mut().zip(ranges);
-    for bx in x0..x0 + cols {
+    for bx in x0..x0 + columns.len() as u32 {
         for bz in 0..nz {
             for by in 0..ny {
                 let Some((mask, range)) = masks.next() else {
@@ -301,6 +314,16 @@ mod tests {
                 for view in views(&grid, &[iso, iso + 50.0], iso - 20.0) {
                     let mut masks = [0; 3 * 3 * 3];
                     build(&slab, &blocks, &view, &mut masks[..len]).unwrap();
+                    // Built in two parts, cut at every column: the same masks.
+                    let cols = blocks.shape().0;
+                    let per = crate::blocks::column_len(&grid);
+                    for cut in 0..=cols {
+                        let mut split = [0x5a5a; 3 * 3 * 3];
+                        let (a, b) = split[..len].split_at_mut(cut as usize * per);
+                        build_columns(&slab, &blocks, &view, 0..cut, a).unwrap();
+                        build_columns(&slab, &blocks, &view, cut..cols, b).unwrap();
+                        assert_eq!(split[..len], masks[..len], "cut at column {cut}");
+                    }
                     let masked = blocks.with_cells(&masks[..len]).unwrap();
                     // Every cell of every stored block against the definition.
                     let cells = dims.map(|n| n.saturating_sub(1).max(1));

@@ -19,7 +19,7 @@ use crate::view::View;
 pub fn build(blocks: &Blocks<'_>, view: &View, out: &mut [u8]) -> Result<(), BlocksError> {
     let ranges = blocks.ranges();
     if out.len() != ranges.len() {
-        return Err(BlocksError {
+        return Err(BlocksError::Storage {
             needed: ranges.len(),
             given: out.len(),
         });

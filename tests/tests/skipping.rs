@@ -132,7 +132,7 @@ fn trace_with_skipping_of(
     }
 }
 
-fn trace_typed<T: Sample>(
+fn trace_typed<T: Sample + Sync>(
     grid: Grid,
     data: &[T],
     traced: &View,
@@ -264,4 +264,62 @@ proptest! {
         prop_assert_eq!(&counters[0], &counters[1]);
         prop_assert_eq!(&counters[2], &counters[3]);
     }
+}
+
+/// The skipping storage a machine builds on several threads, split by block columns, is the
+/// storage built on one: whole volumes and partial slabs, surfaces and compositing, both
+/// models, more threads than columns too.
+#[test]
+fn skipping_built_on_threads_is_the_same_storage() {
+    let mut compared = 0;
+    for (dims, seed) in [
+        ([37, 21, 30], 7u64),
+        ([9, 40, 13], 0x3c_1d_05),
+        ([5, 6, 7], 11),
+    ] {
+        let volume = blobs(dims, Vec3::ONE, seed);
+        let VolumeData::U8(data) = &volume.data else {
+            unreachable!("blobs are bytes")
+        };
+        let grid = volume.grid;
+        let target = Vec3::from_array(dims.map(|n| n as f32 / 2.0));
+        let cam = voxcube_tests::ortho(target + Vec3::new(40.0, 9.0, 17.0), target, Vec3::Y, 30.0);
+        let point = |value: f32, opacity: f32| ControlPoint {
+            value,
+            color: Vec3::ONE,
+            opacity,
+        };
+        let composite = Mode::Composite(
+            TransferFunction::new(&[point(90.0, 0.0), point(120.0, 0.4)]).expect("sorted"),
+        );
+        for (mode, model) in [
+            (voxcube_tests::surfaces(&[(120.0, 0.0)]), Model::Cell),
+            (composite, Model::Cell),
+            (voxcube_tests::surfaces(&[(120.0, 0.0)]), Model::Voxel),
+        ] {
+            let view =
+                voxcube_tests::view(voxcube_tests::spec(cam, 4, 4, model, 0.5, mode), &volume);
+            let plane = grid.plane_len();
+            let [nx, ..] = dims;
+            let mut slabs = vec![Slab::whole(grid, data.as_slice()).expect("slab")];
+            for owned in [1..nx / 2, nx / 3..nx] {
+                let s = voxcube_kernel::slab::stored_planes(&grid, owned.clone(), 1);
+                let stored = &data[s.start as usize * plane..s.end as usize * plane];
+                slabs.push(Slab::new(grid, owned, 1, stored).expect("slab"));
+            }
+            for slab in &slabs {
+                for skipping in [SkipMode::ALL, SkipMode::LEAPS, SkipMode::BLOCKS] {
+                    let one = Skipping::build(slab, &view, skipping);
+                    assert_ne!(one, Skipping::default(), "{dims:?}: blocks are built");
+                    for threads in [2, 3, 8] {
+                        let many = Skipping::build_on(slab, &view, skipping, threads);
+                        // Not assert_eq: the storage runs to thousands of entries.
+                        assert!(many == one, "{dims:?} {model:?} {skipping:?} on {threads}");
+                        compared += 1;
+                    }
+                }
+            }
+        }
+    }
+    assert_eq!(compared, 3 * 3 * 3 * 3 * 3);
 }

@@ -293,57 +293,118 @@ impl SkipMode {
 
 /// A node's storage for skipping empty space in one view: its min/max blocks, their
 /// chessboard distances and their cell masks, each empty when that acceleration is off.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Skipping {
     ranges: Vec<voxcube_kernel::blocks::Range>,
     leaps: Vec<u8>,
     cells: Vec<voxcube_kernel::cells::CellMask>,
 }
 
+/// `all` cut into consecutive pieces of `sizes` (the last piece short if they overrun).
+fn split_sizes<E>(
+    mut all: &mut [E],
+    sizes: impl Iterator<Item = usize>,
+) -> impl Iterator<Item = &mut [E]> {
+    sizes.map(move |n| {
+        let rest = std::mem::take(&mut all);
+        let (piece, rest) = rest.split_at_mut(n.min(rest.len()));
+        all = rest;
+        piece
+    })
+}
+
+/// One part of a skipping build, saying whether it built.
+type Part<'a> = Box<dyn FnOnce() -> bool + Send + 'a>;
+
+/// Run `parts`, on as many OS threads when `threads > 1` (a part that panics built nothing).
+fn run_parts(parts: Vec<Part<'_>>, threads: usize) -> Vec<bool> {
+    if threads <= 1 || parts.len() <= 1 {
+        return parts.into_iter().map(|part| part()).collect();
+    }
+    std::thread::scope(|scope| {
+        let running: Vec<_> = parts.into_iter().map(|part| scope.spawn(part)).collect();
+        running
+            .into_iter()
+            .map(|part| part.join().unwrap_or(false))
+            .collect()
+    })
+}
+
 impl Skipping {
     /// The blocks of `slab` (`mode.skip`), their distances (`mode.leap`) and cell masks
     /// (`mode.cells`, cell model only) for `view`.
-    pub fn build<T: voxcube_kernel::sample::Sample>(
+    pub fn build<T: voxcube_kernel::sample::Sample + Sync>(
         slab: &voxcube_kernel::slab::Slab<'_, T>,
         view: &voxcube_kernel::view::View,
         mode: SkipMode,
     ) -> Skipping {
-        use voxcube_kernel::blocks::{extent, Blocks, Range};
+        Skipping::build_on(slab, view, mode, 1)
+    }
+
+    /// [`Skipping::build`] on up to `threads` OS threads: the blocks and the masks split by
+    /// block columns, the distances (one pass over every block) beside the masks. The same
+    /// bits: a column's blocks and masks depend on its own nodes only. A machine's start-up is
+    /// on every frame's clock, and the masks of a composited SOD view alone took a tenth of a
+    /// one-node frame.
+    pub fn build_on<T: voxcube_kernel::sample::Sample + Sync>(
+        slab: &voxcube_kernel::slab::Slab<'_, T>,
+        view: &voxcube_kernel::view::View,
+        mode: SkipMode,
+        threads: usize,
+    ) -> Skipping {
+        use voxcube_kernel::blocks::{column_len, extent, Blocks, Range};
         if !mode.skip {
             return Skipping::default();
         }
-        let mut ranges = vec![Range::UNKNOWN; extent(slab).2];
+        let (x0, x1, len) = extent(slab);
+        let per = column_len(slab.grid());
+        let columns = x1 - x0;
+        let n = threads.clamp(1, columns as usize) as u32;
+        let parts: Vec<std::ops::Range<u32>> = (0..n)
+            .map(|i| i * columns / n..(i + 1) * columns / n)
+            .collect();
+        let sizes: Vec<usize> = parts.iter().map(|c| c.len() * per).collect();
         // Every length comes from the slab: no build can fail; without blocks nothing is
         // skipped, without distances each jump ends at its block's faces, without masks no
         // single cell is skipped.
-        if Blocks::build(slab, &mut ranges).is_err() {
+        let mut ranges = vec![Range::UNKNOWN; len];
+        let jobs = split_sizes(&mut ranges, sizes.iter().copied())
+            .zip(parts.clone())
+            .map(|(out, cols)| -> Part<'_> {
+                Box::new(move || Blocks::build_columns(slab, cols, out).is_ok())
+            })
+            .collect();
+        if !run_parts(jobs, threads).into_iter().all(|built| built) {
             return Skipping::default();
         }
         let Ok(blocks) = Blocks::new(slab, &ranges) else {
             return Skipping::default();
         };
-        let leaps = if mode.leap {
-            let mut leaps = vec![0; ranges.len()];
-            match voxcube_kernel::leaps::build(&blocks, view, &mut leaps) {
-                Ok(()) => leaps,
-                Err(_) => Vec::new(),
+        let mut leaps = if mode.leap { vec![0; len] } else { Vec::new() };
+        let by_cell = mode.cells && view.spec().model == voxcube_kernel::grid::Model::Cell;
+        let mut cells = if by_cell { vec![0; len] } else { Vec::new() };
+        let mut jobs: Vec<Part<'_>> = Vec::new();
+        if mode.leap {
+            let (blocks, leaps) = (&blocks, &mut leaps);
+            jobs.push(Box::new(move || {
+                voxcube_kernel::leaps::build(blocks, view, leaps).is_ok()
+            }));
+        }
+        if by_cell {
+            for (out, cols) in split_sizes(&mut cells, sizes.into_iter()).zip(parts) {
+                let blocks = &blocks;
+                jobs.push(Box::new(move || {
+                    voxcube_kernel::cells::build_columns(slab, blocks, view, cols, out).is_ok()
+                }));
             }
-        } else {
-            Vec::new()
-        };
-        let cells = if mode.cells && view.spec().model == voxcube_kernel::grid::Model::Cell {
-            let mut cells = vec![0; ranges.len()];
-            match voxcube_kernel::cells::build(slab, &blocks, view, &mut cells) {
-                Ok(()) => cells,
-                Err(_) => Vec::new(),
-            }
-        } else {
-            Vec::new()
-        };
+        }
+        let built = run_parts(jobs, threads);
+        let leaped = !mode.leap || built.first() == Some(&true);
+        let masked = built.iter().skip(usize::from(mode.leap)).all(|&b| b);
         Skipping {
             ranges,
-            leaps,
-            cells,
+            leaps: if leaped { leaps } else { Vec::new() },
+            cells: if masked { cells } else { Vec::new() },
         }
     }
 
@@ -385,15 +446,10 @@ pub struct NodeStorage<'d, T> {
     skipping: Vec<Skipping>,
 }
 
-impl<'d, T: voxcube_kernel::sample::Sample> NodeStorage<'d, T> {
+impl<'d, T: voxcube_kernel::sample::Sample + Sync> NodeStorage<'d, T> {
     /// Each node's stored planes: its own storage after a plane shift (`shifted`, by node
     /// id), else its slab of `partition` in `data`, which every cluster holds alike at a ring
-    /// position; and the skipping storage of each ring position for `view` (`mode`), built
-    /// from cluster 0's node there.
-    #[allow(
-        clippy::too_many_arguments,
-        reason = "the fabrics' one set-up step; the arguments are the machine's shape and the view"
-    )]
+    /// position. Nothing is skipped until [`NodeStorage::with_skipping`].
     pub fn new(
         grid: &Grid,
         layout: Layout,
@@ -401,8 +457,6 @@ impl<'d, T: voxcube_kernel::sample::Sample> NodeStorage<'d, T> {
         ghost: u32,
         data: &'d [T],
         shifted: Option<&'d [Vec<T>]>,
-        view: &voxcube_kernel::view::View,
-        mode: SkipMode,
     ) -> NodeStorage<'d, T> {
         let plane = grid.plane_len();
         let planes: Vec<Range<u32>> = (0..partition.slabs())
@@ -418,23 +472,32 @@ impl<'d, T: voxcube_kernel::sample::Sample> NodeStorage<'d, T> {
                 }
             })
             .collect();
-        let mut nodes = NodeStorage {
+        NodeStorage {
             grid: *grid,
             layout,
             ghost,
             planes,
             storage,
             skipping: Vec::new(),
-        };
-        nodes.skipping = (0..layout.size())
+        }
+    }
+
+    /// The same storage, with the skipping storage of each ring position for `view` (`mode`),
+    /// built from cluster 0's node there on up to `threads` OS threads.
+    pub fn with_skipping(
+        mut self,
+        view: &voxcube_kernel::view::View,
+        mode: SkipMode,
+        threads: usize,
+    ) -> NodeStorage<'d, T> {
+        self.skipping = (0..self.layout.size())
             .map(|j| {
-                nodes
-                    .bare_slab(layout.node(0, j))
-                    .map(|s| Skipping::build(&s, view, mode))
+                self.bare_slab(self.layout.node(0, j))
+                    .map(|s| Skipping::build_on(&s, view, mode, threads))
                     .unwrap_or_default()
             })
             .collect();
-        nodes
+        self
     }
 
     /// Node `node`'s slab, skipping empty space as its ring position's storage says.

@@ -475,7 +475,7 @@ pub fn node_worker<'a, T: Sample>(
     )?))
 }
 
-fn run_typed<T: Sample>(
+fn run_typed<T: Sample + Sync>(
     volume: &Volume,
     data: &[T],
     view: &View,
@@ -521,9 +521,8 @@ fn run_typed<T: Sample>(
         ghost,
         data,
         shifted.as_ref().map(|(s, _)| s.as_slice()),
-        view,
-        cfg.skipping,
-    );
+    )
+    .with_skipping(view, cfg.skipping, 1);
     let mut workers: Vec<Box<SimWorker<'_, T>>> = Vec::with_capacity(nodes);
     let mut reports = Vec::with_capacity(nodes);
     for node in 0..nodes as u16 {

@@ -246,9 +246,8 @@ fn run_typed<T: Sample + Send + Sync>(
         ghost,
         data,
         shifted.as_ref().map(|(s, _)| s.as_slice()),
-        view,
-        cfg.skipping,
-    );
+    )
+    .with_skipping(view, cfg.skipping, threads);
     let mut workers = Vec::with_capacity(nodes);
     for node in 0..nodes as u16 {
         let slab = nodes_storage.slab(node)?;
