@@ -85,6 +85,17 @@ impl fmt::Display for BlocksError {
 
 impl core::error::Error for BlocksError {}
 
+/// What one block holds: see [`Blocks::entry`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Entry {
+    /// Its range.
+    pub range: Range,
+    /// Its chessboard distance, when the blocks carry a leap map.
+    pub leap: Option<u8>,
+    /// Its cells the view cannot skip.
+    pub cells: CellMask,
+}
+
 /// A slab's blocks: global block columns `[x0, x1)` × all Y × all Z.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Blocks<'a> {
@@ -373,6 +384,27 @@ impl<'a> Blocks<'a> {
         })
     }
 
+    /// All that block `(bx, by, bz)` holds, found at one index: [`Blocks::range`],
+    /// [`Blocks::leap`] and [`Blocks::cells`] at once, for the marcher entering a block.
+    #[inline]
+    pub fn entry(&self, block: (u32, u32, u32)) -> Entry {
+        let Some(i) = self.index(block) else {
+            return Entry {
+                range: Range::UNKNOWN,
+                leap: self.leaps.map(|_| 0),
+                cells: crate::cells::ALL,
+            };
+        };
+        Entry {
+            range: self.data.get(i).copied().unwrap_or(Range::UNKNOWN),
+            leap: self.leaps.map(|l| l.get(i).copied().unwrap_or(0)),
+            cells: self
+                .cells
+                .and_then(|c| c.get(i).copied())
+                .unwrap_or(crate::cells::ALL),
+        }
+    }
+
     /// The cells of block `(bx, by, bz)` the view cannot skip: every cell without masks or
     /// outside the slab's columns.
     #[inline]
@@ -543,6 +575,44 @@ mod tests {
             Range::UNKNOWN
         );
         assert!(Blocks::build(&slab, &mut [Range::UNKNOWN; 3]).is_err());
+    }
+
+    #[test]
+    fn an_entry_is_what_the_block_holds() {
+        let grid = Grid::new([13, 9, 6], Vec3::ONE).unwrap();
+        let data: [u8; 13 * 9 * 6] = core::array::from_fn(|i| (i * 53 % 241) as u8);
+        let plane = grid.plane_len();
+        let slab = Slab::new(grid, 5..9, 1, &data[4 * plane..10 * plane]).unwrap();
+        let (x0, x1, n) = extent(&slab);
+        let mut storage = [Range::UNKNOWN; 12];
+        Blocks::build(&slab, &mut storage[..n]).unwrap();
+        let bare = Blocks::new(&slab, &storage[..n]).unwrap();
+        let leaps: [u8; 12] = core::array::from_fn(|i| i as u8 * 3);
+        let masks: [CellMask; 12] = core::array::from_fn(|i| (i as u64) << 17 | 5);
+        let full = bare
+            .with_leaps(&leaps[..n])
+            .and_then(|b| b.with_cells(&masks[..n]))
+            .unwrap();
+        let mut inside = 0;
+        for blocks in [bare, full] {
+            // Every block, and the columns on either side of the slab's.
+            for bx in x0.saturating_sub(1)..x1 + 1 {
+                for by in 0..2 {
+                    for bz in 0..2 {
+                        let b = (bx, by, bz);
+                        let e = blocks.entry(b);
+                        assert_eq!(
+                            (e.range, e.leap, e.cells),
+                            (blocks.range(b), blocks.leap(b), blocks.cells(b)),
+                            "{b:?}"
+                        );
+                        inside +=
+                            usize::from(e.range != Range::UNKNOWN && e.leap.is_some_and(|d| d > 0));
+                    }
+                }
+            }
+        }
+        assert!(inside >= 3, "{inside} entries with a range and a distance");
     }
 
     #[test]

@@ -283,14 +283,15 @@ struct Verdict {
 impl Verdict {
     #[inline]
     fn of(view: &View, blocks: &Blocks<'_>, block: (u32, u32, u32)) -> Verdict {
-        let reach = match blocks.leap(block) {
+        let entry = blocks.entry(block);
+        let reach = match entry.leap {
             Some(distance) => distance.checked_sub(1).map(u32::from),
-            None => view.empty(blocks.range(block)).then_some(0),
+            None => view.empty(entry.range).then_some(0),
         };
         Verdict {
             block,
             reach,
-            cells: blocks.cells(block),
+            cells: entry.cells,
         }
     }
 }
