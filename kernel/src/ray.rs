@@ -88,40 +88,47 @@ pub struct Span {
 }
 
 /// Clip `ray` against the closed box `[lo, hi]` restricted to `t ∈ [t_min, t_max]`.
+///
+/// The three axes in the lanes of one vector (each lane the operations of the per-axis
+/// definition, so the same bits; the tests keep that definition): every pixel clips its ray,
+/// and one axis at a time took half the set-up of a frame's primary rays.
 pub fn clip(ray: &Ray, lo: Vec3, hi: Vec3, t_min: f32, t_max: f32) -> Option<Span> {
+    if !(ray.origin.is_finite() && ray.dir.is_finite()) {
+        return None;
+    }
+    // `w` is a zero direction inside the closed slab [0, 0]: it never clips.
+    let (o, d) = (ray.origin.extend(0.0), ray.dir.extend(0.0));
+    let (lo, hi) = (lo.extend(0.0), hi.extend(0.0));
+    let parallel = d.cmpeq(Vec4::ZERO);
+    // Parallel to a pair of faces: inside the closed slab or never.
+    if (parallel & (o.cmplt(lo) | o.cmpgt(hi))).any() {
+        return None;
+    }
+    // Parallel lanes divide by zero here; their quotients are never read.
+    let (t_lo, t_hi) = ((lo - o) / d, (hi - o) / d);
+    let ordered = t_lo.cmple(t_hi);
+    let t0 = Vec4::select(ordered, t_lo, t_hi).to_array();
+    // Widen the far bound by the rounding error of the three operations behind it (pbrt's
+    // 1 + 2γ₃), so a ray through an edge or corner is not lost to one ulp.
+    let t1 = (Vec4::select(ordered, t_hi, t_lo) * FAR_WIDENING).to_array();
+    let (moving, high) = ((!parallel).bitmask(), (!ordered).bitmask());
     let mut t_near = t_min;
     let mut t_far = t_max;
     let mut entry = Entry::Inside;
+    // In axis order, so that of equal entry parameters the first axis names the face.
     for axis in 0..3 {
-        let (o, d) = (ray.origin[axis], ray.dir[axis]);
-        if !(o.is_finite() && d.is_finite()) {
-            return None;
-        }
-        if d == 0.0 {
-            // Parallel to this pair of faces: inside the closed slab or never.
-            if o < lo[axis] || o > hi[axis] {
-                return None;
-            }
+        if moving >> axis & 1 == 0 {
             continue;
         }
-        let (t_lo, t_hi) = ((lo[axis] - o) / d, (hi[axis] - o) / d);
-        let (t0, t1, high) = if t_lo <= t_hi {
-            (t_lo, t_hi, false)
-        } else {
-            (t_hi, t_lo, true)
-        };
-        // Widen the far bound by the rounding error of the three operations behind it (pbrt's
-        // 1 + 2γ₃), so a ray through an edge or corner is not lost to one ulp.
-        let t1 = t1 * FAR_WIDENING;
-        if t0 > t_near {
-            t_near = t0;
+        if t0[axis] > t_near {
+            t_near = t0[axis];
             entry = Entry::Face {
                 axis: axis as u8,
-                high,
+                high: high >> axis & 1 == 1,
             };
         }
-        if t1 < t_far {
-            t_far = t1;
+        if t1[axis] < t_far {
+            t_far = t1[axis];
         }
     }
     (t_near <= t_far && t_near.is_finite() && t_far.is_finite()).then_some(Span {
@@ -159,6 +166,99 @@ mod tests {
                 assert_eq!(three[a].to_bits(), four[a].to_bits(), "{r:?} at {t}");
             }
         }
+    }
+
+    /// The definition [`clip`] keeps, one axis at a time.
+    fn clip_by_axis(ray: &Ray, lo: Vec3, hi: Vec3, t_min: f32, t_max: f32) -> Option<Span> {
+        let mut t_near = t_min;
+        let mut t_far = t_max;
+        let mut entry = Entry::Inside;
+        for axis in 0..3 {
+            let (o, d) = (ray.origin[axis], ray.dir[axis]);
+            if !(o.is_finite() && d.is_finite()) {
+                return None;
+            }
+            if d == 0.0 {
+                if o < lo[axis] || o > hi[axis] {
+                    return None;
+                }
+                continue;
+            }
+            let (t_lo, t_hi) = ((lo[axis] - o) / d, (hi[axis] - o) / d);
+            let (t0, t1, high) = if t_lo <= t_hi {
+                (t_lo, t_hi, false)
+            } else {
+                (t_hi, t_lo, true)
+            };
+            let t1 = t1 * FAR_WIDENING;
+            if t0 > t_near {
+                t_near = t0;
+                entry = Entry::Face {
+                    axis: axis as u8,
+                    high,
+                };
+            }
+            if t1 < t_far {
+                t_far = t1;
+            }
+        }
+        (t_near <= t_far && t_near.is_finite() && t_far.is_finite()).then_some(Span {
+            t_near,
+            t_far,
+            entry,
+        })
+    }
+
+    #[test]
+    fn clipping_in_lanes_is_clipping_by_axis_in_every_bit() {
+        let mut next = crate::testing::xorshift(0xc11f_0004);
+        let mut float = || {
+            let r = next();
+            match r % 16 {
+                // Axis-parallel, on a face, and every kind of f32 sometimes.
+                0 => 0.0,
+                1 => -0.0,
+                2 => 4.0,
+                3 => f32::from_bits(next()),
+                4 => f32::INFINITY,
+                _ => (r >> 8) as f32 / 65_536.0 * 8.0 - 96.0 / 4.0,
+            }
+        };
+        let (mut hits, mut faces) = (0, [0u32; 6]);
+        for _ in 0..200_000 {
+            let r = Ray {
+                origin: Vec3::new(float(), float(), float()),
+                dir: Vec3::new(float(), float(), float()),
+                dir_world: Vec3::X,
+            };
+            let lo = Vec3::new(float(), float(), float()).min(Vec3::ZERO);
+            let hi = lo + Vec3::new(float(), float(), float()).abs();
+            let (t_min, t_max) = (float().min(0.0), float().abs());
+            let (lanes, axes) = (
+                clip(&r, lo, hi, t_min, t_max),
+                clip_by_axis(&r, lo, hi, t_min, t_max),
+            );
+            let bits =
+                |s: Option<Span>| s.map(|s| (s.t_near.to_bits(), s.t_far.to_bits(), s.entry));
+            assert_eq!(
+                bits(lanes),
+                bits(axes),
+                "{r:?} [{lo}, {hi}] t in [{t_min}, {t_max}]"
+            );
+            if let Some(Span {
+                entry: Entry::Face { axis, high },
+                ..
+            }) = axes
+            {
+                faces[usize::from(axis) * 2 + usize::from(high)] += 1;
+            }
+            hits += usize::from(axes.is_some());
+        }
+        // Hits through every face, and misses, were compared.
+        assert!(
+            hits > 10_000 && hits < 190_000 && faces.iter().all(|&n| n > 100),
+            "{hits} {faces:?}"
+        );
     }
 
     fn ray(o: [f32; 3], d: [f32; 3]) -> Ray {
