@@ -272,7 +272,7 @@ pub fn serve(
     }
 }
 
-fn serve_typed<T: Sample>(
+fn serve_typed<T: Sample + Sync>(
     world: &SimpleCommunicator,
     volume: &Volume,
     data: &[T],
