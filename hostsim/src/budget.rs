@@ -63,14 +63,34 @@ pub fn worker_bytes() -> usize {
     size_of::<SimWorker<'static, u8>>()
 }
 
-/// Bytes of the min/max blocks a slab storing planes `stored` of `grid` keeps, with one
-/// view's chessboard distance per block for leaping ([`voxcube_kernel::leaps`]) and its cell
-/// mask ([`voxcube_kernel::cells`]).
-pub fn block_bytes(grid: &Grid, stored: std::ops::Range<u32>) -> usize {
+/// Bytes of the min/max blocks a slab storing planes `stored` of `grid` keeps, with `maps`
+/// leap maps of one view (a byte per block each, [`voxcube_kernel::leaps`]) and its cell mask
+/// ([`voxcube_kernel::cells`]).
+pub fn block_bytes(grid: &Grid, stored: std::ops::Range<u32>, maps: usize) -> usize {
     voxcube_kernel::blocks::extent_for(grid, stored).2
         * (size_of::<voxcube_kernel::blocks::Range>()
-            + size_of::<u8>()
+            + maps * size_of::<u8>()
             + size_of::<voxcube_kernel::cells::CellMask>())
+}
+
+/// What a view asks of every node's memory besides its planes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ViewNeeds {
+    /// Ghost planes each side of a slab.
+    pub ghost: u32,
+    /// Leap maps: one per octant of ray directions the view takes (one for a parallel
+    /// projection without shadows, at most eight).
+    pub maps: usize,
+}
+
+impl ViewNeeds {
+    /// What `view` needs.
+    pub fn of(view: &voxcube_kernel::view::View) -> ViewNeeds {
+        ViewNeeds {
+            ghost: view.ghost_planes(),
+            maps: voxcube_kernel::leaps::octants(view).count_ones() as usize,
+        }
+    }
 }
 
 /// One node's memory, by part.
@@ -131,19 +151,21 @@ impl fmt::Display for BudgetError {
 impl std::error::Error for BudgetError {}
 
 /// The largest node's memory when `grid` of `sample_bytes` samples is cut uniformly into
-/// `cluster_size` slabs with `ghost` planes each side and `buffer` bytes of receive buffer.
+/// `cluster_size` slabs with the ghost planes and leap maps of `needs` and `buffer` bytes of
+/// receive buffer.
 pub fn largest_node(
     grid: &Grid,
     sample_bytes: usize,
     cluster_size: u32,
-    ghost: u32,
+    needs: ViewNeeds,
     buffer: usize,
 ) -> Option<NodeMemory> {
     let partition = Partition::uniform(grid.dims()[0], cluster_size as usize).ok()?;
     let slab = (0..cluster_size as usize)
         .map(|j| {
-            let s = stored_planes(grid, partition.planes(j), ghost);
-            (s.end - s.start) as usize * grid.plane_len() * sample_bytes + block_bytes(grid, s)
+            let s = stored_planes(grid, partition.planes(j), needs.ghost);
+            (s.end - s.start) as usize * grid.plane_len() * sample_bytes
+                + block_bytes(grid, s, needs.maps)
         })
         .max()?;
     Some(NodeMemory {
@@ -154,23 +176,24 @@ pub fn largest_node(
     })
 }
 
-/// The most planes a slab may own in `grid` (samples of `sample_bytes`, `ghost` planes each
-/// side, `buffer` bytes of receive buffer) and still fit `profile`'s node memory: the cap
-/// static load balancing keeps every slab under. 0 when not even one plane fits.
+/// The most planes a slab may own in `grid` (samples of `sample_bytes`, the ghost planes and
+/// leap maps of `needs`, `buffer` bytes of receive buffer) and still fit `profile`'s node
+/// memory: the cap static load balancing keeps every slab under. 0 when not even one plane
+/// fits.
 pub fn max_owned_planes(
     profile: Profile,
     grid: &Grid,
     sample_bytes: usize,
-    ghost: u32,
+    needs: ViewNeeds,
     buffer: usize,
 ) -> u32 {
     let nx = grid.dims()[0];
     let fits = |owned: u32| {
         // An interior slab stores its ghosts on both sides: the most a slab of this size does.
-        let stored = 0..(owned + 2 * ghost).min(nx);
+        let stored = 0..(owned + 2 * needs.ghost).min(nx);
         let memory = NodeMemory {
             slab: (stored.end - stored.start) as usize * grid.plane_len() * sample_bytes
-                + block_bytes(grid, stored),
+                + block_bytes(grid, stored, needs.maps),
             buffer,
             worker: worker_bytes(),
             allowance: CODE_AND_STACK,
@@ -183,18 +206,18 @@ pub fn max_owned_planes(
         .unwrap_or(0)
 }
 
-/// Check that every node fits `profile`; `buffer_for(size)` gives the receive buffer of a
-/// cluster of `size`.
+/// Check that every node fits `profile` with the ghost planes and leap maps of `needs`;
+/// `buffer_for(size)` gives the receive buffer of a cluster of `size`.
 pub fn check(
     profile: Profile,
     grid: &Grid,
     sample_bytes: usize,
     cluster_size: u32,
-    ghost: u32,
+    needs: ViewNeeds,
     buffer_for: &dyn Fn(u32) -> usize,
 ) -> Result<NodeMemory, BudgetError> {
     let fits = |size: u32| {
-        largest_node(grid, sample_bytes, size, ghost, buffer_for(size))
+        largest_node(grid, sample_bytes, size, needs, buffer_for(size))
             .filter(|m| m.total() <= profile.node_memory)
     };
     if let Some(m) = fits(cluster_size) {
@@ -204,7 +227,7 @@ pub fn check(
         grid,
         sample_bytes,
         cluster_size,
-        ghost,
+        needs,
         buffer_for(cluster_size),
     )
     .unwrap_or_default();
@@ -229,12 +252,13 @@ mod tests {
     fn the_plane_cap_is_the_largest_slab_that_fits() {
         let grid = Grid::new([208, 208, 208], Vec3::ONE).unwrap();
         let (ghost, buffer) = (3, 16 * 1024);
-        let cap = max_owned_planes(Profile::ncube2(), &grid, 1, ghost, buffer);
+        let needs = ViewNeeds { ghost, maps: 1 };
+        let cap = max_owned_planes(Profile::ncube2(), &grid, 1, needs, buffer);
         assert!(cap > 0 && cap < 208, "{cap}");
         let memory = |owned: u32| {
             let stored = 0..owned + 2 * ghost;
             stored.len() * grid.plane_len()
-                + block_bytes(&grid, stored)
+                + block_bytes(&grid, stored, 1)
                 + buffer
                 + worker_bytes()
                 + CODE_AND_STACK
@@ -244,10 +268,27 @@ mod tests {
     }
 
     #[test]
+    fn each_leap_map_costs_a_byte_per_block() {
+        let grid = Grid::new([97, 97, 116], Vec3::ONE).unwrap();
+        let blocks = voxcube_kernel::blocks::extent_for(&grid, 0..10).2;
+        assert_eq!(blocks, 3 * 24 * 29);
+        assert_eq!(block_bytes(&grid, 0..10, 1), blocks * 17);
+        assert_eq!(block_bytes(&grid, 0..10, 8) - block_bytes(&grid, 0..10, 1), blocks * 7);
+    }
+
+    #[test]
     fn a_big_volume_needs_a_bigger_cluster() {
         let grid = Grid::new([208, 208, 208], Vec3::ONE).unwrap();
         let buffer = |_| 16 * 1024;
-        let err = check(Profile::ncube2(), &grid, 1, 2, 3, &buffer).unwrap_err();
+        let err = check(
+            Profile::ncube2(),
+            &grid,
+            1,
+            2,
+            ViewNeeds { ghost: 3, maps: 1 },
+            &buffer,
+        )
+        .unwrap_err();
         assert_eq!(err.fits_at, Some(4));
         let msg = err.to_string();
         assert!(
@@ -255,7 +296,15 @@ mod tests {
                 && msg.contains("smallest cluster that fits has 4 nodes"),
             "{msg}"
         );
-        let ok = check(Profile::ncube2(), &grid, 1, 4, 3, &buffer).unwrap();
+        let ok = check(
+            Profile::ncube2(),
+            &grid,
+            1,
+            4,
+            ViewNeeds { ghost: 3, maps: 1 },
+            &buffer,
+        )
+        .unwrap();
         assert!(ok.total() <= Profile::ncube2().node_memory);
     }
 }

@@ -502,7 +502,7 @@ fn balance_view(
         machine.profile,
         &volume.grid,
         volume.data.kind().bytes(),
-        view.ghost_planes(),
+        crate::budget::ViewNeeds::of(view),
         buffer,
     );
     let b = crate::balance::balance(volume, view, &timing, size, machine.skipping, cap)

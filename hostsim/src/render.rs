@@ -253,7 +253,7 @@ pub fn preflight(volume: &Volume, view: &View, machine: &Machine) -> Result<(), 
         &volume.grid,
         volume.data.kind().bytes(),
         size,
-        view.ghost_planes(),
+        budget::ViewNeeds::of(view),
         &buffer_for,
     )?;
     Ok(())

@@ -6,14 +6,15 @@
 //! needs a plane the node does not store is marked unknown (an infinite range) and is never
 //! skipped. The tracer skips a sample only when the block says it provably contributes
 //! nothing, and skipping never changes an image; which samples a node skips is therefore free
-//! to differ from node to node. Blocks may carry one view's chessboard distances
-//! ([`crate::leaps`]), so that a jump crosses every empty block around at once, and one
-//! view's cell masks ([`crate::cells`]), so that an empty cell inside a block that is not
+//! to differ from node to node. Blocks may carry one view's chessboard distances ahead, one
+//! map per octant of ray directions ([`crate::leaps`]), so that a jump crosses every empty
+//! block ahead at once, and one view's cell masks ([`crate::cells`]), so that an empty cell inside a block that is not
 //! empty is skipped too.
 
 use crate::cells::CellMask;
 use crate::field::Site;
 use crate::grid::Model;
+use crate::leaps::Octant;
 use crate::sample::Sample;
 use crate::slab::Slab;
 use core::fmt;
@@ -100,7 +101,13 @@ pub struct Entry {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Blocks<'a> {
     data: &'a [Range],
-    /// One view's chessboard distances ([`crate::leaps`]), when the marcher may leap.
+    /// One view's leap maps ([`crate::leaps`]), one per octant in `octants` (in octant order),
+    /// one after the other.
+    maps: &'a [u8],
+    octants: u8,
+    /// The octant whose rays the marcher traces, and its leap map when there is one: its
+    /// rays may leap.
+    toward: Octant,
     leaps: Option<&'a [u8]>,
     /// One view's cell masks ([`crate::cells`]), when the marcher may skip single cells.
     cells: Option<&'a [CellMask]>,
@@ -188,6 +195,9 @@ impl<'a> Blocks<'a> {
         let [_, ny, nz] = slab.grid().dims();
         Ok(Blocks {
             data,
+            maps: &[],
+            octants: 0,
+            toward: Octant::default(),
             leaps: None,
             cells: None,
             x0,
@@ -282,18 +292,31 @@ impl<'a> Blocks<'a> {
         )
     }
 
-    /// The index-space box of the blocks within chessboard distance `reach` of block
-    /// `(bx, by, bz)` under `model`, for estimating where a ray leaves it (the estimate is
-    /// always checked exactly).
+    /// The index-space box of the blocks that rays of [`Blocks::toward`]'s octant reach from
+    /// block `(bx, by, bz)` going at most `reach` blocks ahead along each axis, under `model`,
+    /// for estimating where a ray leaves it (the estimate is always checked exactly).
     pub fn bounds(&self, block: (u32, u32, u32), reach: u32, model: Model) -> (Vec3, Vec3) {
-        let shift = face_shift(model);
-        let corner = |b: u32| b.saturating_sub(reach) as f32;
-        let lo = Vec3::new(corner(block.0), corner(block.1), corner(block.2)) * BLOCK as f32
-            - Vec3::splat(shift);
-        let far = |b: u32| b.saturating_add(reach).saturating_add(1) as f32;
-        let hi =
-            Vec3::new(far(block.0), far(block.1), far(block.2)) * BLOCK as f32 - Vec3::splat(shift);
+        // Per axis, the first and last block of the box.
+        let span = |axis: usize, b: u32| match self.toward.down(axis) {
+            true => (b.saturating_sub(reach), b),
+            false => (b, b.saturating_add(reach)),
+        };
+        let spans = [span(0, block.0), span(1, block.1), span(2, block.2)];
+        let face = |b: u32| b as f32 * BLOCK as f32 - face_shift(model);
+        let lo = Vec3::from_array(spans.map(|(first, _)| face(first)));
+        let hi = Vec3::from_array(spans.map(|(_, last)| face(last.saturating_add(1))));
         (lo, hi)
+    }
+
+    /// Whether block `to` lies in the box of [`Blocks::bounds`] around `from`: at most `reach`
+    /// blocks ahead of it along each axis, and nowhere behind.
+    #[inline]
+    pub fn reaches(&self, from: (u32, u32, u32), to: (u32, u32, u32), reach: u32) -> bool {
+        let ahead = |axis: usize, f: u32, t: u32| match self.toward.down(axis) {
+            true => t <= f && f - t <= reach,
+            false => t >= f && t - f <= reach,
+        };
+        ahead(0, from.0, to.0) && ahead(1, from.1, to.1) && ahead(2, from.2, to.2)
     }
 
     /// The range of the block holding `site` (unknown outside the slab's columns).
@@ -353,14 +376,47 @@ impl<'a> Blocks<'a> {
         self.x0
     }
 
-    /// The same blocks, leaping by the distances in `leaps` ([`crate::leaps::build`] for the
-    /// view being traced: a map built for another view may skip samples that show).
-    pub fn with_leaps(self, leaps: &'a [u8]) -> Result<Blocks<'a>, BlocksError> {
-        self.one_per_block(leaps.len())?;
+    /// The same blocks, leaping by the maps in `maps`: one per octant in `octants` (bit
+    /// [`Octant::index`]), in octant order ([`crate::leaps::build`] for the view being traced:
+    /// a map built for another view may skip samples that show). Tracing octant 0 until
+    /// [`Blocks::toward`] says otherwise.
+    pub fn with_leaps(self, maps: &'a [u8], octants: u8) -> Result<Blocks<'a>, BlocksError> {
+        let needed = self.data.len() * octants.count_ones() as usize;
+        if maps.len() != needed {
+            return Err(BlocksError::Storage {
+                needed,
+                given: maps.len(),
+            });
+        }
         Ok(Blocks {
-            leaps: Some(leaps),
+            maps,
+            octants,
             ..self
-        })
+        }
+        .toward(Octant::default()))
+    }
+
+    /// The same blocks, for tracing rays of `octant`: they leap by its map, or by none when
+    /// the blocks hold none for it.
+    #[inline]
+    pub fn toward(self, octant: Octant) -> Blocks<'a> {
+        let bit = 1u8 << octant.index();
+        let rank = (self.octants & (bit - 1)).count_ones() as usize;
+        let len = self.data.len();
+        let leaps = match self.octants & bit {
+            0 => None,
+            _ => self.maps.get(rank * len..(rank + 1) * len),
+        };
+        Blocks {
+            toward: octant,
+            leaps,
+            ..self
+        }
+    }
+
+    /// The octant whose rays these blocks serve.
+    pub fn octant(&self) -> Octant {
+        self.toward
     }
 
     /// `Ok` when `given` entries are one per block.
@@ -414,8 +470,9 @@ impl<'a> Blocks<'a> {
             .unwrap_or(crate::cells::ALL)
     }
 
-    /// Block `(bx, by, bz)`'s chessboard distance to the nearest block the view cannot skip
-    /// (0 outside the slab's columns), or `None` without a leap map.
+    /// Block `(bx, by, bz)`'s chessboard distance to the nearest block ahead, for rays of
+    /// [`Blocks::toward`]'s octant, that the view cannot skip (0 outside the slab's columns),
+    /// or `None` without a leap map for that octant.
     #[inline]
     pub fn leap(&self, block: (u32, u32, u32)) -> Option<u8> {
         let leaps = self.leaps?;
@@ -590,7 +647,7 @@ mod tests {
         let leaps: [u8; 12] = core::array::from_fn(|i| i as u8 * 3);
         let masks: [CellMask; 12] = core::array::from_fn(|i| (i as u64) << 17 | 5);
         let full = bare
-            .with_leaps(&leaps[..n])
+            .with_leaps(&leaps[..n], 1)
             .and_then(|b| b.with_cells(&masks[..n]))
             .unwrap();
         let mut inside = 0;

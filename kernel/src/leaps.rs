@@ -1,22 +1,108 @@
-//! Chessboard-distance space leaping: for each min/max block of a slab, how many blocks away
-//! (Chebyshev distance, over the slab's block columns) the nearest block lies that a view
-//! cannot skip. A ray in a block at distance `d ≥ 1` may jump over every sample whose block
-//! lies within `d − 1` of it at once, instead of leaving one block per jump.
+//! Octant space leaping: for each min/max block of a slab and each octant of ray directions a
+//! view uses, how many blocks ahead the nearest block lies that the view cannot skip, in the
+//! chessboard metric over the blocks a ray moving into that octant can reach. A ray in a
+//! block at distance `d ≥ 1` may jump over every sample whose block lies in the box reaching
+//! `d − 1` blocks ahead along each axis, instead of leaving one block per jump. Obstacles
+//! behind a ray or beside and behind it do not shorten its leaps, as they do in a cube
+//! around the block.
 //!
-//! Invariants: distances are exact (a two-pass chamfer over the 26 neighbours, which is exact
-//! for the chessboard metric; tested against brute force) and saturate at [`u8::MAX`], which
-//! only shortens leaps. A block the view cannot skip, including one whose range is unknown, is
-//! at distance 0. Blocks outside the slab's columns or the grid are not obstacles: the marcher
-//! checks that every landing is owned and lies in a block the map calls empty (so in the
-//! slab's columns), and the samples between lie in the same box of blocks. A leap map belongs to one view's emptiness test: it must be rebuilt for another
-//! view, as the block ranges need not be.
+//! Invariants: distances are exact (one pass over the seven neighbours ahead, which is exact
+//! for the chessboard metric restricted to an octant; tested against brute force) and
+//! saturate at [`u8::MAX`], which only shortens leaps. A block the view cannot skip,
+//! including one whose range is unknown, is at distance 0. Blocks outside the slab's columns
+//! or the grid are not obstacles: the marcher checks that every landing is owned and lies in
+//! a block the map calls empty (so in the slab's columns), and the samples between lie in
+//! the same box of blocks, since a ray's block coordinates move monotonically, each the way
+//! its octant says. A leap map belongs to one view's emptiness test and one octant: a ray
+//! reads the map of its own direction's octant, and leaps by no map when the view has none
+//! for it.
 
 use crate::blocks::{Blocks, BlocksError};
+use crate::shade::LightKind;
 use crate::view::View;
+use glam::Vec3;
+
+/// Octants of ray directions.
+pub const OCTANTS: usize = 8;
+
+/// An octant of ray directions: bit `a` set when the ray moves down along axis `a` (its
+/// direction's component is below zero; zero, of either sign, counts as up: such a ray keeps
+/// its coordinate, as a ray moving up never lowers it).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct Octant(u8);
+
+impl Octant {
+    /// The octant of index-space direction `dir`.
+    #[inline]
+    pub fn of(dir: Vec3) -> Octant {
+        Octant(dir.cmplt(Vec3::ZERO).bitmask() as u8)
+    }
+
+    /// The octant numbered `i` (its bits; `i` below [`OCTANTS`]).
+    pub fn from_index(i: usize) -> Octant {
+        Octant((i % OCTANTS) as u8)
+    }
+
+    /// Its number, below [`OCTANTS`].
+    #[inline]
+    pub fn index(self) -> usize {
+        usize::from(self.0)
+    }
+
+    /// Whether rays of this octant move down along `axis`.
+    #[inline]
+    pub fn down(self, axis: usize) -> bool {
+        self.0 >> axis & 1 == 1
+    }
+}
+
+/// The octants `view`'s rays take, one bit per octant ([`Octant::index`]): its primary and
+/// transparency rays, and the shadow rays of its lights that cast shadows. An octant left out
+/// only costs speed (its rays leap by no map), so near an axis both sides are taken.
+pub fn octants(view: &View) -> u8 {
+    let spec = view.spec();
+    let inv = view.inv_spacing();
+    let (w, h) = (spec.width, spec.height);
+    // The primary directions: one for a parallel projection, the image's corners bound them
+    // for a perspective one (each component is monotone across the image).
+    let corners = [(0, 0), (w - 1, 0), (0, h - 1), (w - 1, h - 1)]
+        .map(|(x, y)| spec.camera.primary(x, y, w, h).1 * inv);
+    let (lo, hi) = corners
+        .iter()
+        .fold((corners[0], corners[0]), |(lo, hi), &d| {
+            (lo.min(d), hi.max(d))
+        });
+    let mut mask = spread(lo, hi);
+    for light in spec.lights.iter().filter(|l| l.shadows) {
+        mask |= match light.kind {
+            LightKind::Directional { direction } => spread(-direction * inv, -direction * inv),
+            LightKind::Point { .. } => u8::MAX,
+        };
+    }
+    mask
+}
+
+/// The octants of every direction between `lo` and `hi` (per axis), and of those within a
+/// rounding of them.
+fn spread(lo: Vec3, hi: Vec3) -> u8 {
+    let slack = lo.abs().max(hi.abs()).max_element() * 1e-5;
+    // Per axis: which of up (bit 0) and down (bit 1) occur.
+    let sides: [u8; 3] =
+        core::array::from_fn(|a| u8::from(!(hi[a] < -slack)) | u8::from(lo[a] < slack) << 1);
+    (0..OCTANTS)
+        .filter(|&o| (0..3).all(|a| sides[a] >> (o >> a & 1) & 1 == 1))
+        .fold(0, |mask, o| mask | 1 << o)
+}
 
 /// Fill `out` (one entry per block of `blocks`, in the blocks' order) with each block's
-/// chessboard distance to the nearest block `view` cannot skip.
-pub fn build(blocks: &Blocks<'_>, view: &View, out: &mut [u8]) -> Result<(), BlocksError> {
+/// chessboard distance, for rays of `octant`, to the nearest block ahead that `view` cannot
+/// skip.
+pub fn build(
+    blocks: &Blocks<'_>,
+    view: &View,
+    octant: Octant,
+    out: &mut [u8],
+) -> Result<(), BlocksError> {
     let ranges = blocks.ranges();
     if out.len() != ranges.len() {
         return Err(BlocksError::Storage {
@@ -28,61 +114,57 @@ pub fn build(blocks: &Blocks<'_>, view: &View, out: &mut [u8]) -> Result<(), Blo
         *d = if view.empty(*r) { u8::MAX } else { 0 };
     }
     let (cols, ny, nz) = blocks.shape();
-    chamfer(out, [cols, nz, ny]);
+    // The storage order: X columns slowest, then Z, then Y.
+    ahead(
+        out,
+        [cols, nz, ny],
+        [octant.down(0), octant.down(2), octant.down(1)],
+    );
     Ok(())
 }
 
-/// The chessboard distance transform in place, `d` laid out with axis 0 slowest and axis 2
-/// fastest over `dims`: a forward pass takes each entry's 13 neighbours before it in that
-/// order, a backward pass the 13 after it.
-fn chamfer(d: &mut [u8], dims: [u32; 3]) {
+/// The chessboard distance transform restricted to an octant, in place: `d` laid out with
+/// axis 0 slowest and axis 2 fastest over `dims`, each axis ahead upwards unless `down`
+/// says so. One pass from the far corner: each entry takes its seven neighbours ahead, whose
+/// distances are final by then (a nearest obstacle ahead of a block is one step nearer to its
+/// neighbour on the way).
+fn ahead(d: &mut [u8], dims: [u32; 3], down: [bool; 3]) {
     let [a, b, c] = dims.map(|n| n as usize);
     let at = |i: usize, j: usize, k: usize| (i * b + j) * c + k;
-    // Offsets that come earlier in the layout's order: (-1, *, *), (0, -1, *), (0, 0, -1).
-    let mut earlier = [(0isize, 0isize, 0isize); 13];
-    let mut n = 0;
-    for di in -1isize..=1 {
-        for dj in -1isize..=1 {
-            for dk in -1isize..=1 {
-                if (di, dj, dk) < (0, 0, 0) {
-                    earlier[n] = (di, dj, dk);
-                    n += 1;
-                }
-            }
+    // The far end first along each axis, and the step towards the neighbours ahead.
+    let order = |n: usize, down: bool| (0..n).map(move |i| if down { i } else { n - 1 - i });
+    let next = |i: usize, n: usize, down: bool| {
+        if down {
+            i.checked_sub(1)
+        } else {
+            Some(i + 1).filter(|&j| j < n)
         }
-    }
-    let step = |d: &mut [u8], (i, j, k): (usize, usize, usize), sign: isize| {
-        let here = at(i, j, k);
-        if d[here] == 0 {
-            return;
-        }
-        let mut best = d[here];
-        for &(di, dj, dk) in &earlier {
-            let (ni, nj, nk) = (
-                i as isize + sign * di,
-                j as isize + sign * dj,
-                k as isize + sign * dk,
-            );
-            let inside = (0..a as isize).contains(&ni)
-                && (0..b as isize).contains(&nj)
-                && (0..c as isize).contains(&nk);
-            if inside {
-                best = best.min(d[at(ni as usize, nj as usize, nk as usize)].saturating_add(1));
-            }
-        }
-        d[here] = best;
     };
-    for i in 0..a {
-        for j in 0..b {
-            for k in 0..c {
-                step(d, (i, j, k), 1);
-            }
-        }
-    }
-    for i in (0..a).rev() {
-        for j in (0..b).rev() {
-            for k in (0..c).rev() {
-                step(d, (i, j, k), -1);
+    for i in order(a, down[0]) {
+        for j in order(b, down[1]) {
+            for k in order(c, down[2]) {
+                let here = at(i, j, k);
+                if d[here] == 0 {
+                    continue;
+                }
+                let (ni, nj, nk) = (
+                    next(i, a, down[0]),
+                    next(j, b, down[1]),
+                    next(k, c, down[2]),
+                );
+                let mut best = u8::MAX;
+                for step in 1..8u8 {
+                    let pick = |bit: u8, now: usize, ahead: Option<usize>| match step >> bit & 1 {
+                        0 => Some(now),
+                        _ => ahead,
+                    };
+                    if let (Some(x), Some(y), Some(z)) =
+                        (pick(0, i, ni), pick(1, j, nj), pick(2, k, nk))
+                    {
+                        best = best.min(d[at(x, y, z)].saturating_add(1));
+                    }
+                }
+                d[here] = best;
             }
         }
     }
@@ -92,9 +174,11 @@ fn chamfer(d: &mut [u8], dims: [u32; 3]) {
 mod tests {
     use super::*;
 
-    /// Brute force: the least chessboard distance to a zero entry, saturating at 255.
-    fn brute(seed: &[u8], dims: [u32; 3]) -> [u8; 216] {
+    /// Brute force: the least chessboard distance to a zero entry ahead (each axis up, or
+    /// down where `down` says), saturating at 255.
+    fn brute(seed: &[u8], dims: [u32; 3], down: [bool; 3]) -> [u8; 216] {
         let [a, b, c] = dims.map(|n| n as i32);
+        let ahead = |from: i32, to: i32, down: bool| if down { to <= from } else { to >= from };
         let mut out = [0u8; 216];
         for i in 0..a {
             for j in 0..b {
@@ -103,7 +187,10 @@ mod tests {
                     for ii in 0..a {
                         for jj in 0..b {
                             for kk in 0..c {
-                                if seed[((ii * b + jj) * c + kk) as usize] == 0 {
+                                let forward = ahead(i, ii, down[0])
+                                    && ahead(j, jj, down[1])
+                                    && ahead(k, kk, down[2]);
+                                if forward && seed[((ii * b + jj) * c + kk) as usize] == 0 {
                                     let dist =
                                         (i - ii).abs().max((j - jj).abs()).max((k - kk).abs());
                                     best = best.min(dist);
@@ -119,22 +206,55 @@ mod tests {
     }
 
     #[test]
-    fn the_two_passes_give_exact_chessboard_distances() {
+    fn one_pass_gives_exact_chessboard_distances_ahead_in_every_octant() {
         let mut next = crate::testing::xorshift(0x2545_f491);
         for round in 0..300 {
             let dims = [1 + next() % 6, 1 + next() % 6, 1 + next() % 6];
             let len = dims.iter().product::<u32>() as usize;
             // From nearly empty to nearly full of obstacles; sometimes none at all.
             let density = round % 10;
-            let mut d = [u8::MAX; 216];
-            for v in d.iter_mut().take(len) {
+            let mut seed = [u8::MAX; 216];
+            for v in seed.iter_mut().take(len) {
                 if next() % 10 < density {
                     *v = 0;
                 }
             }
-            let expected = brute(&d, dims);
-            chamfer(&mut d[..len], dims);
-            assert_eq!(&d[..len], &expected[..len], "{dims:?} density {density}");
+            for octant in 0..8 {
+                let down = [octant & 1 == 1, octant & 2 == 2, octant & 4 == 4];
+                let mut d = seed;
+                ahead(&mut d[..len], dims, down);
+                let expected = brute(&seed, dims, down);
+                assert_eq!(
+                    &d[..len],
+                    &expected[..len],
+                    "{dims:?} {down:?} density {density}"
+                );
+            }
         }
+    }
+
+    #[test]
+    fn an_octant_is_the_signs_of_a_direction() {
+        assert_eq!(Octant::of(Vec3::new(1.0, 2.0, 3.0)).index(), 0);
+        assert_eq!(Octant::of(Vec3::new(-1.0, 2.0, -3.0)).index(), 0b101);
+        // Zero of either sign moves no way: up.
+        assert_eq!(Octant::of(Vec3::new(-0.0, 0.0, -1e-30)).index(), 0b100);
+        let o = Octant::of(Vec3::new(0.5, -0.5, 0.0));
+        assert!(!o.down(0) && o.down(1) && !o.down(2));
+        assert_eq!(Octant::from_index(o.index()), o);
+    }
+
+    #[test]
+    fn spread_takes_every_octant_between_and_both_sides_near_an_axis() {
+        let one = Vec3::new(1.0, -2.0, 0.5);
+        assert_eq!(spread(one, one), 1 << 0b010);
+        // Y across zero: both halves in Y.
+        assert_eq!(
+            spread(Vec3::new(1.0, -2.0, 0.5), Vec3::new(1.0, 2.0, 0.5)),
+            1 << 0b000 | 1 << 0b010
+        );
+        // A component that is zero, or a rounding from it, takes both sides.
+        let flat = Vec3::new(1.0, 1e-9, -0.5);
+        assert_eq!(spread(flat, flat), 1 << 0b100 | 1 << 0b110);
     }
 }

@@ -146,6 +146,10 @@ pub fn march<T: Sample>(
     let mut known: Option<Verdict> = None;
     // Found at the first run through an empty cell: many calls end before one.
     let mut exits: Option<Exits> = None;
+    // The blocks as this ray reads them: the leap map of its direction's octant.
+    let blocks = slab
+        .blocks()
+        .map(|b| b.toward(crate::leaps::Octant::of(ray.ray.dir)));
     loop {
         if ray.k > ray.lattice.last {
             return Stop::Exit;
@@ -158,7 +162,7 @@ pub fn march<T: Sample>(
         if !slab.owns(plane) {
             return Stop::Leave { plane };
         }
-        if let Some(blocks) = slab.blocks() {
+        if let Some(blocks) = &blocks {
             let block = blocks.block_of(&site);
             let here = match known {
                 Some(v) if v.block == block => v,
@@ -375,10 +379,11 @@ fn cell_run(ray: &RayState, grid: &Grid, site: &Site, exits: &Exits) -> u32 {
     ray.k
 }
 
-/// The last sample of the run starting at `ray.k` that stays in `slab` and in the blocks
-/// within chessboard distance `reach` of that sample's `block`: every sample between lies
-/// there too, since positions, cells and owner planes are monotone along the lattice and
-/// those blocks form a box. The exit point is only an estimate; each candidate is checked
+/// The last sample of the run starting at `ray.k` that stays in `slab` and in the blocks at
+/// most `reach` ahead of that sample's `block` along each axis (`blocks` serve the ray's
+/// octant): every sample between lies there too, since positions, cells and owner planes are
+/// monotone along the lattice, each axis the way the octant says, and those blocks form a
+/// box. The exit point is only an estimate; each candidate is checked
 /// with the exact arithmetic of the samples themselves, halving on failure.
 fn skip_run<T: Sample>(
     ray: &RayState,
@@ -411,23 +416,18 @@ fn skip_run<T: Sample>(
     };
     let grid = slab.grid();
     while n > 0 {
-        let q = ray.ray.at(ray.lattice.t(ray.k + n));
-        let site = field::locate(grid, model, q);
+        let q = ray.ray.at4(ray.lattice.t(ray.k + n));
+        let site = field::locate4(grid, model, q);
         let landing = blocks.block_of(&site);
         // A leap lands only in a block the map itself calls empty: a voxel-model sample on
         // the grid's last X face reads a column past the blocks', whose range is unknown.
         let empty = landing == block || blocks.leap(landing).is_some_and(|d| d > 0);
-        if slab.owns(site.plane()) && within(landing, block, reach) && empty {
+        if slab.owns(site.plane()) && blocks.reaches(block, landing, reach) && empty {
             return ray.k + n;
         }
         n /= 2;
     }
     ray.k
-}
-
-/// Whether block `b` lies within chessboard distance `reach` of block `c`.
-fn within(b: (u32, u32, u32), c: (u32, u32, u32), reach: u32) -> bool {
-    b.0.abs_diff(c.0) <= reach && b.1.abs_diff(c.1) <= reach && b.2.abs_diff(c.2) <= reach
 }
 
 /// The nearest surface crossing not yet reported on the segment ending at sample `k` (value

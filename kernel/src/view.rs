@@ -284,6 +284,11 @@ impl View {
         self.effects
     }
 
+    /// Index units per world unit, per axis.
+    pub fn inv_spacing(&self) -> Vec3 {
+        self.inv_spacing
+    }
+
     /// World distance between samples.
     pub fn dt_world(&self) -> f32 {
         self.dt_world

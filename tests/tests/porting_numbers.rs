@@ -24,7 +24,9 @@ fn porting_md_slab_figure_holds() {
         .expect("PORTING.md");
     let grid =
         voxcube_kernel::grid::Grid::new([97, 97, 116], voxcube_kernel::Vec3::ONE).expect("grid");
-    let slab = voxcube::budget::largest_node(&grid, 1, 16, 3, 0)
+    // The paper's view: a parallel projection without shadows, so one leap map.
+    let needs = voxcube::budget::ViewNeeds { ghost: 3, maps: 1 };
+    let slab = voxcube::budget::largest_node(&grid, 1, 16, needs, 0)
         .expect("fits")
         .slab;
     let figure = format!(

@@ -141,10 +141,14 @@ fn trace_typed<T: Sample + Sync>(
 ) -> Vec<[u8; 4]> {
     let slab = Slab::whole(grid, data).expect("slab");
     let skipping = Skipping::build(&slab, built_for, mode);
-    let slab = skipping.apply(slab);
+    trace_all(traced, &skipping.apply(slab))
+}
+
+/// Every pixel of `view`, traced on `slab` alone.
+fn trace_all<T: Sample>(view: &View, slab: &Slab<'_, T>) -> Vec<[u8; 4]> {
     let mut counters = Default::default();
-    (0..traced.pixel_count() as u32)
-        .map(|p| rgba8(trace_pixel(traced, &slab, p, &mut counters)))
+    (0..view.pixel_count() as u32)
+        .map(|p| rgba8(trace_pixel(view, slab, p, &mut counters)))
         .collect()
 }
 
@@ -322,4 +326,90 @@ fn skipping_built_on_threads_is_the_same_storage() {
         }
     }
     assert_eq!(compared, 3 * 3 * 3 * 3 * 3);
+}
+
+/// Every pixel of `view` traced directly on `volume`'s whole slab, its blocks leaping by
+/// `maps` of the octants in `label` (each map built for the octant `built_for` says of it).
+fn trace_with_octant_maps(
+    volume: &Volume,
+    view: &View,
+    label: u8,
+    built_for: &dyn Fn(usize) -> usize,
+) -> Vec<[u8; 4]> {
+    use voxcube_kernel::blocks::{extent, Blocks, Range};
+    use voxcube_kernel::leaps::{self, Octant};
+    let VolumeData::U8(data) = &volume.data else {
+        unreachable!("blobs are bytes")
+    };
+    let slab = Slab::whole(volume.grid, data.as_slice()).expect("slab");
+    let mut ranges = vec![Range::UNKNOWN; extent(&slab).2];
+    Blocks::build(&slab, &mut ranges).expect("storage");
+    let blocks = Blocks::new(&slab, &ranges).expect("storage");
+    let len = ranges.len();
+    let mut maps = vec![0u8; len * label.count_ones() as usize];
+    let octants = (0..leaps::OCTANTS).filter(|o| label >> o & 1 == 1);
+    for (map, octant) in maps.chunks_mut(len).zip(octants) {
+        leaps::build(&blocks, view, Octant::from_index(built_for(octant)), map).expect("storage");
+    }
+    trace_all(
+        view,
+        &slab.with_blocks(blocks.with_leaps(&maps, label).expect("storage")),
+    )
+}
+
+/// A 40×30 view of the iso-150 surface of `volume` through `cam`.
+fn blob_view(cam: voxcube_kernel::camera::Camera, volume: &Volume) -> View {
+    let surface = voxcube_tests::surfaces(&[(150.0, 0.0)]);
+    voxcube_tests::view(
+        voxcube_tests::spec(cam, 40, 30, Model::Cell, 0.5, surface),
+        volume,
+    )
+}
+
+/// A camera inside a volume sends rays into all eight octants. With maps for only some of
+/// them (or none), the rays of the others leap by no map, and the image keeps its bits.
+#[test]
+fn rays_without_a_map_for_their_octant_leap_by_none() {
+    let volume = blobs([21, 19, 23], Vec3::ONE, 0x51_0a_07);
+    let inside = Vec3::new(10.3, 9.1, 11.7);
+    let cam = voxcube_tests::perspective(inside, inside + Vec3::new(1.0, 0.2, 0.3), Vec3::Y, 150.0);
+    let view = blob_view(cam, &volume);
+    assert_eq!(
+        voxcube_kernel::leaps::octants(&view),
+        u8::MAX,
+        "the rays take every octant"
+    );
+    let off = render_skipping(&volume, &view, SkipMode::OFF).expect("renders");
+    for label in [u8::MAX, 0b0000_0001, 0b1010_0101, 0b0101_1010, 0] {
+        let pixels = trace_with_octant_maps(&volume, &view, label, &|o| o);
+        assert!(
+            pixels == off.pixels,
+            "maps for octants {label:08b} changed the image"
+        );
+    }
+}
+
+/// Negative control: a leap map ignores the obstacles behind a ray, so the map of the
+/// opposite octant, read by the rays of this one, leaps over surfaces they must hit.
+#[test]
+fn a_leap_map_built_for_another_octant_changes_the_image() {
+    let volume = blobs([21, 19, 23], Vec3::ONE, 0x51_0a_07);
+    let centre = Vec3::new(10.0, 9.0, 11.0);
+    let cam = voxcube_tests::ortho(centre + Vec3::new(30.0, 11.0, 19.0), centre, Vec3::Y, 30.0);
+    let view = blob_view(cam, &volume);
+    let octants = voxcube_kernel::leaps::octants(&view);
+    assert_eq!(
+        octants.count_ones(),
+        1,
+        "a parallel projection takes one octant"
+    );
+    let off = render_skipping(&volume, &view, SkipMode::OFF).expect("renders");
+    let own = trace_with_octant_maps(&volume, &view, octants, &|o| o);
+    assert!(own == off.pixels, "the rays' own map changes no pixel");
+    let opposite = trace_with_octant_maps(&volume, &view, octants, &|o| o ^ 0b111);
+    let changed = own.iter().zip(&opposite).filter(|(a, b)| a != b).count();
+    assert!(
+        changed > 0,
+        "the opposite octant's map must leap over some of the surface"
+    );
 }

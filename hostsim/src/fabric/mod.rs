@@ -8,7 +8,7 @@ pub mod shift;
 pub mod sim;
 pub mod threads;
 
-use crate::budget::{block_bytes, worker_bytes, NodeMemory, CODE_AND_STACK};
+use crate::budget::{block_bytes, worker_bytes, NodeMemory, ViewNeeds, CODE_AND_STACK};
 use std::ops::Range;
 use std::time::Duration;
 use voxcube_kernel::counters::Counters;
@@ -43,8 +43,8 @@ pub struct NodeReport {
 
 impl NodeReport {
     /// The report of `node` of `layout`, whose slabs are `partition`'s planes of `grid` with
-    /// `ghost` planes each side: its place, planes, memory (samples of `sample_bytes`, the
-    /// receive buffer at its `peak`), statistics and busy time.
+    /// the ghost planes and leap maps of `needs`: its place, planes, memory (samples of
+    /// `sample_bytes`, the receive buffer at its `peak`), statistics and busy time.
     #[allow(
         clippy::too_many_arguments,
         reason = "the facts of one node, from the fabric that ran it"
@@ -53,7 +53,7 @@ impl NodeReport {
         layout: Layout,
         partition: &Partition,
         grid: &Grid,
-        ghost: u32,
+        needs: ViewNeeds,
         sample_bytes: usize,
         node: u16,
         stats: NodeStats,
@@ -62,10 +62,10 @@ impl NodeReport {
     ) -> NodeReport {
         let (cluster, position) = layout.place(node);
         let planes = partition.planes(usize::from(position));
-        let stored = stored_planes(grid, planes.clone(), ghost);
+        let stored = stored_planes(grid, planes.clone(), needs.ghost);
         let memory = NodeMemory {
             slab: (stored.end - stored.start) as usize * grid.plane_len() * sample_bytes
-                + block_bytes(grid, stored.clone()),
+                + block_bytes(grid, stored.clone(), needs.maps),
             buffer: peak,
             worker: worker_bytes(),
             allowance: CODE_AND_STACK,
@@ -292,11 +292,14 @@ impl SkipMode {
 }
 
 /// A node's storage for skipping empty space in one view: its min/max blocks, their
-/// chessboard distances and their cell masks, each empty when that acceleration is off.
+/// chessboard distances ahead (a map per octant the view's rays take) and their cell masks,
+/// each empty when that acceleration is off.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Skipping {
     ranges: Vec<voxcube_kernel::blocks::Range>,
+    /// One leap map per octant in `octants`, in octant order.
     leaps: Vec<u8>,
+    octants: u8,
     cells: Vec<voxcube_kernel::cells::CellMask>,
 }
 
@@ -331,8 +334,8 @@ fn run_parts(parts: Vec<Part<'_>>, threads: usize) -> Vec<bool> {
 }
 
 impl Skipping {
-    /// The blocks of `slab` (`mode.skip`), their distances (`mode.leap`) and cell masks
-    /// (`mode.cells`, cell model only) for `view`.
+    /// The blocks of `slab` (`mode.skip`), their distances for each octant of ray directions
+    /// the view takes (`mode.leap`) and cell masks (`mode.cells`, cell model only) for `view`.
     pub fn build<T: voxcube_kernel::sample::Sample + Sync>(
         slab: &voxcube_kernel::slab::Slab<'_, T>,
         view: &voxcube_kernel::view::View,
@@ -342,7 +345,7 @@ impl Skipping {
     }
 
     /// [`Skipping::build`] on up to `threads` OS threads: the blocks and the masks split by
-    /// block columns, the distances (one pass over every block) beside the masks. The same
+    /// block columns, each octant's distances (one pass over every block) beside the masks. The same
     /// bits: a column's blocks and masks depend on its own nodes only. A machine's start-up is
     /// on every frame's clock, and the masks of a composited SOD view alone took a tenth of a
     /// one-node frame.
@@ -380,14 +383,21 @@ impl Skipping {
         let Ok(blocks) = Blocks::new(slab, &ranges) else {
             return Skipping::default();
         };
-        let mut leaps = if mode.leap { vec![0; len] } else { Vec::new() };
+        // A map for each octant the view's rays take.
+        let octants = match mode.leap {
+            true => voxcube_kernel::leaps::octants(view),
+            false => 0,
+        };
+        let maps = octants.count_ones() as usize;
+        let mut leaps = vec![0; maps * len];
         let by_cell = mode.cells && view.spec().model == voxcube_kernel::grid::Model::Cell;
         let mut cells = if by_cell { vec![0; len] } else { Vec::new() };
         let mut jobs: Vec<Part<'_>> = Vec::new();
-        if mode.leap {
-            let (blocks, leaps) = (&blocks, &mut leaps);
+        let chosen = (0..voxcube_kernel::leaps::OCTANTS).filter(|o| octants >> o & 1 == 1);
+        for (map, octant) in leaps.chunks_mut(len).zip(chosen) {
+            let (blocks, octant) = (&blocks, voxcube_kernel::leaps::Octant::from_index(octant));
             jobs.push(Box::new(move || {
-                voxcube_kernel::leaps::build(blocks, view, leaps).is_ok()
+                voxcube_kernel::leaps::build(blocks, view, octant, map).is_ok()
             }));
         }
         if by_cell {
@@ -399,11 +409,16 @@ impl Skipping {
             }
         }
         let built = run_parts(jobs, threads);
-        let leaped = !mode.leap || built.first() == Some(&true);
-        let masked = built.iter().skip(usize::from(mode.leap)).all(|&b| b);
+        let leaped = built.iter().take(maps).all(|&b| b);
+        let masked = built.iter().skip(maps).all(|&b| b);
+        let (leaps, octants) = match leaped {
+            true => (leaps, octants),
+            false => (Vec::new(), 0),
+        };
         Skipping {
             ranges,
-            leaps: if leaped { leaps } else { Vec::new() },
+            leaps,
+            octants,
             cells: if masked { cells } else { Vec::new() },
         }
     }
@@ -419,8 +434,8 @@ impl Skipping {
         let Ok(blocks) = voxcube_kernel::blocks::Blocks::new(&slab, &self.ranges) else {
             return slab;
         };
-        let blocks = match blocks.with_leaps(&self.leaps) {
-            Ok(leaping) if !self.leaps.is_empty() => leaping,
+        let blocks = match blocks.with_leaps(&self.leaps, self.octants) {
+            Ok(leaping) if self.octants != 0 => leaping,
             _ => blocks,
         };
         let blocks = match blocks.with_cells(&self.cells) {

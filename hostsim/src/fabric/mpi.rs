@@ -518,7 +518,7 @@ pub fn host(
                 layout,
                 &partition,
                 &grid,
-                view.ghost_planes(),
+                crate::budget::ViewNeeds::of(view),
                 sample_bytes,
                 n as u16,
                 stats,

@@ -349,7 +349,7 @@ fn run_typed<T: Sample + Send + Sync>(
                 layout,
                 &partition,
                 &grid,
-                ghost,
+                crate::budget::ViewNeeds::of(view),
                 size_of::<T>(),
                 n as u16,
                 stats,
