@@ -273,7 +273,10 @@ mod tests {
         let blocks = voxcube_kernel::blocks::extent_for(&grid, 0..10).2;
         assert_eq!(blocks, 3 * 24 * 29);
         assert_eq!(block_bytes(&grid, 0..10, 1), blocks * 17);
-        assert_eq!(block_bytes(&grid, 0..10, 8) - block_bytes(&grid, 0..10, 1), blocks * 7);
+        assert_eq!(
+            block_bytes(&grid, 0..10, 8) - block_bytes(&grid, 0..10, 1),
+            blocks * 7
+        );
     }
 
     #[test]

@@ -278,13 +278,14 @@ impl<'a> Blocks<'a> {
         Ok(())
     }
 
-    /// The global block coordinates of the cell or node a sample reads at `site`: what
-    /// [`Blocks::at`] reads. Monotone along a ray, as the site's corners are.
+    /// The global block coordinates of the cell or node a sample reads, whose low corner is
+    /// `lo` ([`Site::lo`]): what [`Blocks::at`] reads. Monotone along a ray, as the corners
+    /// are.
     #[inline]
-    pub fn block_of(&self, site: &Site) -> (u32, u32, u32) {
+    pub fn block_of(&self, lo: [u32; 3]) -> (u32, u32, u32) {
         // A voxel-model node on the grid's last face belongs to the last block (X needs no
         // clamp: a column past the slab's reads as unknown).
-        let [x, y, z] = site.lo;
+        let [x, y, z] = lo;
         (
             x / BLOCK,
             (y / BLOCK).min(self.ny - 1),
@@ -324,7 +325,7 @@ impl<'a> Blocks<'a> {
     pub fn at(&self, site: &Site) -> Range {
         // The cell (cell model) or node (voxel model) the point reads, then its block; a node
         // on a block's upper face belongs to both blocks, and both include it.
-        self.range(self.block_of(site))
+        self.range(self.block_of(site.lo))
     }
 
     /// The range of block `(bx, by, bz)` (global block coordinates; unknown outside).

@@ -13,7 +13,6 @@
 //! remembered verdicts) and no other memory than the masks.
 
 use crate::blocks::{Blocks, BlocksError, Range, BLOCK};
-use crate::field::Site;
 use crate::sample::Sample;
 use crate::slab::Slab;
 use crate::view::{Mode, View};
@@ -29,12 +28,12 @@ const EDGE: usize = BLOCK as usize;
 /// Nodes per block edge: the cells' corners.
 const NODES: usize = EDGE + 1;
 
-/// The bit of the cell a cell-model sample at `site` reads, within its block. The cell's low
-/// corner is `4·block + offset` along every axis in the cell model, so the offset is the
-/// corner modulo the block edge.
+/// The bit, within its block, of the cell whose low corner is `lo` ([`crate::field::Site::lo`]
+/// of a cell-model sample). The corner is `4·block + offset` along every axis in the cell model,
+/// so the offset is the corner modulo the block edge.
 #[inline]
-pub fn bit(site: &Site) -> CellMask {
-    let [x, y, z] = site.lo.map(|c| c % BLOCK);
+pub fn bit(lo: [u32; 3]) -> CellMask {
+    let [x, y, z] = lo.map(|c| c % BLOCK);
     1 << (x + BLOCK * (y + BLOCK * z))
 }
 
@@ -200,7 +199,7 @@ mod tests {
     use super::*;
     use crate::camera::{Camera, Projection};
     use crate::counters::Counters;
-    use crate::field;
+    use crate::field::{self, Site};
     use crate::grid::{Grid, Model};
     use crate::surface::IsoSurface;
     use crate::transfer::{ControlPoint, TransferFunction};
@@ -336,8 +335,8 @@ mod tests {
                                     hi: [x, y, z],
                                     frac: Vec3::ZERO,
                                 };
-                                let block = masked.block_of(&site);
-                                let shows = masked.cells(block) & bit(&site) != 0;
+                                let block = masked.block_of(site.lo);
+                                let shows = masked.cells(block) & bit(site.lo) != 0;
                                 // A block of unknown range proves nothing of its cells.
                                 let range = masked.range(block);
                                 let expected = !view.empty(range)
@@ -359,8 +358,8 @@ mod tests {
                         if !slab.owns(site.plane()) {
                             continue;
                         }
-                        let block = masked.block_of(&site);
-                        if masked.cells(block) & bit(&site) != 0 {
+                        let block = masked.block_of(site.lo);
+                        if masked.cells(block) & bit(site.lo) != 0 {
                             set += 1;
                             continue;
                         }

@@ -54,29 +54,71 @@ pub fn locate(grid: &Grid, model: Model, p: Vec3) -> Site {
 /// positions in four lanes and passes them on as they are.
 #[inline]
 pub fn locate4(grid: &Grid, model: Model, q: Vec4) -> Site {
+    corner4(grid, model, q).site(grid)
+}
+
+/// The first step of [`locate4`]: the corner a point reads, with what finishing its
+/// [`Site`] needs. The sample loop decides from the corner alone whether a sample is read
+/// (its owner plane, block and cell), and finds the far corner and the fractions only for
+/// the samples it reads.
+#[derive(Clone, Copy, Debug)]
+pub struct Corner {
+    /// [`Site::lo`].
+    pub lo: [u32; 3],
+    /// The position clamped into the grid, and the corner as floats; `None`: voxel model.
+    cell: Option<(Vec4, Vec4)>,
+}
+
+impl Corner {
+    /// [`Site::plane`].
+    #[inline]
+    pub fn plane(&self) -> u32 {
+        self.lo[0]
+    }
+
+    /// The whole [`Site`], in every bit the one [`locate4`] gives.
+    #[inline]
+    pub fn site(&self, grid: &Grid) -> Site {
+        match self.cell {
+            None => Site {
+                lo: self.lo,
+                hi: self.lo,
+                frac: Vec3::ZERO,
+            },
+            Some((v, corner)) => {
+                let dims = grid.dims();
+                let lo = self.lo;
+                Site {
+                    lo,
+                    hi: core::array::from_fn(|a| (lo[a] + 1).min(dims[a] - 1)),
+                    frac: (v - corner).truncate(),
+                }
+            }
+        }
+    }
+}
+
+/// The [`Corner`] of the point in the first three lanes of `q`.
+#[inline]
+pub fn corner4(grid: &Grid, model: Model, q: Vec4) -> Corner {
     // The three axes in the lanes of one vector, for every sample and every read: clamped
     // into [0, n - 1] (`q > 0` is false for NaN and -0.0, which land on +0.0), where
     // truncation is the floor and exact (n ≤ 2^23, `Grid::new` checks). Equal to the
     // per-axis definition in the tests for every kind of f32.
-    let dims = grid.dims();
     let (last_node, last_cell) = grid.last_indices();
     let v = Vec4::select(q.cmpgt(Vec4::ZERO), q, Vec4::ZERO).min(last_node);
     match model {
-        Model::Voxel => {
-            // The nearest node, halves rounding up: `v + 0.5` truncated, kept in the grid.
-            let lo = whole_lanes((v + Vec4::splat(0.5)).min(last_node).trunc());
-            Site {
-                lo,
-                hi: lo,
-                frac: Vec3::ZERO,
-            }
-        }
+        // The nearest node, halves rounding up: `v + 0.5` truncated, kept in the grid.
+        Model::Voxel => Corner {
+            lo: whole_lanes((v + Vec4::splat(0.5)).min(last_node).trunc()),
+            cell: None,
+        },
         Model::Cell => {
             let corner = v.min(last_cell).trunc();
-            let frac = (v - corner).truncate();
-            let lo = whole_lanes(corner);
-            let hi = core::array::from_fn(|a| (lo[a] + 1).min(dims[a] - 1));
-            Site { lo, hi, frac }
+            Corner {
+                lo: whole_lanes(corner),
+                cell: Some((v, corner)),
+            }
         }
     }
 }

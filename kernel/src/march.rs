@@ -14,7 +14,7 @@
 use crate::blocks::Blocks;
 use crate::cells::{self, CellMask};
 use crate::counters::Counters;
-use crate::field::{self, Site};
+use crate::field;
 use crate::grid::{Grid, Model};
 use crate::lattice::Lattice;
 use crate::lighting::lighting;
@@ -157,13 +157,14 @@ pub fn march<T: Sample>(
         let t = ray.lattice.t(ray.k);
         // In four lanes, straight into `locate`'s vector.
         let p4 = ray.ray.at4(t);
-        let site = field::locate4(grid, spec.model, p4);
-        let plane = site.plane();
+        // The corner decides whether the sample is read; the rest of its site only if so.
+        let corner = field::corner4(grid, spec.model, p4);
+        let plane = corner.plane();
         if !slab.owns(plane) {
             return Stop::Leave { plane };
         }
         if let Some(blocks) = &blocks {
-            let block = blocks.block_of(&site);
+            let block = blocks.block_of(corner.lo);
             let here = match known {
                 Some(v) if v.block == block => v,
                 _ => {
@@ -181,18 +182,18 @@ pub fn march<T: Sample>(
                     skip_to(view, ray, last, counters);
                     continue;
                 }
-                if by_cell && here.cells & cells::bit(&site) == 0 {
+                if by_cell && here.cells & cells::bit(corner.lo) == 0 {
                     // An empty cell of a block that is not empty: this sample and the ones
                     // after it in the same cell.
                     let exits = exits.get_or_insert_with(|| Exits::new(ray));
-                    let last = cell_run(ray, grid, &site, exits);
+                    let last = cell_run(ray, grid, corner.lo, exits);
                     skip_to(view, ray, last, counters);
                     continue;
                 }
             }
         }
         counters.samples += 1;
-        let v = field::value_at(slab, spec.model, &site, counters);
+        let v = field::value_at(slab, spec.model, &corner.site(grid), counters);
         if ray.prev_stale {
             ray.prev_stale = false;
             ray.prev = if view.below_surfaces(v) {
@@ -359,19 +360,19 @@ impl Exits {
     }
 }
 
-/// The last sample of the run starting at `ray.k` (a cell-model sample at `site`) that reads
-/// the same cell: every sample between reads it too, since cell corners are monotone along
-/// the lattice. The cell's exit is only an estimate; each candidate is checked with the
+/// The last sample of the run starting at `ray.k` (a cell-model sample in the cell whose low
+/// corner is `cell`) that reads the same cell: every sample between reads it too, since cell
+/// corners are monotone along the lattice. The cell's exit is only an estimate; each candidate is checked with the
 /// samples' own arithmetic, halving on failure. The same cell means the same owner plane.
 #[inline]
-fn cell_run(ray: &RayState, grid: &Grid, site: &Site, exits: &Exits) -> u32 {
-    let [x, y, z] = site.lo.map(|c| c as f32);
+fn cell_run(ray: &RayState, grid: &Grid, cell: [u32; 3], exits: &Exits) -> u32 {
+    let [x, y, z] = cell.map(|c| c as f32);
     let lo = Vec4::new(x, y, z, 0.0);
     let ahead = exits.steps(ray.lattice.t(ray.k), lo, lo + Vec4::ONE);
     let mut n = ahead.min(ray.lattice.last - ray.k.min(ray.lattice.last));
     while n > 0 {
         let q = ray.ray.at4(ray.lattice.t(ray.k + n));
-        if field::locate4(grid, Model::Cell, q).lo == site.lo {
+        if field::corner4(grid, Model::Cell, q).lo == cell {
             return ray.k + n;
         }
         n /= 2;
@@ -417,12 +418,12 @@ fn skip_run<T: Sample>(
     let grid = slab.grid();
     while n > 0 {
         let q = ray.ray.at4(ray.lattice.t(ray.k + n));
-        let site = field::locate4(grid, model, q);
-        let landing = blocks.block_of(&site);
+        let at = field::corner4(grid, model, q);
+        let landing = blocks.block_of(at.lo);
         // A leap lands only in a block the map itself calls empty: a voxel-model sample on
         // the grid's last X face reads a column past the blocks', whose range is unknown.
         let empty = landing == block || blocks.leap(landing).is_some_and(|d| d > 0);
-        if slab.owns(site.plane()) && blocks.reaches(block, landing, reach) && empty {
+        if slab.owns(at.plane()) && blocks.reaches(block, landing, reach) && empty {
             return ray.k + n;
         }
         n /= 2;
