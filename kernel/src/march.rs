@@ -15,7 +15,7 @@ use crate::blocks::Blocks;
 use crate::cells::{self, CellMask};
 use crate::counters::Counters;
 use crate::field;
-use crate::grid::{Grid, Model};
+use crate::grid::Model;
 use crate::lattice::Lattice;
 use crate::lighting::lighting;
 use crate::ray::{Entry, Ray};
@@ -186,7 +186,7 @@ pub fn march<T: Sample>(
                     // An empty cell of a block that is not empty: this sample and the ones
                     // after it in the same cell.
                     let exits = exits.get_or_insert_with(|| Exits::new(ray));
-                    let last = cell_run(ray, grid, corner.lo, exits);
+                    let last = cell_run(ray, slab, blocks, corner.lo, here.cells, exits);
                     skip_to(view, ray, last, counters);
                     continue;
                 }
@@ -360,19 +360,39 @@ impl Exits {
     }
 }
 
-/// The last sample of the run starting at `ray.k` (a cell-model sample in the cell whose low
-/// corner is `cell`) that reads the same cell: every sample between reads it too, since cell
-/// corners are monotone along the lattice. The cell's exit is only an estimate; each candidate is checked with the
-/// samples' own arithmetic, halving on failure. The same cell means the same owner plane.
+/// The last sample of the run starting at `ray.k` (a cell-model sample in the empty cell
+/// whose low corner is `cell`, in a block whose cells the view cannot skip are `mask`) that
+/// stays in the box of empty cells [`cells::empty_box`] finds ahead of that cell for the
+/// octant `blocks` serve, and in `slab`'s owned planes: every sample between does too, since
+/// cell corners and owner planes are monotone along the lattice, each axis the way the
+/// octant says, and the box and the owned planes are intervals on every axis. The box's exit
+/// is only an estimate; each candidate is checked with the samples' own arithmetic, halving
+/// on failure.
 #[inline]
-fn cell_run(ray: &RayState, grid: &Grid, cell: [u32; 3], exits: &Exits) -> u32 {
-    let [x, y, z] = cell.map(|c| c as f32);
-    let lo = Vec4::new(x, y, z, 0.0);
-    let ahead = exits.steps(ray.lattice.t(ray.k), lo, lo + Vec4::ONE);
+fn cell_run<T: Sample>(
+    ray: &RayState,
+    slab: &Slab<'_, T>,
+    blocks: &Blocks<'_>,
+    cell: [u32; 3],
+    mask: CellMask,
+    exits: &Exits,
+) -> u32 {
+    let offset = cell.map(|c| c % crate::blocks::BLOCK);
+    let (first, last) = cells::empty_box(mask, offset, blocks.octant());
+    let lo: [u32; 3] = core::array::from_fn(|a| cell[a] - offset[a] + first[a]);
+    let hi: [u32; 3] = core::array::from_fn(|a| cell[a] - offset[a] + last[a]);
+    // The box's faces, nor past the owned planes (a cell-model sample's plane is its cell's).
+    let owned = slab.owned();
+    let faces = |c: [u32; 3]| Vec4::new(c[0] as f32, c[1] as f32, c[2] as f32, 0.0);
+    let near = faces(lo).max(Vec4::new(owned.start as f32, 0.0, 0.0, 0.0));
+    let far = (faces(hi) + Vec4::ONE).min(Vec4::new(owned.end as f32, f32::MAX, f32::MAX, 0.0));
+    let ahead = exits.steps(ray.lattice.t(ray.k), near, far);
     let mut n = ahead.min(ray.lattice.last - ray.k.min(ray.lattice.last));
+    let grid = slab.grid();
     while n > 0 {
         let q = ray.ray.at4(ray.lattice.t(ray.k + n));
-        if field::corner4(grid, Model::Cell, q).lo == cell {
+        let c = field::corner4(grid, Model::Cell, q).lo;
+        if (0..3).all(|a| lo[a] <= c[a] && c[a] <= hi[a]) && slab.owns(c[0]) {
             return ray.k + n;
         }
         n /= 2;
