@@ -74,21 +74,30 @@ fn box_bits(lo: [u32; 3], hi: [u32; 3]) -> CellMask {
 /// leaves the box. (Growing each axis on its own finds larger boxes, at four times the
 /// instructions: more than the samples it saves.)
 pub fn empty_box(mask: CellMask, at: [u32; 3], toward: Octant) -> ([u32; 3], [u32; 3]) {
-    let mut best = (at, at);
-    for r in 1..BLOCK {
-        let mut grown = best;
-        for (a, &c) in at.iter().enumerate() {
-            match toward.down(a) {
-                true => grown.0[a] = c.saturating_sub(r),
-                false => grown.1[a] = (c + r).min(BLOCK - 1),
-            }
-        }
-        if grown == best || box_bits(grown.0, grown.1) & mask != 0 {
+    // The cube of `r` cells ahead, cut at the block's faces; it stops growing once `r`
+    // passes the room ahead on every axis.
+    let cube = |r: u32| -> ([u32; 3], [u32; 3]) {
+        let span = |a: usize| match toward.down(a) {
+            true => (at[a].saturating_sub(r), at[a]),
+            false => (at[a], (at[a] + r).min(BLOCK - 1)),
+        };
+        let [x, y, z] = [span(0), span(1), span(2)];
+        ([x.0, y.0, z.0], [x.1, y.1, z.1])
+    };
+    let room = |a: usize| match toward.down(a) {
+        true => at[a],
+        false => BLOCK - 1 - at[a],
+    };
+    let most = room(0).max(room(1)).max(room(2));
+    let mut r = 0;
+    while r < most {
+        let (lo, hi) = cube(r + 1);
+        if box_bits(lo, hi) & mask != 0 {
             break;
         }
-        best = grown;
+        r += 1;
     }
-    best
+    cube(r)
 }
 
 /// Fill `out` (one mask per block of `blocks`, in the blocks' order) with the cells of each
