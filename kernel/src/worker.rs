@@ -178,6 +178,10 @@ pub struct Worker<'a, T, const PENDING: usize, const RECORDS: usize, const OUTBO
     unacked: [[u16; CREDITS]; MAX_CLUSTER],
     /// Reads per ring position and credit class not yet acknowledged.
     acks_due: [[u16; CREDITS]; MAX_CLUSTER],
+    /// The sum of `acks_due`: a poll with nothing (or, while busy, less than a batch) to
+    /// acknowledge skips looking through every ring position and class, which was 40% of the
+    /// instructions of a cluster of 16 polled on two threads.
+    acks_owed: u32,
     token: Token,
     token_upward: bool,
     collecting: bool,
@@ -251,6 +255,7 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
             shadow_lights,
             unacked: [[0; CREDITS]; MAX_CLUSTER],
             acks_due: [[0; CREDITS]; MAX_CLUSTER],
+            acks_owed: 0,
             token: if place.position == starter {
                 Token::Holding
             } else {
@@ -410,7 +415,10 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
         if let (Dest::Node(node), Some(c)) = (from, msg.class().credit_index()) {
             let p = self.position_of(node);
             if let Some(due) = self.acks_due.get_mut(p).and_then(|row| row.get_mut(c)) {
-                *due = due.saturating_add(1);
+                if *due < u16::MAX {
+                    *due += 1;
+                    self.acks_owed += 1;
+                }
             }
         }
         match msg {
@@ -790,6 +798,10 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
 
     /// Acknowledge reads: a class's batch once full, everything when `idle`.
     fn send_acks(&mut self, idle: bool) -> bool {
+        // No entry is due (or, while busy, none holds a batch) when their sum says so.
+        if self.acks_owed == 0 || (!idle && self.acks_owed < u32::from(self.flow.ack_batch)) {
+            return false;
+        }
         let mut sent = false;
         let size = usize::from(self.place.layout.size());
         for p in 0..size {
@@ -807,6 +819,7 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
                     continue;
                 }
                 self.acks_due[p][c] = 0;
+                self.acks_owed -= u32::from(due);
                 let node = self.place.layout.node(self.place.cluster, p as u16);
                 self.enqueue(
                     Dest::Node(node),
