@@ -65,8 +65,9 @@ pub fn octants(view: &View) -> u8 {
     let (w, h) = (spec.width, spec.height);
     // The primary directions: one for a parallel projection, the image's corners bound them
     // for a perspective one (each component is monotone across the image).
-    let corners = [(0, 0), (w - 1, 0), (0, h - 1), (w - 1, h - 1)]
-        .map(|(x, y)| spec.camera.primary(x, y, w, h).1 * inv);
+    let (x, y) = (w.saturating_sub(1), h.saturating_sub(1));
+    let corners =
+        [(0, 0), (x, 0), (0, y), (x, y)].map(|(x, y)| spec.camera.primary(x, y, w, h).1 * inv);
     let (lo, hi) = corners
         .iter()
         .fold((corners[0], corners[0]), |(lo, hi), &d| {

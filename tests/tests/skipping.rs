@@ -413,3 +413,48 @@ fn a_leap_map_built_for_another_octant_changes_the_image() {
         "the opposite octant's map must leap over some of the surface"
     );
 }
+
+/// A machine's nodes get the same skipping storage whether each ring position's is built on
+/// one thread or split over several, more threads than block columns too.
+#[test]
+fn every_node_skips_by_the_same_storage_however_the_build_is_threaded() {
+    use voxcube::fabric::NodeStorage;
+    use voxcube_kernel::partition::Partition;
+    use voxcube_kernel::topology::Layout;
+    let volume = blobs([37, 21, 30], Vec3::ONE, 0x7e_4d_11);
+    let VolumeData::U8(data) = &volume.data else {
+        unreachable!("blobs are bytes")
+    };
+    let centre = Vec3::new(18.0, 10.0, 15.0);
+    let cam = voxcube_tests::ortho(centre + Vec3::new(40.0, 9.0, 17.0), centre, Vec3::Y, 30.0);
+    let view = blob_view(cam, &volume);
+    let grid = volume.grid;
+    let mut compared = 0;
+    for (clusters, size) in [(1u32, 8u32), (2, 2), (1, 1)] {
+        let layout = Layout::new(clusters, size).expect("layout");
+        let partition = Partition::uniform(grid.dims()[0], size as usize).expect("partition");
+        let ghost = view.ghost_planes();
+        let storage =
+            |threads: usize| {
+                NodeStorage::new(&grid, layout, &partition, ghost, data.as_slice(), None)
+                    .with_skipping(&view, SkipMode::ALL, threads)
+            };
+        let one = storage(1);
+        for threads in [2, 3, 16] {
+            let many = storage(threads);
+            for node in 0..layout.nodes() as u16 {
+                let (a, b) = (
+                    one.slab(node).expect("slab"),
+                    many.slab(node).expect("slab"),
+                );
+                assert!(a.blocks().is_some(), "node {node} skips");
+                assert!(
+                    a.blocks() == b.blocks(),
+                    "{clusters}x{size} node {node} on {threads}"
+                );
+                compared += 1;
+            }
+        }
+    }
+    assert_eq!(compared, 3 * (8 + 4 + 1));
+}
