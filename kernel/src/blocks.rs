@@ -8,8 +8,8 @@
 //! nothing, and skipping never changes an image; which samples a node skips is therefore free
 //! to differ from node to node. Blocks may carry one view's chessboard distances ahead, one
 //! map per octant of ray directions ([`crate::leaps`]), so that a jump crosses every empty
-//! block ahead at once, and one view's cell masks ([`crate::cells`]), so that an empty cell inside a block that is not
-//! empty is skipped too.
+//! block ahead at once, and one view's cell masks ([`crate::cells`]), so that an empty cell
+//! inside a block that is not empty is skipped too.
 
 use crate::cells::CellMask;
 use crate::field::Site;
@@ -23,8 +23,8 @@ use glam::Vec3;
 /// Cells per block edge.
 pub const BLOCK: u32 = 4;
 
-/// Y nodes of a line of blocks gathered at a time by [`Blocks::build`] (sixteen blocks), on the
-/// stack: the kernel's memory stays fixed for any grid.
+/// Y nodes of a line of blocks gathered at a time by [`Blocks::build`] (sixteen blocks), on
+/// the stack: the kernel's memory stays fixed for any grid.
 const GATHER: usize = 16 * BLOCK as usize;
 
 /// The values a block's field can take.
@@ -163,20 +163,16 @@ pub fn column_len(grid: &crate::grid::Grid) -> usize {
     count(ny) as usize * count(nz) as usize
 }
 
-/// The storage block columns `columns` of a slab with `slab_columns` need.
-fn columns_storage(
-    grid: &crate::grid::Grid,
-    slab_columns: u32,
-    columns: &core::ops::Range<u32>,
-) -> Result<usize, BlocksError> {
-    if columns.start > columns.end || columns.end > slab_columns {
-        return Err(BlocksError::Columns {
+/// `Ok` when `columns` are block columns of a slab with `slab_columns` of them.
+fn check_columns(columns: &core::ops::Range<u32>, slab_columns: u32) -> Result<(), BlocksError> {
+    match columns.start <= columns.end && columns.end <= slab_columns {
+        true => Ok(()),
+        false => Err(BlocksError::Columns {
             start: columns.start,
             end: columns.end,
             columns: slab_columns,
-        });
+        }),
     }
-    Ok(columns.len() * column_len(grid))
 }
 
 impl<'a> Blocks<'a> {
@@ -222,7 +218,8 @@ impl<'a> Blocks<'a> {
         out: &mut [Range],
     ) -> Result<(), BlocksError> {
         let (x0, x1, _) = extent(slab);
-        let needed = columns_storage(slab.grid(), x1 - x0, &columns)?;
+        check_columns(&columns, x1 - x0)?;
+        let needed = columns.len() * column_len(slab.grid());
         if out.len() != needed {
             return Err(BlocksError::Storage {
                 needed,
@@ -356,14 +353,8 @@ impl<'a> Blocks<'a> {
 
     /// The ranges of block columns `columns` (counted from the slab's first), in storage order.
     pub fn columns(&self, columns: core::ops::Range<u32>) -> Result<&'a [Range], BlocksError> {
+        check_columns(&columns, self.x1 - self.x0)?;
         let len = (self.ny * self.nz) as usize;
-        if columns.start > columns.end || columns.end > self.x1 - self.x0 {
-            return Err(BlocksError::Columns {
-                start: columns.start,
-                end: columns.end,
-                columns: self.x1 - self.x0,
-            });
-        }
         Ok(&self.data[columns.start as usize * len..columns.end as usize * len])
     }
 

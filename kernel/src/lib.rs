@@ -10,7 +10,8 @@
 //! Map of the crate:
 //! - data: [`sample`], [`grid`], [`slab`], [`field`] (nearest and trilinear reads, gradients);
 //! - empty-space skipping: [`blocks`] (min/max blocks), [`leaps`] (a view's chessboard
-//!   distances between them, ahead of each octant of ray directions), [`cells`] (a view's empty cells inside them);
+//!   distances between them, ahead of each octant of ray directions), [`cells`] (a view's
+//!   empty cells inside them);
 //! - geometry: [`ray`] (box clipping), [`lattice`], [`camera`];
 //! - appearance: [`transfer`], [`surface`], [`shade`], [`lighting`], [`view`] (one view's parameters and the
 //!   effects it calls for);

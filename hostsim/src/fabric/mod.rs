@@ -345,10 +345,10 @@ impl Skipping {
     }
 
     /// [`Skipping::build`] on up to `threads` OS threads: the blocks and the masks split by
-    /// block columns, each octant's distances (one pass over every block) beside the masks. The same
-    /// bits: a column's blocks and masks depend on its own nodes only. A machine's start-up is
-    /// on every frame's clock, and the masks of a composited SOD view alone took a tenth of a
-    /// one-node frame.
+    /// block columns, each octant's distances (one pass over every block) beside the masks.
+    /// The same bits: a column's blocks and masks depend on its own nodes only. A machine's
+    /// start-up is on every frame's clock, and the masks of a composited SOD view alone took a
+    /// tenth of a one-node frame.
     pub fn build_on<T: voxcube_kernel::sample::Sample + Sync>(
         slab: &voxcube_kernel::slab::Slab<'_, T>,
         view: &voxcube_kernel::view::View,
