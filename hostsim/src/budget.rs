@@ -283,15 +283,17 @@ mod tests {
     fn a_big_volume_needs_a_bigger_cluster() {
         let grid = Grid::new([208, 208, 208], Vec3::ONE).unwrap();
         let buffer = |_| 16 * 1024;
-        let err = check(
-            Profile::ncube2(),
-            &grid,
-            1,
-            2,
-            ViewNeeds { ghost: 3, maps: 1 },
-            &buffer,
-        )
-        .unwrap_err();
+        let on = |size| {
+            check(
+                Profile::ncube2(),
+                &grid,
+                1,
+                size,
+                ViewNeeds { ghost: 3, maps: 1 },
+                &buffer,
+            )
+        };
+        let err = on(2).unwrap_err();
         assert_eq!(err.fits_at, Some(4));
         let msg = err.to_string();
         assert!(
@@ -299,15 +301,7 @@ mod tests {
                 && msg.contains("smallest cluster that fits has 4 nodes"),
             "{msg}"
         );
-        let ok = check(
-            Profile::ncube2(),
-            &grid,
-            1,
-            4,
-            ViewNeeds { ghost: 3, maps: 1 },
-            &buffer,
-        )
-        .unwrap();
+        let ok = on(4).unwrap();
         assert!(ok.total() <= Profile::ncube2().node_memory);
     }
 }
