@@ -184,7 +184,7 @@ pub fn march<T: Sample>(
                 }
                 if by_cell && here.cells & cells::bit(corner.lo) == 0 {
                     // An empty cell of a block that is not empty: this sample and the ones
-                    // after it in the same cell.
+                    // after it in the cube of empty cells ahead.
                     let exits = exits.get_or_insert_with(|| Exits::new(ray));
                     let last = cell_run(ray, slab, blocks, corner.lo, here.cells, exits);
                     skip_to(view, ray, last, counters);
@@ -404,8 +404,8 @@ fn cell_run<T: Sample>(
 /// most `reach` ahead of that sample's `block` along each axis (`blocks` serve the ray's
 /// octant): every sample between lies there too, since positions, cells and owner planes are
 /// monotone along the lattice, each axis the way the octant says, and those blocks form a
-/// box. The exit point is only an estimate; each candidate is checked
-/// with the exact arithmetic of the samples themselves, halving on failure.
+/// box. The exit point is only an estimate; each candidate is checked with the exact
+/// arithmetic of the samples themselves, halving on failure.
 fn skip_run<T: Sample>(
     ray: &RayState,
     slab: &Slab<'_, T>,
