@@ -59,6 +59,17 @@ fn a_volume_too_big_for_one_node_renders_once_the_cluster_is_large_enough() {
             );
             assert!(node.memory.slab > 0 && node.memory.buffer > 0);
         }
+        // The threads fabric counts each node's slab, blocks, maps and masks alike.
+        let threads = render_on(&volume, &v, &Machine::new(Fabric::Threads, size, 1, 3))
+            .unwrap_or_else(|e| panic!("{size} on threads: {e}"));
+        let t = threads.distributed.expect("distributed");
+        for (s, t) in d.nodes.iter().zip(&t.nodes) {
+            assert_eq!(
+                s.memory.slab, t.memory.slab,
+                "{size} nodes: node {}",
+                s.stats.node
+            );
+        }
     }
 }
 

@@ -784,6 +784,7 @@ fn run_typed<T: Sample + Sync>(
         }
     }
     let (image, stats) = host.finish().map_err(end_fail)?;
+    let needs = crate::budget::ViewNeeds::of(view);
     let nodes = stats
         .into_iter()
         .zip(reports)
@@ -793,7 +794,9 @@ fn run_typed<T: Sample + Sync>(
                 cluster,
                 position,
                 memory: NodeMemory {
-                    slab: (stored.end - stored.start) as usize * plane * size_of::<T>(),
+                    // Its planes and, as the budget counts them, its blocks, maps and masks.
+                    slab: (stored.end - stored.start) as usize * plane * size_of::<T>()
+                        + crate::budget::block_bytes(&grid, stored.clone(), needs.maps),
                     buffer: peak,
                     worker: size_of::<SimWorker<'_, T>>(),
                     allowance: CODE_AND_STACK,
