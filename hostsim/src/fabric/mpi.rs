@@ -510,6 +510,7 @@ pub fn host(
     world.barrier();
     let grid = volume.grid;
     let sample_bytes = volume.data.kind().bytes();
+    let needs = crate::budget::ViewNeeds::of(view);
     let nodes: Vec<NodeReport> = reports
         .into_iter()
         .enumerate()
@@ -518,7 +519,7 @@ pub fn host(
                 layout,
                 &partition,
                 &grid,
-                crate::budget::ViewNeeds::of(view),
+                needs,
                 sample_bytes,
                 n as u16,
                 stats,

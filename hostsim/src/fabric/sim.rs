@@ -23,7 +23,6 @@
 use super::host::Host;
 use super::{Category, VirtualTime};
 use super::{Distributed, NodeReport};
-use crate::budget::{NodeMemory, CODE_AND_STACK};
 use crate::dataset::{Volume, VolumeData};
 use crate::profile::MachineProfile;
 use crate::rng::SplitMix;
@@ -36,7 +35,7 @@ use voxcube_kernel::msg::{DecodeError, Msg, MsgKind, MAX_MSG_LEN};
 use voxcube_kernel::partition::{Partition, PartitionError};
 use voxcube_kernel::port::{Dest, Port};
 use voxcube_kernel::sample::Sample;
-use voxcube_kernel::slab::{stored_planes, Slab, SlabError};
+use voxcube_kernel::slab::{Slab, SlabError};
 use voxcube_kernel::topology::hops;
 use voxcube_kernel::topology::Layout;
 use voxcube_kernel::view::View;
@@ -490,12 +489,7 @@ fn run_typed<T: Sample + Sync>(
     let partition = cfg.partition(nx)?;
     let (flow, capacity) = super::flow_for(cfg, view)?;
     let ghost = view.ghost_planes();
-    let plane = grid.plane_len();
     let nodes = layout.nodes() as usize;
-    // Each position's stored planes, for the reports.
-    let stored: Vec<_> = (0..size)
-        .map(|j| stored_planes(&grid, partition.planes(j), ghost))
-        .collect();
     // Balanced cuts are reached by message from uniform slabs; then each node holds its own.
     let shifted = match (&cfg.cuts, cfg.shift) {
         (Some(_), true) => {
@@ -524,10 +518,7 @@ fn run_typed<T: Sample + Sync>(
     )
     .with_skipping(view, cfg.skipping, 1);
     let mut workers: Vec<Box<SimWorker<'_, T>>> = Vec::with_capacity(nodes);
-    let mut reports = Vec::with_capacity(nodes);
     for node in 0..nodes as u16 {
-        let (cluster, position) = layout.place(node);
-        let j = usize::from(position);
         let slab = nodes_storage.slab(node)?;
         #[allow(unused_mut, reason = "mutable only to switch on test faults")]
         let mut worker = node_worker(view, slab, &partition, cfg, node, flow)?;
@@ -536,7 +527,6 @@ fn run_typed<T: Sample + Sync>(
             worker.mutants = cfg.mutants;
         }
         workers.push(worker);
-        reports.push((cluster, position, partition.planes(j), stored[j].clone()));
     }
     let mut mailboxes: Vec<Mailbox> = (0..nodes).map(|_| Mailbox::default()).collect();
     let mut net = Network::new(nodes, capacity);
@@ -785,29 +775,24 @@ fn run_typed<T: Sample + Sync>(
     }
     let (image, stats) = host.finish().map_err(end_fail)?;
     let needs = crate::budget::ViewNeeds::of(view);
+    // The host keeps the nodes' statistics by node id.
     let nodes = stats
         .into_iter()
-        .zip(reports)
         .zip(&net.peak)
-        .map(
-            |((stats, (cluster, position, planes, stored)), &peak)| NodeReport {
-                cluster,
-                position,
-                memory: NodeMemory {
-                    // Its planes and, as the budget counts them, its blocks, maps and masks.
-                    slab: (stored.end - stored.start) as usize * plane * size_of::<T>()
-                        + crate::budget::block_bytes(&grid, stored.clone(), needs.maps),
-                    buffer: peak,
-                    worker: size_of::<SimWorker<'_, T>>(),
-                    allowance: CODE_AND_STACK,
-                },
-                planes,
-                stored,
+        .enumerate()
+        .map(|(node, (stats, &peak))| {
+            NodeReport::new(
+                layout,
+                &partition,
+                &grid,
+                needs,
+                size_of::<T>(),
+                node as u16,
                 stats,
-                peak_buffer: peak,
-                busy: Duration::ZERO,
-            },
-        )
+                peak,
+                Duration::ZERO,
+            )
+        })
         .collect();
     let mut time = clock.map(Clock::finish);
     let shift = shifted.map(|(_, report)| report);

@@ -340,6 +340,7 @@ fn run_typed<T: Sample + Send + Sync>(
         result
     });
     let (image, reports) = outcome?;
+    let needs = crate::budget::ViewNeeds::of(view);
     let nodes: Vec<NodeReport> = reports
         .into_iter()
         .enumerate()
@@ -349,7 +350,7 @@ fn run_typed<T: Sample + Send + Sync>(
                 layout,
                 &partition,
                 &grid,
-                crate::budget::ViewNeeds::of(view),
+                needs,
                 size_of::<T>(),
                 n as u16,
                 stats,
