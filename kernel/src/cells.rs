@@ -77,9 +77,9 @@ pub fn empty_box(mask: CellMask, at: [u32; 3], toward: Octant) -> ([u32; 3], [u3
     // The cube of `r` cells ahead, cut at the block's faces; it stops growing once `r`
     // passes the room ahead on every axis.
     let cube = |r: u32| -> ([u32; 3], [u32; 3]) {
-        let span = |a: usize| match toward.down(a) {
-            true => (at[a].saturating_sub(r), at[a]),
-            false => (at[a], (at[a] + r).min(BLOCK - 1)),
+        let span = |a: usize| {
+            let (first, last) = toward.span(a, at[a], r);
+            (first, last.min(BLOCK - 1))
         };
         let [x, y, z] = [span(0), span(1), span(2)];
         ([x.0, y.0, z.0], [x.1, y.1, z.1])
@@ -122,12 +122,7 @@ pub fn build_columns<T: Sample>(
     out: &mut [CellMask],
 ) -> Result<(), BlocksError> {
     let ranges = blocks.columns(columns.clone())?;
-    if out.len() != ranges.len() {
-        return Err(BlocksError::Storage {
-            needed: ranges.len(),
-            given: out.len(),
-        });
-    }
+    BlocksError::check_storage(ranges.len(), out.len())?;
     let (_, ny, nz) = blocks.shape();
     let x0 = blocks.first_column() + columns.start;
     let mut verdicts = Verdicts::new(view);

@@ -54,6 +54,17 @@ impl Octant {
     pub fn down(self, axis: usize) -> bool {
         self.0 >> axis & 1 == 1
     }
+
+    /// The first and last coordinate along `axis` of the cells or blocks at most `reach`
+    /// steps ahead of `at` for rays of this octant, and nowhere behind (saturating at the
+    /// ends of `u32`).
+    #[inline]
+    pub fn span(self, axis: usize, at: u32, reach: u32) -> (u32, u32) {
+        match self.down(axis) {
+            true => (at.saturating_sub(reach), at),
+            false => (at, at.saturating_add(reach)),
+        }
+    }
 }
 
 /// The octants `view`'s rays take, one bit per octant ([`Octant::index`]): its primary and
@@ -105,12 +116,7 @@ pub fn build(
     out: &mut [u8],
 ) -> Result<(), BlocksError> {
     let ranges = blocks.ranges();
-    if out.len() != ranges.len() {
-        return Err(BlocksError::Storage {
-            needed: ranges.len(),
-            given: out.len(),
-        });
-    }
+    BlocksError::check_storage(ranges.len(), out.len())?;
     for (d, r) in out.iter_mut().zip(ranges) {
         *d = if view.empty(*r) { u8::MAX } else { 0 };
     }

@@ -313,11 +313,11 @@ fn skip_to(view: &View, ray: &mut RayState, last: u32, counters: &mut Counters) 
     ray.k = last + 1;
 }
 
-/// What estimating where a ray leaves a cell needs of it, found at the first run through an
-/// empty cell in a call of [`march`]: the estimate multiplies by reciprocals instead of
-/// dividing. It is only an estimate: every
-/// landing is checked with the samples' own arithmetic, so its rounding decides how far a
-/// jump goes, never whether a sample that shows is skipped.
+/// What estimating where a ray leaves a box of cells needs of it, found at the first run
+/// through an empty cell in a call of [`march`]: the estimate multiplies by reciprocals
+/// instead of dividing. It is only an estimate: every landing is checked with the samples'
+/// own arithmetic, so its rounding decides how far a jump goes, never whether a sample that
+/// shows is skipped.
 #[derive(Clone, Copy, Debug)]
 struct Exits {
     origin: Vec4,
