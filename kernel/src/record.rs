@@ -7,6 +7,11 @@
 //! background behind the deepest. Invariants: a part arrives once (a second copy is refused);
 //! a record is complete only when the chain's length is known and every hit up to it and
 //! every shadow visibility those hits asked for have arrived; a complete record never changes.
+//!
+//! [`Records`] holds a worker's records in fixed slots. A slot is reopened for the next pixel
+//! without rewriting the hits the last one used: a record clears a hit's storage when the
+//! first part for it arrives, so opening one costs the same for a view of one hit as for
+//! the deepest chain a view may ask for, and a worker touches only the hits its view calls for.
 
 use crate::msg::{HitRecord, Outcome};
 use crate::shade::MAX_LIGHTS;
@@ -57,6 +62,9 @@ struct HitPart {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PixelRecord {
     pixel: u32,
+    /// Hits `fresh..` hold no part of this pixel: whatever they hold is stale, and they are
+    /// cleared when a part for one of them arrives.
+    fresh: u8,
     hits: [HitPart; MAX_HITS],
     chain: Option<u8>,
     color: Option<Vec3>,
@@ -67,10 +75,36 @@ impl PixelRecord {
     pub fn new(pixel: u32) -> PixelRecord {
         PixelRecord {
             pixel,
+            fresh: 0,
             hits: [HitPart::default(); MAX_HITS],
             chain: None,
             color: None,
         }
+    }
+
+    /// Make this an empty record for `pixel`, leaving the stale hits where they are.
+    fn reopen(&mut self, pixel: u32) {
+        self.pixel = pixel;
+        self.fresh = 0;
+        self.chain = None;
+        self.color = None;
+    }
+
+    /// The hits some part of this pixel has reached.
+    fn parts(&self) -> &[HitPart] {
+        self.hits.get(..usize::from(self.fresh)).unwrap_or(&[])
+    }
+
+    /// Hit `index`, cleared first if no part of this pixel has reached it yet.
+    fn part_mut(&mut self, index: u8) -> Option<&mut HitPart> {
+        let index = usize::from(index);
+        let fresh = usize::from(self.fresh);
+        if index >= fresh {
+            self.hits.get_mut(fresh..=index)?.fill(HitPart::default());
+            // `index < MAX_HITS`, which fits in a byte: the slice above would not exist else.
+            self.fresh = index as u8 + 1;
+        }
+        self.hits.get_mut(index)
     }
 
     /// The pixel.
@@ -83,15 +117,12 @@ impl PixelRecord {
         if h.pixel != self.pixel || self.color.is_some() {
             return Err(RecordError::Mismatch);
         }
-        let part = self
-            .hits
-            .get_mut(usize::from(index))
-            .ok_or(RecordError::OutOfRange)?;
-        if part.present {
-            return Err(RecordError::Duplicate);
-        }
         if usize::from(h.lights) > MAX_LIGHTS {
             return Err(RecordError::OutOfRange);
+        }
+        let part = self.part_mut(index).ok_or(RecordError::OutOfRange)?;
+        if part.present {
+            return Err(RecordError::Duplicate);
         }
         part.present = true;
         part.alpha = h.alpha;
@@ -134,7 +165,7 @@ impl PixelRecord {
             Outcome::Color(c) => {
                 if self.color.is_some()
                     || self.chain.is_some()
-                    || self.hits.iter().any(|h| h.present)
+                    || self.parts().iter().any(|h| h.present)
                 {
                     return Err(RecordError::Duplicate);
                 }
@@ -142,10 +173,10 @@ impl PixelRecord {
                 Ok(())
             }
             Outcome::Shadow { visibility } => {
-                let part = self
-                    .hits
-                    .get_mut(usize::from(hit))
-                    .ok_or(RecordError::OutOfRange)?;
+                if usize::from(light) >= MAX_LIGHTS {
+                    return Err(RecordError::OutOfRange);
+                }
+                let part = self.part_mut(hit).ok_or(RecordError::OutOfRange)?;
                 let slot = part
                     .visibility
                     .get_mut(usize::from(light))
@@ -178,7 +209,7 @@ impl PixelRecord {
             return Some(c);
         }
         let n = usize::from(self.chain?);
-        let hits = self.hits.get(..n)?;
+        let hits = self.parts().get(..n)?;
         let complete = |h: &HitPart| {
             h.present && (!wait_for_shadows || h.seen & h.shadow_mask == h.shadow_mask)
         };
@@ -198,6 +229,66 @@ impl PixelRecord {
             seen = tree::through(h.alpha, color, seen);
         }
         Some(seen)
+    }
+}
+
+/// A worker's pixel records in `N` fixed slots, each open (holding a pixel in flight) or free.
+/// Invariant: `in_use` is the number of open slots.
+#[derive(Clone, Debug)]
+pub struct Records<const N: usize> {
+    slots: [PixelRecord; N],
+    open: [bool; N],
+    in_use: usize,
+}
+
+impl<const N: usize> Default for Records<N> {
+    fn default() -> Self {
+        Records {
+            slots: [PixelRecord::new(0); N],
+            open: [false; N],
+            in_use: 0,
+        }
+    }
+}
+
+impl<const N: usize> Records<N> {
+    /// Open a free slot for `pixel`: its index, or `None` when every slot is open.
+    pub fn open(&mut self, pixel: u32) -> Option<u16> {
+        let slot = self.open.iter().position(|&open| !open)?;
+        let index = u16::try_from(slot).ok()?;
+        self.slots.get_mut(slot)?.reopen(pixel);
+        self.open[slot] = true;
+        self.in_use += 1;
+        Some(index)
+    }
+
+    /// The record in `slot`, if it is open.
+    pub fn get(&self, slot: usize) -> Option<&PixelRecord> {
+        match self.open.get(slot) {
+            Some(true) => self.slots.get(slot),
+            _ => None,
+        }
+    }
+
+    /// The record in `slot`, if it is open, to take in parts.
+    pub fn get_mut(&mut self, slot: usize) -> Option<&mut PixelRecord> {
+        match self.open.get(slot) {
+            Some(true) => self.slots.get_mut(slot),
+            _ => None,
+        }
+    }
+
+    /// Free `slot` (nothing happens if it is not open).
+    pub fn close(&mut self, slot: usize) {
+        if let Some(open) = self.open.get_mut(slot).filter(|open| **open) {
+            *open = false;
+            self.in_use -= 1;
+        }
+    }
+
+    /// Open slots.
+    pub fn in_use(&self) -> usize {
+        self.in_use
     }
 }
 
@@ -273,5 +364,57 @@ mod tests {
             Err(RecordError::Duplicate)
         );
         assert_eq!(r.color(Vec3::ZERO).map(|c| c.is_finite()), Some(true));
+    }
+
+    #[test]
+    fn a_reopened_slot_shows_nothing_of_its_last_pixel() {
+        let bg = Vec3::new(0.0, 0.0, 1.0);
+        let mut records = Records::<1>::default();
+        let slot = records.open(7).unwrap();
+        let deep = records.get_mut(usize::from(slot)).unwrap();
+        for i in 0..4 {
+            deep.add_hit(i, &hit(7, 0.25, 1, i < 3)).unwrap();
+            deep.add_outcome(7, i, 0, Outcome::Shadow { visibility: 0.5 })
+                .unwrap();
+        }
+        assert!(deep.color(bg).is_some());
+        assert_eq!(records.open(8), None, "the only slot is open");
+        records.close(usize::from(slot));
+        assert_eq!(records.in_use(), 0);
+
+        // The stale hits 0..4 of pixel 7 are still in the slot's storage: none may count.
+        let slot = records.open(8).unwrap();
+        let again = records.get_mut(usize::from(slot)).unwrap();
+        assert_eq!(again.color(bg), None);
+        again
+            .add_outcome(8, 0, 0, Outcome::Color(Vec3::ONE))
+            .unwrap();
+        assert_eq!(again.color(bg), Some(Vec3::ONE));
+        records.close(usize::from(slot));
+
+        let slot = usize::from(records.open(9).unwrap());
+        let shallow = records.get_mut(slot).unwrap();
+        shallow.add_hit(1, &hit(9, 1.0, 0, false)).unwrap();
+        assert_eq!(shallow.color(bg), None, "hit 0 of pixel 9 has not arrived");
+        shallow.add_hit(0, &hit(9, 0.5, 0, true)).unwrap();
+        let mut fresh = PixelRecord::new(9);
+        fresh.add_hit(0, &hit(9, 0.5, 0, true)).unwrap();
+        fresh.add_hit(1, &hit(9, 1.0, 0, false)).unwrap();
+        assert_eq!(records.get(slot).unwrap().color(bg), fresh.color(bg));
+    }
+
+    #[test]
+    fn only_open_slots_take_parts_and_closing_twice_changes_nothing() {
+        let mut records = Records::<2>::default();
+        assert!(records.get_mut(0).is_none());
+        let a = usize::from(records.open(1).unwrap());
+        let b = usize::from(records.open(2).unwrap());
+        assert_ne!(a, b);
+        records.close(a);
+        records.close(a);
+        assert_eq!(records.in_use(), 1);
+        assert!(records.get(a).is_none() && records.get(b).is_some());
+        assert!(records.get(5).is_none());
+        assert_eq!(records.open(3).map(usize::from), Some(a));
     }
 }

@@ -49,7 +49,7 @@ use crate::msg::{HitRecord, Msg, Outcome, PixelSet, Reply, Resolved, Travel, NO_
 use crate::partition::{Partition, MAX_CLUSTER};
 use crate::pixel::rgba8;
 use crate::port::{Dest, Port};
-use crate::record::PixelRecord;
+use crate::record::Records;
 use crate::sample::Sample;
 use crate::shade::MAX_LIGHTS;
 use crate::slab::{stored_planes, Slab};
@@ -168,8 +168,7 @@ pub struct Worker<'a, T, const PENDING: usize, const RECORDS: usize, const OUTBO
     cluster_pixels: u64,
     pending_up: Deque<Travel, PENDING>,
     pending_down: Deque<Travel, PENDING>,
-    records: [Option<PixelRecord>; RECORDS],
-    in_use: usize,
+    records: Records<RECORDS>,
     outbox: Deque<(Dest, Msg), OUTBOX>,
     batch: PixelSet,
     flow: FlowControl,
@@ -247,8 +246,7 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
             cluster_pixels,
             pending_up: Deque::new(),
             pending_down: Deque::new(),
-            records: [None; RECORDS],
-            in_use: 0,
+            records: Records::default(),
             outbox: Deque::new(),
             batch: PixelSet::default(),
             flow,
@@ -311,7 +309,7 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
 
     /// Whether every primary ray this worker generates is generated, its pixel final and sent.
     pub fn pixels_final(&self) -> bool {
-        self.generation_done() && self.in_use == 0 && self.batch.count == 0
+        self.generation_done() && self.records.in_use() == 0 && self.batch.count == 0
     }
 
     fn generation_done(&self) -> bool {
@@ -455,7 +453,7 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
             if !from_pending && queue.is_full() {
                 return false;
             }
-            if t.reply.home == NO_HOME && self.in_use >= RECORDS {
+            if t.reply.home == NO_HOME && self.records.in_use() >= RECORDS {
                 return false;
             }
         }
@@ -724,18 +722,16 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
     }
 
     fn reserve(&mut self, pixel: u32) -> Option<u16> {
-        let slot = self.records.iter().position(Option::is_none)?;
-        self.records[slot] = Some(PixelRecord::new(pixel));
-        self.in_use += 1;
-        self.stats.peak_records = self.stats.peak_records.max(self.in_use as u64);
-        Some(slot as u16)
+        let slot = self.records.open(pixel)?;
+        self.stats.peak_records = self.stats.peak_records.max(self.records.in_use() as u64);
+        Some(slot)
     }
 
     fn apply_hit(&mut self, h: &HitRecord) {
         let slot = usize::from(h.reply.slot);
         let added = match self.records.get_mut(slot) {
-            Some(Some(record)) => record.add_hit(h.reply.hit, h).is_ok(),
-            _ => false,
+            Some(record) => record.add_hit(h.reply.hit, h).is_ok(),
+            None => false,
         };
         if added {
             self.try_complete(slot);
@@ -747,10 +743,10 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
     fn apply_resolved(&mut self, r: &Resolved) {
         let slot = usize::from(r.reply.slot);
         let added = match self.records.get_mut(slot) {
-            Some(Some(record)) => record
+            Some(record) => record
                 .add_outcome(r.pixel, r.reply.hit, r.reply.light, r.outcome)
                 .is_ok(),
-            _ => false,
+            None => false,
         };
         if added {
             self.try_complete(slot);
@@ -761,7 +757,7 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
 
     fn try_complete(&mut self, slot: usize) {
         let background = self.view.spec().background;
-        let Some(Some(record)) = self.records.get(slot) else {
+        let Some(record) = self.records.get(slot) else {
             return;
         };
         #[cfg(feature = "mutants")]
@@ -775,8 +771,7 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
         let Some(color) = color else { return };
         let pixel = record.pixel();
         self.stats.counters.non_finite_pixels += u64::from(!color.is_finite());
-        self.records[slot] = None;
-        self.in_use -= 1;
+        self.records.close(slot);
         self.emit(pixel, rgba8(color));
     }
 
