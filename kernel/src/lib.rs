@@ -47,6 +47,7 @@ pub mod sample;
 pub mod shade;
 pub mod shift;
 pub mod slab;
+pub mod starts;
 pub mod stats;
 pub mod surface;
 #[cfg(test)]

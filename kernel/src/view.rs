@@ -14,6 +14,7 @@ use crate::lattice::Lattice;
 use crate::march::{RayKind, RayState};
 use crate::ray::{clip, Ray};
 use crate::shade::{Light, Shading, MAX_LIGHTS};
+use crate::starts::RowLeaps;
 use crate::surface::{IsoSurface, MAX_SURFACES};
 use crate::transfer::TransferFunction;
 use core::fmt;
@@ -156,6 +157,8 @@ pub struct View {
     effects: Effects,
     /// The least iso value (surfaces mode): a value below it is outside every surface.
     min_iso: f32,
+    /// How far first samples move along an image row (parallel projections only).
+    row_leaps: Option<RowLeaps>,
 }
 
 impl View {
@@ -227,6 +230,13 @@ impl View {
         };
         let cell_edge = grid.cell_edge();
         let (box_lo, box_hi) = grid.index_box(spec.model);
+        let row_leaps = RowLeaps::new(
+            spec.camera.projection(),
+            spec.camera.image_axes().0,
+            spec.camera.forward(),
+            spec.width,
+            grid.inv_spacing(),
+        );
         Ok(View {
             dt_world: spec.dt * cell_edge,
             cell_edge,
@@ -236,6 +246,7 @@ impl View {
             box_hi,
             effects,
             min_iso,
+            row_leaps,
             spec,
         })
     }
@@ -282,6 +293,12 @@ impl View {
     /// The effects this view calls for.
     pub fn effects(&self) -> Effects {
         self.effects
+    }
+
+    /// The bound on how far first samples move along an image row, for ring positions to
+    /// pass over pixels they do not start; `None` for a perspective projection.
+    pub fn row_leaps(&self) -> Option<RowLeaps> {
+        self.row_leaps
     }
 
     /// Index units per world unit, per axis.

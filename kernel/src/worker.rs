@@ -935,7 +935,26 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
                     self.trace(unadopted);
                     return true;
                 }
-                Generation::Distributed => self.cursor += 1,
+                Generation::Distributed => {
+                    // Not this position's ray: pass over the pixels along the row that the
+                    // bound says are not this position's either. Position 0 sets up every
+                    // pixel, for it sends the background of those that miss.
+                    let passed = match self.view.row_leaps() {
+                        Some(leaps) if !generator => leaps.not_started(
+                            first.x,
+                            ray.lattice.t_entry,
+                            self.slab.owned(),
+                            self.slab.grid(),
+                            spec.model,
+                        ),
+                        _ => 0,
+                    };
+                    let row_end = (n / width + 1) * width;
+                    self.cursor = n
+                        .saturating_add(1)
+                        .saturating_add(u64::from(passed))
+                        .min(row_end);
+                }
                 Generation::Centralized if mine => {
                     if !self.can_start(&unadopted, false) {
                         return false;

@@ -1,0 +1,331 @@
+//! Row leaps of distributed generation: a bound on how far a primary ray's first sample moves
+//! along x from pixel to pixel of an image row, so that a ring position passes over pixels it
+//! certainly does not start without setting up their rays.
+//!
+//! Under distributed generation every ring position walks every pixel of its cluster and
+//! starts the rays whose first sample it owns; setting up a ray to learn that costs as much
+//! as the ray's start, so without a bound a ring of `n` set up every ray `n` times.
+//!
+//! The bound, for a parallel projection (perspective views get none, and every pixel is set
+//! up as before). Along a row the ray origin moves by a constant `U` per pixel and the
+//! direction `D` is fixed (both in index units). A ray's first sample is its entry into the
+//! dataset's box, at `t_near = max(0, t_x, t_y, t_z)` with `t_a` linear in the pixel, so the
+//! entry's x is continuous and piecewise linear along the part of the row that hits the box
+//! (one interval: the box is convex). Its slope on the piece where axis `a` sets `t_near` is
+//! `U.x − U.a·D.x/D.a` (zero for `a = x`), and `U.x` where the eye is inside the box.
+//! [`RowLeaps::slope`] is the largest of them, widened by 1%.
+//!
+//! Invariant: [`RowLeaps::not_started`] never passes over a pixel whose first sample the
+//! position owns. It leaves a margin of [`MARGIN_PLANES`] planes beyond the x range the
+//! owned planes can claim, plus 2⁻¹² of the coordinates' magnitude for rounding (f32
+//! arithmetic of a few operations errs by about 2⁻²²). A pixel close to the position's planes
+//! is always set up and judged by the exact rule, so the bound changes which rays are set up,
+//! never which node starts them.
+
+use crate::camera::Projection;
+use crate::grid::{Grid, Model};
+use core::ops::Range;
+use glam::Vec3;
+
+/// Planes of slack between the x range owned planes can claim and a pixel passed over.
+pub const MARGIN_PLANES: f32 = 1.0;
+
+/// The per-pixel bound of one view; see the module's text.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RowLeaps {
+    /// Index units along x that the first sample moves at most per pixel of a row.
+    slope: f32,
+    /// `|D.x|`: index units along x per world unit of `t`.
+    dir_x: f32,
+}
+
+impl RowLeaps {
+    /// The bound for `projection` with image axes `right`, view direction `forward` (world,
+    /// unit), `width` pixels across and `inv_spacing` index units per world unit; `None` for
+    /// a perspective projection or a bound that is not finite.
+    pub fn new(
+        projection: Projection,
+        right: Vec3,
+        forward: Vec3,
+        width: u32,
+        inv_spacing: Vec3,
+    ) -> Option<RowLeaps> {
+        let Projection::Orthographic { width: world_width } = projection else {
+            return None;
+        };
+        let to_f64 = |v: Vec3| [f64::from(v.x), f64::from(v.y), f64::from(v.z)];
+        let step = f64::from(world_width) / f64::from(width.max(1));
+        let s = to_f64(inv_spacing);
+        let (r, f) = (to_f64(right), to_f64(forward));
+        let u: [f64; 3] = core::array::from_fn(|a| r[a] * step * s[a]);
+        let d: [f64; 3] = core::array::from_fn(|a| f[a] * s[a]);
+        // The eye inside the box (t_near = 0): the entry is the origin itself.
+        let mut slope = u[0].abs();
+        for a in 1..3 {
+            if d[a] != 0.0 {
+                slope = slope.max((u[0] - u[a] * d[0] / d[a]).abs());
+            }
+        }
+        let slope = (slope * 1.01) as f32;
+        (slope.is_finite() && d[0].is_finite()).then_some(RowLeaps {
+            slope,
+            dir_x: d[0].abs() as f32,
+        })
+    }
+
+    /// Index units along x that a row's first samples move at most per pixel.
+    pub fn slope(&self) -> f32 {
+        self.slope
+    }
+
+    /// How many pixels after one whose primary ray's first sample lies at index-space `x`
+    /// (at world parameter `t`), along the same row, certainly do not start in the `owned`
+    /// planes of `grid` under `model`. Saturates at `u32::MAX` where the row's first samples
+    /// cannot move along x at all; the caller stops at the row's end.
+    pub fn not_started(&self, x: f32, t: f32, owned: Range<u32>, grid: &Grid, model: Model) -> u32 {
+        let (lo, hi) = claimed(owned, grid, model);
+        let margin = MARGIN_PLANES + (x.abs() + (t * self.dir_x).abs()) * (1.0 / 4096.0);
+        let distance = (lo - x).max(x - hi) - margin;
+        if !(distance > 0.0) {
+            return 0;
+        }
+        if self.slope == 0.0 {
+            return u32::MAX;
+        }
+        // Saturating: a distance of more pixels than u32 holds passes over the whole row.
+        libm::floorf(distance / self.slope) as u32
+    }
+}
+
+/// The x range the `owned` planes can claim a first sample in, widened by one plane each
+/// way: [`Grid::owner_plane`] takes `⌊x⌋` (cell model) or `⌊x + ½⌋` (voxel model) clamped
+/// into the grid, so the first and last slabs also own everything beyond the grid's ends.
+fn claimed(owned: Range<u32>, grid: &Grid, model: Model) -> (f32, f32) {
+    let last = match model {
+        Model::Cell => grid.dims()[0].saturating_sub(2),
+        Model::Voxel => grid.dims()[0] - 1,
+    };
+    let lo = if owned.start == 0 {
+        f32::NEG_INFINITY
+    } else {
+        owned.start as f32 - 1.0
+    };
+    let hi = if owned.end > last {
+        f32::INFINITY
+    } else {
+        owned.end as f32 + 1.0
+    };
+    (lo, hi)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::Camera;
+    use crate::partition::Partition;
+    use crate::surface::IsoSurface;
+    use crate::testing::xorshift;
+    use crate::view::{Mode, View, ViewSpec};
+
+    /// A parallel view of `grid` from direction `from` at `distance` diagonals from its
+    /// centre (inside the box when small), `across` diagonals wide, on a `width × height` image.
+    fn view(
+        grid: &Grid,
+        model: Model,
+        from: Vec3,
+        distance: f32,
+        across: f32,
+        size: [u32; 2],
+    ) -> View {
+        let (lo, hi) = grid.world_box(model);
+        let (centre, diagonal) = ((lo + hi) * 0.5, (hi - lo).length());
+        let up = if from.normalize().y.abs() > 0.9 {
+            Vec3::Z
+        } else {
+            Vec3::Y
+        };
+        let camera = Camera::look_at(
+            centre + from.normalize() * distance * diagonal,
+            centre,
+            up,
+            Projection::Orthographic {
+                width: across * diagonal,
+            },
+        )
+        .unwrap();
+        let mut surfaces = heapless::Vec::new();
+        let _ = surfaces.push(IsoSurface {
+            iso: 1.0,
+            color: Vec3::ONE,
+            transparency: 0.0,
+        });
+        let spec = ViewSpec {
+            width: size[0],
+            height: size[1],
+            camera,
+            model,
+            dt: 0.5,
+            gradient_distance: 1.0,
+            mode: Mode::Surfaces(surfaces),
+            shading: None,
+            lights: heapless::Vec::new(),
+            background: Vec3::ZERO,
+            cutoff: 1.0 / 512.0,
+            max_depth: 0,
+            refine_steps: 2,
+        };
+        View::new(spec, grid).unwrap()
+    }
+
+    /// For every pixel that hits the box and every slab of `partition`: a pixel passed over
+    /// by `leaps` that the slab starts after all is a violation. Returns the violations and
+    /// the pixels passed over.
+    fn check(view: &View, grid: &Grid, partition: &Partition, leaps: RowLeaps) -> (u32, u64) {
+        let (w, h) = (view.spec().width, view.spec().height);
+        let model = view.spec().model;
+        let (mut violations, mut passed) = (0, 0);
+        for row in 0..h {
+            let firsts: heapless::Vec<Option<(f32, f32, usize)>, 128> = (0..w)
+                .map(|px| {
+                    view.primary_ray(row * w + px).map(|ray| {
+                        let t = ray.lattice.t_entry;
+                        let x = ray.ray.at(ray.lattice.t(0)).x;
+                        (x, t, partition.owner(grid.owner_plane(x, model)))
+                    })
+                })
+                .collect();
+            for (p, first) in firsts.iter().enumerate() {
+                let Some((x, t, _)) = *first else { continue };
+                for j in 0..partition.slabs() {
+                    let n = leaps.not_started(x, t, partition.planes(j), grid, model);
+                    let through = (p as u64 + 1 + u64::from(n)).min(u64::from(w)) as usize;
+                    passed += (through - p - 1) as u64;
+                    let started_here = |q: &Option<(f32, f32, usize)>| q.is_some_and(|q| q.2 == j);
+                    if n > 0 && started_here(first) {
+                        violations += 1;
+                    }
+                    violations += firsts[p + 1..through]
+                        .iter()
+                        .filter(|q| started_here(q))
+                        .count() as u32;
+                }
+            }
+        }
+        (violations, passed)
+    }
+
+    /// Random grids (anisotropic spacing, both models), directions (some along axes or
+    /// diagonals), eyes inside and outside the box, image widths and slab counts.
+    fn cases(mut each: impl FnMut(&View, &Grid, &Partition)) {
+        let mut next = xorshift(0x5eed_1992);
+        let mut unit = move || (next() >> 8) as f32 / (1u32 << 24) as f32;
+        let special = [
+            Vec3::X,
+            -Vec3::Z,
+            Vec3::new(1.0, 0.0, 1.0),
+            Vec3::new(-1.0, 1.0, 1.0),
+        ];
+        for case in 0..300 {
+            let dims = [
+                4 + (unit() * 36.0) as u32,
+                4 + (unit() * 20.0) as u32,
+                4 + (unit() * 20.0) as u32,
+            ];
+            let spacing = Vec3::new(0.5 + unit() * 1.5, 0.5 + unit() * 1.5, 0.5 + unit() * 1.5);
+            let grid = Grid::new(dims, spacing).unwrap();
+            let model = if unit() < 0.5 {
+                Model::Cell
+            } else {
+                Model::Voxel
+            };
+            let from = match special.get(case % 12) {
+                Some(&d) => d,
+                None => Vec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5) + Vec3::splat(1e-3),
+            };
+            let distance = if case % 7 == 0 {
+                0.1 * unit()
+            } else {
+                0.6 + 3.0 * unit()
+            };
+            let size = [8 + (unit() * 120.0) as u32, 3];
+            let view = view(&grid, model, from, distance, 0.5 + unit() * 1.5, size);
+            let slabs = [2, 3, 4, 8][(unit() * 4.0) as usize % 4];
+            let partition = Partition::uniform(dims[0], slabs.min(dims[0] as usize - 1)).unwrap();
+            each(&view, &grid, &partition);
+        }
+    }
+
+    #[test]
+    fn no_pixel_passed_over_is_started_by_the_slab_that_passed_it() {
+        let (mut total, mut parallel) = (0, 0);
+        cases(|view, grid, partition| {
+            let leaps = view.row_leaps().expect("a parallel view has a bound");
+            let (violations, passed) = check(view, grid, partition, leaps);
+            assert_eq!(violations, 0, "{:?} {:?}", view.spec().camera, grid.dims());
+            total += passed;
+            parallel += 1;
+        });
+        // The bound is not vacuous: it passes over a good share of the pixels checked.
+        assert!(
+            total > 100_000 && parallel == 300,
+            "{total} pixels passed over"
+        );
+    }
+
+    #[test]
+    fn a_bound_a_quarter_too_tight_is_caught() {
+        let mut caught = 0;
+        cases(|view, grid, partition| {
+            let leaps = view.row_leaps().expect("parallel");
+            let tight = RowLeaps {
+                slope: leaps.slope * 0.25,
+                ..leaps
+            };
+            caught += u32::from(check(view, grid, partition, tight).0 > 0);
+        });
+        assert!(
+            caught > 10,
+            "only {caught} cases caught a slope four times too small"
+        );
+    }
+
+    #[test]
+    fn perspective_views_have_no_bound_and_far_pixels_are_passed_over() {
+        let grid = Grid::new([40, 8, 8], Vec3::ONE).unwrap();
+        let camera = Camera::look_at(
+            Vec3::new(20.0, 4.0, 60.0),
+            Vec3::new(20.0, 4.0, 4.0),
+            Vec3::Y,
+            Projection::Perspective { fov_y: 0.5 },
+        )
+        .unwrap();
+        let mut v = view(&grid, Model::Cell, Vec3::Z, 2.0, 1.0, [8, 8]);
+        let mut spec = v.spec().clone();
+        spec.camera = camera;
+        v = View::new(spec, &grid).unwrap();
+        assert_eq!(v.row_leaps(), None);
+        let leaps = RowLeaps::new(
+            Projection::Orthographic { width: 10.0 },
+            Vec3::X,
+            -Vec3::Z,
+            10,
+            Vec3::ONE,
+        )
+        .unwrap();
+        // One index unit per pixel along x; slab 20..30 claims [19, 31], and the margin is a
+        // plane and a bit: from x = 5 about 12 pixels are surely not its own.
+        assert!((leaps.slope() - 1.01).abs() < 1e-6);
+        let n = leaps.not_started(5.0, 50.0, 20..30, &grid, Model::Cell);
+        assert!((11..=13).contains(&n), "{n}");
+        assert_eq!(leaps.not_started(25.0, 50.0, 20..30, &grid, Model::Cell), 0);
+        assert_eq!(
+            leaps.not_started(f32::NAN, 50.0, 20..30, &grid, Model::Cell),
+            0
+        );
+        // The last slab also owns everything past the grid's end.
+        assert_eq!(
+            leaps.not_started(500.0, 50.0, 30..39, &grid, Model::Cell),
+            0
+        );
+    }
+}
