@@ -682,12 +682,17 @@ fn run_typed<T: Sample + Sync>(
                     stopped[n] = true;
                     continue;
                 }
-                let pending = mailboxes[n]
-                    .by_class
-                    .iter()
-                    .map(VecDeque::len)
-                    .sum::<usize>();
-                let before = (workers[n].counters(), net.inflight.len());
+                // What a timed run's clock needs from before the step. An untimed run skips
+                // it: reading a node's mailboxes and counters before its step was a cache
+                // miss per step on a machine of many nodes.
+                let before = clock.is_some().then(|| {
+                    let pending = mailboxes[n]
+                        .by_class
+                        .iter()
+                        .map(VecDeque::len)
+                        .sum::<usize>();
+                    (pending, workers[n].counters(), net.inflight.len())
+                });
                 let mut port = SimPort {
                     from: n as u16,
                     net: &mut net,
@@ -697,14 +702,14 @@ fn run_typed<T: Sample + Sync>(
                 };
                 let progress = workers[n].poll(&mut port);
                 let received = port.received;
-                if let Some(clock) = &mut clock {
+                if let (Some(clock), Some((pending, counters, sent))) = (&mut clock, &before) {
                     clock.step(
                         n,
                         &workers[n].counters(),
-                        &before.0,
-                        pending,
+                        counters,
+                        *pending,
                         received,
-                        &mut net.inflight[before.1..],
+                        &mut net.inflight[*sent..],
                     );
                 }
                 if let Some((from, to, kind)) = net.refused.take() {
