@@ -53,6 +53,7 @@ use crate::record::Records;
 use crate::sample::Sample;
 use crate::shade::MAX_LIGHTS;
 use crate::slab::{stored_planes, Slab};
+use crate::starts;
 use crate::stats::NodeStats;
 use crate::topology::Layout;
 use crate::view::{Mode, View};
@@ -936,20 +937,24 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
                     return true;
                 }
                 Generation::Distributed => {
-                    // Not this position's ray: pass over the pixels along the row that the
-                    // bound says are not this position's either. Position 0 sets up every
-                    // pixel, for it sends the background of those that miss.
+                    // Not this position's ray: pass over the pixels along the row that are
+                    // certainly not this position's either (and, at position 0, which sends
+                    // the background of those that miss, certainly hit).
+                    let row_end = (n / width + 1) * width;
                     let passed = match self.view.row_leaps() {
-                        Some(leaps) if !generator => leaps.not_started(
+                        Some(leaps) => starts::passable(
+                            leaps,
                             first.x,
-                            ray.lattice.t_entry,
+                            &ray.lattice,
                             self.slab.owned(),
                             self.slab.grid(),
                             spec.model,
+                            u32::try_from(row_end - n - 1).unwrap_or(u32::MAX),
+                            generator,
+                            |k| self.view.primary_ray(pixel + k).map(|far| far.lattice),
                         ),
-                        _ => 0,
+                        None => 0,
                     };
-                    let row_end = (n / width + 1) * width;
                     self.cursor = n
                         .saturating_add(1)
                         .saturating_add(u64::from(passed))
