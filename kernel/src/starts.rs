@@ -1,26 +1,30 @@
-//! Row leaps of distributed generation: a bound on how far a primary ray's first sample moves
-//! along x from pixel to pixel of an image row, so that a ring position passes over pixels it
-//! certainly does not start without setting up their rays.
+//! Row leaps of distributed generation: bounds on how a primary ray's first sample, and its
+//! miss of the dataset's box, change from pixel to pixel along an image row, so that a ring
+//! position passes over pixels without setting up their rays.
 //!
 //! Under distributed generation every ring position walks every pixel of its cluster and
 //! starts the rays whose first sample it owns; setting up a ray to learn that costs as much
 //! as the ray's start, so without a bound a ring of `n` set up every ray `n` times.
 //!
-//! The bound, for a parallel projection (perspective views get none, and every pixel is set
+//! The bounds, for a parallel projection (perspective views get none, and every pixel is set
 //! up as before). Along a row the ray origin moves by a constant `U` per pixel and the
 //! direction `D` is fixed (both in index units). A ray's first sample is its entry into the
 //! dataset's box, at `t_near = max(0, t_x, t_y, t_z)` with `t_a` linear in the pixel, so the
 //! entry's x is continuous and piecewise linear along the part of the row that hits the box
 //! (one interval: the box is convex). Its slope on the piece where axis `a` sets `t_near` is
 //! `U.x − U.a·D.x/D.a` (zero for `a = x`), and `U.x` where the eye is inside the box.
-//! [`RowLeaps::slope`] is the largest of them, widened by 1%.
+//! [`RowLeaps::slope`] is the largest of them, widened by 1%. A ray that misses does so by a
+//! distance off a slab of faces it runs parallel to, or by a gap between leaving one slab
+//! and entering another; [`RowLeaps::misses_after`] bounds how fast either closes.
 //!
-//! Invariant: [`RowLeaps::not_started`] never passes over a pixel whose first sample the
-//! position owns. It leaves a margin of [`MARGIN_PLANES`] planes beyond the x range the
-//! owned planes can claim, plus 2⁻¹² of the coordinates' magnitude for rounding (f32
-//! arithmetic of a few operations errs by about 2⁻²²). A pixel close to the position's planes
-//! is always set up and judged by the exact rule, so the bound changes which rays are set up,
-//! never which node starts them.
+//! Invariants: [`passable`] never passes over a pixel whose first sample the position owns,
+//! nor, at the position that sends the background of misses, over a pixel that misses; and
+//! [`RowLeaps::misses_after`] never counts a pixel that hits. They leave a margin of
+//! [`MARGIN_PLANES`] planes beyond the x range the owned planes can claim, and 2⁻¹² of the
+//! coordinates' magnitude for rounding (f32 arithmetic of a few operations errs by about
+//! 2⁻²²). A pixel close to an edge of a bound is always set up and judged by the exact rule,
+//! so the bounds change which rays are set up, never which node starts them or what any
+//! pixel shows.
 
 use crate::camera::Projection;
 use crate::grid::{Grid, Model};
@@ -38,18 +42,30 @@ pub struct RowLeaps {
     slope: f32,
     /// `|D.x|`: index units along x per world unit of `t`.
     dir_x: f32,
+    /// `U`: how far the ray origin moves per pixel of a row (index units).
+    step: Vec3,
+    /// `D`: the rays' direction (index units per world unit of `t`).
+    dir: Vec3,
+    /// How fast a missing ray's gap between leaving one pair of faces and entering another
+    /// can close, per pixel: twice the largest `|U.a / D.a|`, widened by 1%.
+    gap_slope: f32,
+    /// The dataset's box (index space).
+    lo: Vec3,
+    hi: Vec3,
 }
 
 impl RowLeaps {
     /// The bound for `projection` with image axes `right`, view direction `forward` (world,
-    /// unit), `width` pixels across and `inv_spacing` index units per world unit; `None` for
-    /// a perspective projection or a bound that is not finite.
+    /// unit), `width` pixels across, `inv_spacing` index units per world unit and the
+    /// dataset's box `[lo, hi]` (index space); `None` for a perspective projection or a bound
+    /// that is not finite.
     pub fn new(
         projection: Projection,
         right: Vec3,
         forward: Vec3,
         width: u32,
         inv_spacing: Vec3,
+        (lo, hi): (Vec3, Vec3),
     ) -> Option<RowLeaps> {
         let Projection::Orthographic { width: world_width } = projection else {
             return None;
@@ -68,10 +84,27 @@ impl RowLeaps {
             }
         }
         let slope = (slope * 1.01) as f32;
-        (slope.is_finite() && d[0].is_finite()).then_some(RowLeaps {
+        let gap = (0..3)
+            .filter(|&a| d[a] != 0.0)
+            .map(|a| (u[a] / d[a]).abs())
+            .fold(0.0, f64::max);
+        let gap_slope = (2.0 * gap * 1.01) as f32;
+        let to_f32 = |v: [f64; 3]| Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32);
+        let leaps = RowLeaps {
             slope,
             dir_x: d[0].abs() as f32,
-        })
+            step: to_f32(u),
+            dir: to_f32(d),
+            gap_slope,
+            lo,
+            hi,
+        };
+        let finite = [slope, gap_slope, leaps.dir_x]
+            .iter()
+            .all(|v| v.is_finite())
+            && leaps.step.is_finite()
+            && leaps.dir.is_finite();
+        finite.then_some(leaps)
     }
 
     /// Index units along x that a row's first samples move at most per pixel.
@@ -95,6 +128,51 @@ impl RowLeaps {
         }
         // Saturating: a distance of more pixels than u32 holds passes over the whole row.
         libm::floorf(distance / self.slope) as u32
+    }
+}
+
+impl RowLeaps {
+    /// How many pixels after one whose primary ray (from index-space `origin`) misses the
+    /// box, along the same row, certainly miss it too; saturating at `u32::MAX` (the caller
+    /// stops at the row's end).
+    ///
+    /// Either certificate of a miss will do. Along an axis the rays run parallel to, the
+    /// origin lies outside the box's slab by some distance, which the origin closes by at
+    /// most `|U.a|` a pixel. Otherwise the ray leaves one pair of faces before it enters
+    /// another (or before `t = 0`): the gap `t_near − t_far` closes by at most
+    /// [`RowLeaps::gap_slope`]'s worth a pixel, as each end moves by at most `|U.a / D.a|`.
+    /// Each leaves a margin of 2⁻¹² of the magnitudes involved for rounding.
+    pub fn misses_after(&self, origin: Vec3) -> u32 {
+        let pixels = |excess: f32, margin: f32, per_pixel: f32| -> u32 {
+            let excess = excess - margin;
+            if !(excess > 0.0) {
+                0
+            } else if per_pixel == 0.0 {
+                u32::MAX
+            } else {
+                libm::floorf(excess / per_pixel) as u32
+            }
+        };
+        let (mut t_near, mut t_far, mut size) = (0.0f32, f32::INFINITY, 0.0f32);
+        let mut best = 0;
+        for a in 0..3 {
+            let (o, d, lo, hi) = (origin[a], self.dir[a], self.lo[a], self.hi[a]);
+            let scale = o.abs() + lo.abs() + hi.abs() + 1.0;
+            if d == 0.0 {
+                let outside = (lo - o).max(o - hi);
+                best = best.max(pixels(outside, scale / 4096.0, self.step[a].abs()));
+            } else {
+                let (t0, t1) = ((lo - o) / d, (hi - o) / d);
+                t_near = t_near.max(t0.min(t1));
+                t_far = t_far.min(t0.max(t1));
+                size = size.max(scale / d.abs());
+            }
+        }
+        if t_far.is_finite() {
+            let margin = (t_near.abs() + t_far.abs() + size) / 4096.0;
+            best = best.max(pixels(t_near - t_far, margin, self.gap_slope));
+        }
+        best
     }
 }
 
@@ -231,18 +309,18 @@ mod tests {
     /// Every ring position's row leaps over every row of `view`, as a worker takes them (ring
     /// position 0 sends the background of pixels that miss, unless `zero_sends_misses` is
     /// off). Returns the pixels passed over that the position starts after all, the pixels
-    /// position 0 passed over that miss (no one would send their background), and the
-    /// pixels passed over.
+    /// position 0 passed over that miss (no one would send their background), the pixels
+    /// passed over after a miss as certain misses that hit, and the pixels passed over.
     fn check(
         view: &View,
         grid: &Grid,
         partition: &Partition,
         leaps: RowLeaps,
         zero_sends_misses: bool,
-    ) -> (u32, u32, u64) {
+    ) -> (u32, u32, u32, u64) {
         let (w, h) = (view.spec().width, view.spec().height);
         let model = view.spec().model;
-        let (mut started, mut missed, mut passed) = (0, 0, 0);
+        let (mut started, mut missed, mut hit, mut passed) = (0, 0, 0, 0);
         for row in 0..h {
             let rays: heapless::Vec<Option<RayState>, 128> =
                 (0..w).map(|px| view.primary_ray(row * w + px)).collect();
@@ -250,7 +328,13 @@ mod tests {
             let owner =
                 |q: usize| rays[q].map(|r| partition.owner(grid.owner_plane(first(&r), model)));
             for (p, ray) in rays.iter().enumerate() {
-                let Some(ray) = ray else { continue };
+                let Some(ray) = ray else {
+                    let line = view.primary_line(row * w + p as u32);
+                    let n = leaps.misses_after(line.origin).min(w - 1 - p as u32) as usize;
+                    passed += n as u64;
+                    hit += rays[p + 1..=p + n].iter().filter(|q| q.is_some()).count() as u32;
+                    continue;
+                };
                 for j in 0..partition.slabs() {
                     let n = passable(
                         leaps,
@@ -272,7 +356,7 @@ mod tests {
                 }
             }
         }
-        (started, missed, passed)
+        (started, missed, hit, passed)
     }
 
     /// Random grids (anisotropic spacing, both models), directions (some along axes or
@@ -308,7 +392,7 @@ mod tests {
             } else {
                 0.6 + 3.0 * unit()
             };
-            let size = [8 + (unit() * 120.0) as u32, 3];
+            let size = [8 + (unit() * 120.0) as u32, 1 + (unit() * 6.0) as u32];
             let view = view(&grid, model, from, distance, 0.5 + unit() * 1.5, size);
             let slabs = [2, 3, 4, 8][(unit() * 4.0) as usize % 4];
             let partition = Partition::uniform(dims[0], slabs.min(dims[0] as usize - 1)).unwrap();
@@ -321,10 +405,10 @@ mod tests {
         let (mut total, mut parallel) = (0, 0);
         cases(|view, grid, partition| {
             let leaps = view.row_leaps().expect("a parallel view has a bound");
-            let (started, missed, passed) = check(view, grid, partition, leaps, true);
+            let (started, missed, hit, passed) = check(view, grid, partition, leaps, true);
             assert_eq!(
-                (started, missed),
-                (0, 0),
+                (started, missed, hit),
+                (0, 0, 0),
                 "{:?} {:?}",
                 view.spec().camera,
                 grid.dims()
@@ -357,12 +441,30 @@ mod tests {
     }
 
     #[test]
+    fn a_miss_bound_a_quarter_too_tight_is_caught() {
+        let mut caught = 0;
+        cases(|view, grid, partition| {
+            let leaps = view.row_leaps().expect("parallel");
+            let tight = RowLeaps {
+                gap_slope: leaps.gap_slope * 0.25,
+                step: leaps.step * 0.25,
+                ..leaps
+            };
+            caught += u32::from(check(view, grid, partition, tight, true).2 > 0);
+        });
+        assert!(
+            caught > 10,
+            "only {caught} cases caught a miss bound four times too tight"
+        );
+    }
+
+    #[test]
     fn position_zero_passing_over_without_its_far_check_skips_misses_and_is_caught() {
         let (mut caught, mut passed_with_check) = (0, 0);
         cases(|view, grid, partition| {
             let leaps = view.row_leaps().expect("parallel");
             caught += u32::from(check(view, grid, partition, leaps, false).1 > 0);
-            passed_with_check += check(view, grid, partition, leaps, true).2;
+            passed_with_check += check(view, grid, partition, leaps, true).3;
         });
         assert!(
             caught > 10,
@@ -392,8 +494,15 @@ mod tests {
             -Vec3::Z,
             10,
             Vec3::ONE,
+            grid.index_box(Model::Cell),
         )
         .unwrap();
+        // Rays along -z, one index unit apart along x. From x = -20, twenty units short of the
+        // box, the next 19 pixels (a margin of 2^-12 of the coordinates) certainly miss; from
+        // y = 20, above the box, the whole row does; from inside the box's x and y, none.
+        assert_eq!(leaps.misses_after(Vec3::new(-20.0, 4.0, 50.0)), 19);
+        assert_eq!(leaps.misses_after(Vec3::new(10.0, 20.0, 50.0)), u32::MAX);
+        assert_eq!(leaps.misses_after(Vec3::new(10.0, 4.0, 50.0)), 0);
         // One index unit per pixel along x; slab 20..30 claims [19, 31], and the margin is a
         // plane and a bit: from x = 5 about 12 pixels are surely not its own.
         assert!((leaps.slope() - 1.01).abs() < 1e-6);

@@ -236,6 +236,7 @@ impl View {
             spec.camera.forward(),
             spec.width,
             grid.inv_spacing(),
+            (box_lo, box_hi),
         );
         Ok(View {
             dt_world: spec.dt * cell_edge,
@@ -334,14 +335,20 @@ impl View {
         u64::from(self.spec.width) * u64::from(self.spec.height)
     }
 
-    /// The primary ray of pixel `pixel` (row-major), or `None` when it misses the dataset.
-    pub fn primary_ray(&self, pixel: u32) -> Option<RayState> {
+    /// The line of pixel `pixel`'s primary ray (row-major), whether or not it meets the
+    /// dataset: the origin and direction [`View::primary_ray`] clips.
+    pub fn primary_line(&self, pixel: u32) -> Ray {
         let (px, py) = (pixel % self.spec.width, pixel / self.spec.width);
         let (origin, dir) = self
             .spec
             .camera
             .primary(px, py, self.spec.width, self.spec.height);
-        let ray = Ray::from_world(origin, dir, self.inv_spacing);
+        Ray::from_world(origin, dir, self.inv_spacing)
+    }
+
+    /// The primary ray of pixel `pixel` (row-major), or `None` when it misses the dataset.
+    pub fn primary_ray(&self, pixel: u32) -> Option<RayState> {
+        let ray = self.primary_line(pixel);
         let span = clip(&ray, self.box_lo, self.box_hi, 0.0, f32::MAX)?;
         let lattice = Lattice::new(span.t_near, span.t_far, self.dt_world)?;
         Some(RayState::new(

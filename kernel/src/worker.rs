@@ -166,6 +166,9 @@ pub struct Worker<'a, T, const PENDING: usize, const RECORDS: usize, const OUTBO
     node: u16,
     generation: Generation,
     cursor: u64,
+    /// Ring position 0 only: the pixels from the cursor up to here (in its row) certainly
+    /// miss, so it sends their background without setting up their rays.
+    misses_until: u64,
     cluster_pixels: u64,
     pending_up: Deque<Travel, PENDING>,
     pending_down: Deque<Travel, PENDING>,
@@ -244,6 +247,7 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
             node,
             generation,
             cursor: 0,
+            misses_until: 0,
             cluster_pixels,
             pending_up: Deque::new(),
             pending_down: Deque::new(),
@@ -904,13 +908,32 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
                 .layout
                 .row(self.place.cluster, (n / width) as u32);
             let pixel = row * spec.width + (n % width) as u32;
-            let Some(ray) = self.view.primary_ray(pixel) else {
+            let row_end = (n / width + 1) * width;
+            if n < self.misses_until {
+                // Certainly a miss (see below): the background, without setting up the ray.
                 self.cursor += 1;
+                self.emit(pixel, rgba8(spec.background));
+                return true;
+            }
+            let Some(ray) = self.view.primary_ray(pixel) else {
+                // The pixels after a miss that certainly miss too are no position's rays.
+                let certain = match self.view.row_leaps() {
+                    Some(leaps) => leaps.misses_after(self.view.primary_line(pixel).origin),
+                    None => 0,
+                };
+                let run_end = n
+                    .saturating_add(1)
+                    .saturating_add(u64::from(certain))
+                    .min(row_end);
                 if generator {
-                    // A ray that misses the volume sees the background; ring position 0 says so.
+                    // A ray that misses the volume sees the background; ring position 0 says
+                    // so, for this pixel and the certain misses after it.
+                    self.misses_until = run_end;
+                    self.cursor += 1;
                     self.emit(pixel, rgba8(spec.background));
                     return true;
                 }
+                self.cursor = run_end;
                 continue;
             };
             let first = ray.ray.at(ray.lattice.t(0));
@@ -940,7 +963,6 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
                     // Not this position's ray: pass over the pixels along the row that are
                     // certainly not this position's either (and, at position 0, which sends
                     // the background of those that miss, certainly hit).
-                    let row_end = (n / width + 1) * width;
                     let passed = match self.view.row_leaps() {
                         Some(leaps) => starts::passable(
                             leaps,
