@@ -140,7 +140,7 @@ impl RowLeaps {
     /// origin lies outside the box's slab by some distance, which the origin closes by at
     /// most `|U.a|` a pixel. Otherwise the ray leaves one pair of faces before it enters
     /// another (or before `t = 0`): the gap `t_near − t_far` closes by at most
-    /// [`RowLeaps::gap_slope`]'s worth a pixel, as each end moves by at most `|U.a / D.a|`.
+    /// twice the largest `|U.a / D.a|` a pixel, as each end moves by at most that.
     /// Each leaves a margin of 2⁻¹² of the magnitudes involved for rounding.
     pub fn misses_after(&self, origin: Vec3) -> u32 {
         let pixels = |excess: f32, margin: f32, per_pixel: f32| -> u32 {
