@@ -80,6 +80,11 @@ pub enum Command {
         /// changes no pixel, only the time).
         #[arg(long)]
         no_cells: bool,
+        /// Set up every primary ray on every node that walks its pixel, not passing over the
+        /// pixels of a row a node certainly does not start or that certainly miss (a debug
+        /// option: it changes no pixel, only the time).
+        #[arg(long)]
+        no_row_leaps: bool,
         /// Balance every view's slabs first, as the paper does: one cluster traces a probe
         /// of about 32x32 primary rays, timed by the --machine profile, and the slab sizes
         /// follow the workers' times. The nodes start on uniform slabs and shift planes to
@@ -346,6 +351,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             no_skip,
             no_leap,
             no_cells,
+            no_row_leaps,
             balance,
         } => {
             let (scene, name) = match &scene {
@@ -367,6 +373,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                         skip: !no_skip,
                         leap: !no_leap,
                         cells: !no_cells,
+                        rows: !no_row_leaps,
                     };
                     m.profile = match profile {
                         ProfileArg::Ncube2 => Profile::ncube2(),

@@ -17,7 +17,7 @@ use voxcube_kernel::pixel::rgba8;
 use voxcube_kernel::sample::Sample;
 use voxcube_kernel::slab::{Slab, SlabError};
 use voxcube_kernel::topology::LayoutError;
-use voxcube_kernel::trace::trace_pixel;
+use voxcube_kernel::trace::Pixels;
 use voxcube_kernel::view::View;
 use voxcube_kernel::worker::Generation;
 
@@ -326,6 +326,7 @@ fn render_typed<T: Sample + Sync>(
     mode: SkipMode,
     progress: OnProgress<'_>,
 ) -> Result<Rendered, SlabError> {
+    let view = &*mode.view(view);
     let slab = Slab::whole(volume.grid, data)?;
     // The clock covers the blocks, leap map and cell masks too: the leap map and the masks
     // belong to the view, so they are part of its frame, as on every other fabric.
@@ -335,14 +336,15 @@ fn render_typed<T: Sample + Sync>(
     let mut counters = Counters::default();
     let n = view.pixel_count();
     let mut pixels = Vec::with_capacity(n as usize);
-    for pixel in 0..n {
-        let c = trace_pixel(view, &slab, pixel as u32, &mut counters);
-        counters.non_finite_pixels += u64::from(!c.is_finite());
+    let mut non_finite = 0;
+    for (pixel, c) in (1..).zip(Pixels::new(view, &slab, &mut counters)) {
+        non_finite += u64::from(!c.is_finite());
         pixels.push(rgba8(c));
-        if (pixel + 1) % u64::from(view.spec().width) == 0 {
-            progress(pixel + 1);
+        if pixel % u64::from(view.spec().width) == 0 {
+            progress(pixel);
         }
     }
+    counters.non_finite_pixels += non_finite;
     let spec = view.spec();
     Ok(Rendered {
         width: spec.width,

@@ -9,7 +9,7 @@
 
 use crate::counters::Counters;
 use crate::lighting::lighting;
-use crate::march::{march, RayKind, Stop};
+use crate::march::{march, RayKind, RayState, Stop};
 use crate::sample::Sample;
 use crate::shade::MAX_LIGHTS;
 use crate::slab::Slab;
@@ -25,10 +25,20 @@ pub fn trace_pixel<T: Sample>(
     pixel: u32,
     counters: &mut Counters,
 ) -> Vec3 {
+    match view.primary_ray(pixel) {
+        Some(ray) => trace_primary(view, slab, ray, counters),
+        None => view.spec().background,
+    }
+}
+
+/// The colour a primary ray of `view` sees.
+pub fn trace_primary<T: Sample>(
+    view: &View,
+    slab: &Slab<'_, T>,
+    mut ray: RayState,
+    counters: &mut Counters,
+) -> Vec3 {
     let background = view.spec().background;
-    let Some(mut ray) = view.primary_ray(pixel) else {
-        return background;
-    };
     counters.primary_rays += 1;
     match &view.spec().mode {
         Mode::Composite(_) => {
@@ -124,7 +134,58 @@ pub fn render_into<T: Sample>(
     out: &mut [[u8; 4]],
     counters: &mut Counters,
 ) {
-    for (pixel, slot) in out.iter_mut().enumerate().take(view.pixel_count() as usize) {
-        *slot = crate::pixel::rgba8(trace_pixel(view, slab, pixel as u32, counters));
+    for (slot, color) in out.iter_mut().zip(Pixels::new(view, slab, counters)) {
+        *slot = crate::pixel::rgba8(color);
+    }
+}
+
+/// The colours of a view's pixels in row-major order, traced one after another on one node.
+/// A pixel after a miss that certainly misses too ([`View::misses_after`]) is the
+/// background without its ray being set up; every other pixel is [`trace_pixel`]'s colour.
+#[derive(Debug)]
+pub struct Pixels<'a, 'd, T> {
+    view: &'a View,
+    slab: &'a Slab<'d, T>,
+    counters: &'a mut Counters,
+    /// The next pixel.
+    next: u32,
+    /// Pixels before this one certainly miss.
+    misses_until: u32,
+}
+
+impl<'a, 'd, T: Sample> Pixels<'a, 'd, T> {
+    /// The pixels of `view` of `slab`, counting the work in `counters`.
+    pub fn new(view: &'a View, slab: &'a Slab<'d, T>, counters: &'a mut Counters) -> Self {
+        Pixels {
+            view,
+            slab,
+            counters,
+            next: 0,
+            misses_until: 0,
+        }
+    }
+}
+
+impl<T: Sample> Iterator for Pixels<'_, '_, T> {
+    type Item = Vec3;
+
+    fn next(&mut self) -> Option<Vec3> {
+        let pixel = self.next;
+        if u64::from(pixel) >= self.view.pixel_count() {
+            return None;
+        }
+        self.next += 1;
+        let ray = (pixel >= self.misses_until)
+            .then(|| self.view.primary_ray(pixel))
+            .flatten();
+        Some(match ray {
+            Some(ray) => trace_primary(self.view, self.slab, ray, self.counters),
+            None => {
+                if pixel >= self.misses_until {
+                    self.misses_until = pixel + 1 + self.view.misses_after(pixel);
+                }
+                self.view.spec().background
+            }
+        })
     }
 }

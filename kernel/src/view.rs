@@ -296,6 +296,13 @@ impl View {
         self.effects
     }
 
+    /// This view with every primary ray set up wherever it is asked for: no row leaps (a
+    /// debug switch, to compare; it changes no pixel, only the time).
+    pub fn without_row_leaps(mut self) -> View {
+        self.row_leaps = None;
+        self
+    }
+
     /// The bound on how far first samples move along an image row, for ring positions to
     /// pass over pixels they do not start; `None` for a perspective projection.
     pub fn row_leaps(&self) -> Option<RowLeaps> {
@@ -344,6 +351,18 @@ impl View {
             .camera
             .primary(px, py, self.spec.width, self.spec.height);
         Ray::from_world(origin, dir, self.inv_spacing)
+    }
+
+    /// Given that pixel `pixel`'s primary ray misses the dataset, how many of the pixels
+    /// after it in its row certainly miss too ([`RowLeaps::misses_after`]; none without a
+    /// bound, for a perspective projection).
+    pub fn misses_after(&self, pixel: u32) -> u32 {
+        let left = self.spec.width - 1 - pixel % self.spec.width;
+        self.row_leaps.map_or(0, |leaps| {
+            leaps
+                .misses_after(self.primary_line(pixel).origin)
+                .min(left)
+        })
     }
 
     /// The primary ray of pixel `pixel` (row-major), or `None` when it misses the dataset.

@@ -917,14 +917,7 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
             }
             let Some(ray) = self.view.primary_ray(pixel) else {
                 // The pixels after a miss that certainly miss too are no position's rays.
-                let certain = match self.view.row_leaps() {
-                    Some(leaps) => leaps.misses_after(self.view.primary_line(pixel).origin),
-                    None => 0,
-                };
-                let run_end = n
-                    .saturating_add(1)
-                    .saturating_add(u64::from(certain))
-                    .min(row_end);
+                let run_end = (n + 1 + u64::from(self.view.misses_after(pixel))).min(row_end);
                 if generator {
                     // A ray that misses the volume sees the background; ring position 0 says
                     // so, for this pixel and the certain misses after it.

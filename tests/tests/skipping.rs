@@ -1,7 +1,8 @@
 //! Empty-space skipping changes no pixel: every test scene, directly and on clusters, and SOD,
 //! render the same bits with skipping off, with one block per jump, with leaps over every
 //! empty block around, and with single empty cells skipped too, while skipping really skips,
-//! leaping really leaps and cell masks really mask.
+//! leaping really leaps and cell masks really mask; and passing over the pixels of a row that
+//! a node certainly does not start, or that certainly miss, changes no pixel or count either.
 
 use proptest::prelude::*;
 use voxcube::dataset::{Volume, VolumeData};
@@ -71,6 +72,41 @@ fn check(text: &str, file: &str) {
                 assert!(
                     run.pixels == off.pixels,
                     "{}/{} on {size} nodes ({mode:?}): skipping changed the image",
+                    job.name,
+                    v.name
+                );
+            }
+            // Row leaps change which primary rays are set up, never a pixel or a count.
+            let no_rows = SkipMode {
+                rows: false,
+                ..SkipMode::ALL
+            };
+            let direct = render_skipping(&job.volume, &v.view, no_rows).expect("renders");
+            assert!(
+                direct.pixels == all.pixels,
+                "{}/{}: row leaps",
+                job.name,
+                v.name
+            );
+            assert_eq!(direct.counters, all.counters, "{}/{}", job.name, v.name);
+            for size in [2u32, 8] {
+                let runs = [SkipMode::ALL, no_rows].map(|mode| {
+                    let cfg = SimConfig {
+                        skipping: mode,
+                        ..SimConfig::cluster(size, 5).expect("layout")
+                    };
+                    sim::run(&job.volume, &v.view, &cfg).expect("runs")
+                });
+                assert!(
+                    runs[0].pixels == runs[1].pixels && runs[0].pixels == off.pixels,
+                    "{}/{} on {size} nodes: row leaps changed the image",
+                    job.name,
+                    v.name
+                );
+                assert_eq!(
+                    runs[0].counters(),
+                    runs[1].counters(),
+                    "{}/{}",
                     job.name,
                     v.name
                 );

@@ -9,6 +9,7 @@ pub mod sim;
 pub mod threads;
 
 use crate::budget::{block_bytes, worker_bytes, NodeMemory, ViewNeeds, CODE_AND_STACK};
+use std::borrow::Cow;
 use std::ops::Range;
 use std::time::Duration;
 use voxcube_kernel::counters::Counters;
@@ -17,6 +18,7 @@ use voxcube_kernel::partition::Partition;
 use voxcube_kernel::slab::stored_planes;
 use voxcube_kernel::stats::NodeStats;
 use voxcube_kernel::topology::Layout;
+use voxcube_kernel::view::View;
 
 /// One node of a distributed run.
 #[derive(Clone, Debug, PartialEq)]
@@ -230,7 +232,7 @@ impl Distributed {
 /// leaves no ray room to start, naming the smallest that works.
 pub fn flow_for(
     cfg: &sim::SimConfig,
-    view: &voxcube_kernel::view::View,
+    view: &View,
 ) -> Result<(voxcube_kernel::flow::FlowControl, usize), sim::SimError> {
     use voxcube_kernel::flow;
     let size = usize::from(cfg.layout.size());
@@ -262,33 +264,50 @@ pub struct SkipMode {
     /// Skip samples in empty cells of blocks that are not empty, by one view's cell masks
     /// (only when skipping, and in the cell model).
     pub cells: bool,
+    /// Pass over the pixels of a row that a node certainly does not start, or that
+    /// certainly miss, without setting up their rays (parallel projections only;
+    /// `voxcube_kernel::starts`).
+    pub rows: bool,
 }
 
 impl SkipMode {
-    /// Every sample evaluated.
+    /// Every sample evaluated, every primary ray set up.
     pub const OFF: SkipMode = SkipMode {
         skip: false,
         leap: false,
         cells: false,
+        rows: false,
     };
     /// Empty samples skipped by whole blocks, each jump ending at its block's faces.
     pub const BLOCKS: SkipMode = SkipMode {
         skip: true,
         leap: false,
         cells: false,
+        rows: true,
     };
     /// Empty samples skipped by whole blocks, each jump leaping over every empty block around.
     pub const LEAPS: SkipMode = SkipMode {
         skip: true,
         leap: true,
         cells: false,
+        rows: true,
     };
     /// Leaps, and single empty cells skipped too (the default).
     pub const ALL: SkipMode = SkipMode {
         skip: true,
         leap: true,
         cells: true,
+        rows: true,
     };
+
+    /// `view` as this mode renders it: without its row leaps when `rows` is off.
+    pub fn view<'v>(&self, view: &'v View) -> Cow<'v, View> {
+        if self.rows {
+            Cow::Borrowed(view)
+        } else {
+            Cow::Owned(view.clone().without_row_leaps())
+        }
+    }
 }
 
 /// A node's storage for skipping empty space in one view: its min/max blocks, their
@@ -338,7 +357,7 @@ impl Skipping {
     /// the view takes (`mode.leap`) and cell masks (`mode.cells`, cell model only) for `view`.
     pub fn build<T: voxcube_kernel::sample::Sample + Sync>(
         slab: &voxcube_kernel::slab::Slab<'_, T>,
-        view: &voxcube_kernel::view::View,
+        view: &View,
         mode: SkipMode,
     ) -> Skipping {
         Skipping::build_on(slab, view, mode, 1)
@@ -351,7 +370,7 @@ impl Skipping {
     /// tenth of a one-node frame.
     pub fn build_on<T: voxcube_kernel::sample::Sample + Sync>(
         slab: &voxcube_kernel::slab::Slab<'_, T>,
-        view: &voxcube_kernel::view::View,
+        view: &View,
         mode: SkipMode,
         threads: usize,
     ) -> Skipping {
@@ -501,7 +520,7 @@ impl<'d, T: voxcube_kernel::sample::Sample + Sync> NodeStorage<'d, T> {
     /// built from cluster 0's node there on up to `threads` OS threads.
     pub fn with_skipping(
         mut self,
-        view: &voxcube_kernel::view::View,
+        view: &View,
         mode: SkipMode,
         threads: usize,
     ) -> NodeStorage<'d, T> {

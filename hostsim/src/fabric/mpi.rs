@@ -279,6 +279,7 @@ fn serve_typed<T: Sample + Sync>(
     view: &View,
     cfg: &SimConfig,
 ) -> Result<(), SimError> {
+    let view = &*cfg.skipping.view(view);
     let grid = volume.grid;
     let layout = cfg.layout;
     let rank = world.rank();

@@ -481,6 +481,7 @@ fn run_typed<T: Sample + Sync>(
     cfg: &SimConfig,
     progress: &dyn Fn(u64),
 ) -> Result<Distributed, SimError> {
+    let view = &*cfg.skipping.view(view);
     let start = Instant::now();
     let grid = volume.grid;
     let layout = cfg.layout;

@@ -216,6 +216,7 @@ fn run_typed<T: Sample + Send + Sync>(
     threads: usize,
     progress: &dyn Fn(u64),
 ) -> Result<Distributed, SimError> {
+    let view = &*cfg.skipping.view(view);
     let start = Instant::now();
     let grid = volume.grid;
     let layout = cfg.layout;
