@@ -58,8 +58,9 @@ struct HitPart {
     seen: u8,
 }
 
-/// One pixel's descriptor.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// One pixel's descriptor. Two records are equal when they hold the same parts of the same
+/// pixel, whatever stale hits their storage still holds.
+#[derive(Clone, Copy, Debug)]
 pub struct PixelRecord {
     pixel: u32,
     /// Hits `fresh..` hold no part of this pixel: whatever they hold is stale, and they are
@@ -232,6 +233,15 @@ impl PixelRecord {
     }
 }
 
+impl PartialEq for PixelRecord {
+    fn eq(&self, other: &PixelRecord) -> bool {
+        self.pixel == other.pixel
+            && self.chain == other.chain
+            && self.color == other.color
+            && self.parts() == other.parts()
+    }
+}
+
 /// A worker's pixel records in `N` fixed slots, each open (holding a pixel in flight) or free.
 /// Invariant: `in_use` is the number of open slots.
 #[derive(Clone, Debug)]
@@ -401,6 +411,7 @@ mod tests {
         fresh.add_hit(0, &hit(9, 0.5, 0, true)).unwrap();
         fresh.add_hit(1, &hit(9, 1.0, 0, false)).unwrap();
         assert_eq!(records.get(slot).unwrap().color(bg), fresh.color(bg));
+        assert_eq!(records.get(slot), Some(&fresh), "stale hits do not count");
     }
 
     #[test]
