@@ -194,15 +194,21 @@ impl Grid {
     /// the same arithmetic on every node, so every node agrees on it.
     #[inline]
     pub fn owner_plane(&self, x: f32, model: Model) -> u32 {
-        let last = match model {
-            Model::Cell => self.dims[0].saturating_sub(2),
-            Model::Voxel => self.dims[0] - 1,
-        };
         let x = match model {
             Model::Cell => x,
             Model::Voxel => x + 0.5,
         };
-        floor_index(x).min(last)
+        floor_index(x).min(self.last_owner_plane(model))
+    }
+
+    /// The highest plane [`Grid::owner_plane`] gives: the last cell's (cell model) or the
+    /// last node's (voxel model). Every sample beyond it belongs to it.
+    #[inline]
+    pub fn last_owner_plane(&self, model: Model) -> u32 {
+        match model {
+            Model::Cell => self.dims[0].saturating_sub(2),
+            Model::Voxel => self.dims[0] - 1,
+        }
     }
 }
 

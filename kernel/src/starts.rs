@@ -40,8 +40,6 @@ pub const MARGIN_PLANES: f32 = 1.0;
 pub struct RowLeaps {
     /// Index units along x that the first sample moves at most per pixel of a row.
     slope: f32,
-    /// `|D.x|`: index units along x per world unit of `t`.
-    dir_x: f32,
     /// `U`: how far the ray origin moves per pixel of a row (index units).
     step: Vec3,
     /// `D`: the rays' direction (index units per world unit of `t`).
@@ -92,16 +90,14 @@ impl RowLeaps {
         let to_f32 = |v: [f64; 3]| Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32);
         let leaps = RowLeaps {
             slope,
-            dir_x: d[0].abs() as f32,
             step: to_f32(u),
             dir: to_f32(d),
             gap_slope,
             lo,
             hi,
         };
-        let finite = [slope, gap_slope, leaps.dir_x]
-            .iter()
-            .all(|v| v.is_finite())
+        let finite = slope.is_finite()
+            && gap_slope.is_finite()
             && leaps.step.is_finite()
             && leaps.dir.is_finite();
         finite.then_some(leaps)
@@ -113,13 +109,12 @@ impl RowLeaps {
     }
 
     /// How many pixels after one whose primary ray's first sample lies at index-space `x`
-    /// (at world parameter `t`), along the same row, certainly do not start in the `owned`
-    /// planes of `grid` under `model`. Saturates at `u32::MAX` where the row's first samples
-    /// cannot move along x at all; the caller stops at the row's end.
-    pub fn not_started(&self, x: f32, t: f32, owned: Range<u32>, grid: &Grid, model: Model) -> u32 {
-        let (lo, hi) = claimed(owned, grid, model);
-        let margin = MARGIN_PLANES + (x.abs() + (t * self.dir_x).abs()) * (1.0 / 4096.0);
-        let distance = (lo - x).max(x - hi) - margin;
+    /// (at world parameter `t`), along the same row, certainly do not start in a slab that
+    /// claims `claim`. Saturates at `u32::MAX` where the row's first samples cannot move
+    /// along x at all; the caller stops at the row's end.
+    pub fn not_started(&self, x: f32, t: f32, claim: Claim) -> u32 {
+        let margin = MARGIN_PLANES + (x.abs() + (t * self.dir.x).abs()) * (1.0 / 4096.0);
+        let distance = (claim.lo - x).max(x - claim.hi) - margin;
         if !(distance > 0.0) {
             return 0;
         }
@@ -129,9 +124,7 @@ impl RowLeaps {
         // Saturating: a distance of more pixels than u32 holds passes over the whole row.
         libm::floorf(distance / self.slope) as u32
     }
-}
 
-impl RowLeaps {
     /// How many pixels after one whose primary ray (from index-space `origin`) misses the
     /// box, along the same row, certainly miss it too; saturating at `u32::MAX` (the caller
     /// stops at the row's end).
@@ -187,24 +180,16 @@ impl RowLeaps {
 /// length of a convex box's chord is a concave function of the pixel, so every pixel between
 /// crosses at least as far, and hits. The position then lands on pixel `n` itself, which it
 /// sets up again and judges by the exact rule.
-#[allow(
-    clippy::too_many_arguments,
-    reason = "one decision over one ray and its position"
-)]
 pub fn passable(
     leaps: RowLeaps,
     x: f32,
     lattice: &Lattice,
-    owned: Range<u32>,
-    grid: &Grid,
-    model: Model,
+    claim: Claim,
     left: u32,
     sends_misses: bool,
     ahead: impl FnOnce(u32) -> Option<Lattice>,
 ) -> u32 {
-    let n = leaps
-        .not_started(x, lattice.t_entry, owned, grid, model)
-        .min(left);
+    let n = leaps.not_started(x, lattice.t_entry, claim).min(left);
     if !sends_misses {
         return n;
     }
@@ -225,25 +210,31 @@ pub fn crosses_robustly(lattice: &Lattice) -> bool {
     b - a > (a.abs() + b.abs()) * (1.0 / 4096.0) + f32::MIN_POSITIVE
 }
 
-/// The x range the `owned` planes can claim a first sample in, widened by one plane each
-/// way: [`Grid::owner_plane`] takes `⌊x⌋` (cell model) or `⌊x + ½⌋` (voxel model) clamped
-/// into the grid, so the first and last slabs also own everything beyond the grid's ends.
-fn claimed(owned: Range<u32>, grid: &Grid, model: Model) -> (f32, f32) {
-    let last = match model {
-        Model::Cell => grid.dims()[0].saturating_sub(2),
-        Model::Voxel => grid.dims()[0] - 1,
-    };
-    let lo = if owned.start == 0 {
-        f32::NEG_INFINITY
-    } else {
-        owned.start as f32 - 1.0
-    };
-    let hi = if owned.end > last {
-        f32::INFINITY
-    } else {
-        owned.end as f32 + 1.0
-    };
-    (lo, hi)
+/// The x range in which a slab's owned planes can claim a first sample, widened by one plane
+/// each way: [`Grid::owner_plane`] takes `⌊x⌋` (cell model) or `⌊x + ½⌋` (voxel model)
+/// clamped into the grid, so the first and last slabs also own everything beyond the grid's
+/// ends.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Claim {
+    lo: f32,
+    hi: f32,
+}
+
+impl Claim {
+    /// The range the `owned` planes of `grid` claim under `model`.
+    pub fn of(owned: Range<u32>, grid: &Grid, model: Model) -> Claim {
+        let lo = if owned.start == 0 {
+            f32::NEG_INFINITY
+        } else {
+            owned.start as f32 - 1.0
+        };
+        let hi = if owned.end > grid.last_owner_plane(model) {
+            f32::INFINITY
+        } else {
+            owned.end as f32 + 1.0
+        };
+        Claim { lo, hi }
+    }
 }
 
 #[cfg(test)]
@@ -340,9 +331,7 @@ mod tests {
                         leaps,
                         first(ray),
                         &ray.lattice,
-                        partition.planes(j),
-                        grid,
-                        model,
+                        Claim::of(partition.planes(j), grid, model),
                         w - 1 - p as u32,
                         j == 0 && zero_sends_misses,
                         |k| rays[p + k as usize].map(|far| far.lattice),
@@ -505,16 +494,19 @@ mod tests {
         // One index unit per pixel along x; slab 20..30 claims [19, 31], and the margin is a
         // plane and a bit: from x = 5 about 12 pixels are surely not its own.
         assert!((leaps.slope() - 1.01).abs() < 1e-6);
-        let n = leaps.not_started(5.0, 50.0, 20..30, &grid, Model::Cell);
+        let n = leaps.not_started(5.0, 50.0, Claim::of(20..30, &grid, Model::Cell));
         assert!((11..=13).contains(&n), "{n}");
-        assert_eq!(leaps.not_started(25.0, 50.0, 20..30, &grid, Model::Cell), 0);
         assert_eq!(
-            leaps.not_started(f32::NAN, 50.0, 20..30, &grid, Model::Cell),
+            leaps.not_started(25.0, 50.0, Claim::of(20..30, &grid, Model::Cell)),
+            0
+        );
+        assert_eq!(
+            leaps.not_started(f32::NAN, 50.0, Claim::of(20..30, &grid, Model::Cell)),
             0
         );
         // The last slab also owns everything past the grid's end.
         assert_eq!(
-            leaps.not_started(500.0, 50.0, 30..39, &grid, Model::Cell),
+            leaps.not_started(500.0, 50.0, Claim::of(30..39, &grid, Model::Cell)),
             0
         );
     }
