@@ -43,30 +43,46 @@ pub struct NodeReport {
     pub busy: Duration,
 }
 
-impl NodeReport {
-    /// The report of `node` of `layout`, whose slabs are `partition`'s planes of `grid` with
-    /// the ghost planes and leap maps of `needs`: its place, planes, memory (samples of
-    /// `sample_bytes`, the receive buffer at its `peak`), statistics and busy time.
-    #[allow(
-        clippy::too_many_arguments,
-        reason = "the facts of one node, from the fabric that ran it"
-    )]
+/// What every node report of one run shares: the machine's layout, the slabs of
+/// `partition` over `grid` with the ghost planes and leap maps the view needs, and the
+/// sample size.
+#[derive(Clone, Copy, Debug)]
+pub struct RunShape<'a> {
+    layout: Layout,
+    partition: &'a Partition,
+    grid: &'a Grid,
+    needs: ViewNeeds,
+    sample_bytes: usize,
+}
+
+impl<'a> RunShape<'a> {
+    /// The shape of a run of `view` on `layout`, slabs `partition` of `grid`, samples of
+    /// `sample_bytes`.
     pub fn new(
         layout: Layout,
-        partition: &Partition,
-        grid: &Grid,
-        needs: ViewNeeds,
+        partition: &'a Partition,
+        grid: &'a Grid,
+        view: &View,
         sample_bytes: usize,
-        node: u16,
-        stats: NodeStats,
-        peak: usize,
-        busy: Duration,
-    ) -> NodeReport {
-        let (cluster, position) = layout.place(node);
-        let planes = partition.planes(usize::from(position));
+    ) -> RunShape<'a> {
+        RunShape {
+            layout,
+            partition,
+            grid,
+            needs: ViewNeeds::of(view),
+            sample_bytes,
+        }
+    }
+
+    /// The report of `node`: its place, planes, memory (the receive buffer at its `peak`),
+    /// statistics and busy time.
+    pub fn report(&self, node: u16, stats: NodeStats, peak: usize, busy: Duration) -> NodeReport {
+        let (grid, needs) = (self.grid, self.needs);
+        let (cluster, position) = self.layout.place(node);
+        let planes = self.partition.planes(usize::from(position));
         let stored = stored_planes(grid, planes.clone(), needs.ghost);
         let memory = NodeMemory {
-            slab: (stored.end - stored.start) as usize * grid.plane_len() * sample_bytes
+            slab: (stored.end - stored.start) as usize * grid.plane_len() * self.sample_bytes
                 + block_bytes(grid, stored.clone(), needs.maps),
             buffer: peak,
             worker: worker_bytes(),

@@ -511,23 +511,11 @@ pub fn host(
     world.barrier();
     let grid = volume.grid;
     let sample_bytes = volume.data.kind().bytes();
-    let needs = crate::budget::ViewNeeds::of(view);
+    let shape = super::RunShape::new(layout, &partition, &grid, view, sample_bytes);
     let nodes: Vec<NodeReport> = reports
         .into_iter()
         .enumerate()
-        .map(|(n, stats)| {
-            NodeReport::new(
-                layout,
-                &partition,
-                &grid,
-                needs,
-                sample_bytes,
-                n as u16,
-                stats,
-                capacity,
-                Duration::ZERO,
-            )
-        })
+        .map(|(n, stats)| shape.report(n as u16, stats, capacity, Duration::ZERO))
         .collect();
     let messages = super::sent_by_kind(&nodes);
     Ok(Distributed {

@@ -21,8 +21,8 @@
 //! Either way the error carries the seed and the last events.
 
 use super::host::Host;
+use super::Distributed;
 use super::{Category, VirtualTime};
-use super::{Distributed, NodeReport};
 use crate::dataset::{Volume, VolumeData};
 use crate::profile::MachineProfile;
 use crate::rng::SplitMix;
@@ -780,25 +780,13 @@ fn run_typed<T: Sample + Sync>(
         }
     }
     let (image, stats) = host.finish().map_err(end_fail)?;
-    let needs = crate::budget::ViewNeeds::of(view);
+    let shape = super::RunShape::new(layout, &partition, &grid, view, size_of::<T>());
     // The host keeps the nodes' statistics by node id.
     let nodes = stats
         .into_iter()
         .zip(&net.peak)
         .enumerate()
-        .map(|(node, (stats, &peak))| {
-            NodeReport::new(
-                layout,
-                &partition,
-                &grid,
-                needs,
-                size_of::<T>(),
-                node as u16,
-                stats,
-                peak,
-                Duration::ZERO,
-            )
-        })
+        .map(|(node, (stats, &peak))| shape.report(node as u16, stats, peak, Duration::ZERO))
         .collect();
     let mut time = clock.map(Clock::finish);
     let shift = shifted.map(|(_, report)| report);

@@ -341,23 +341,13 @@ fn run_typed<T: Sample + Send + Sync>(
         result
     });
     let (image, reports) = outcome?;
-    let needs = crate::budget::ViewNeeds::of(view);
+    let shape = super::RunShape::new(layout, &partition, &grid, view, size_of::<T>());
     let nodes: Vec<NodeReport> = reports
         .into_iter()
         .enumerate()
         .map(|(n, stats)| {
             let peak = buffers[n].peak.load(Ordering::Relaxed);
-            NodeReport::new(
-                layout,
-                &partition,
-                &grid,
-                needs,
-                size_of::<T>(),
-                n as u16,
-                stats,
-                peak,
-                busy[n],
-            )
+            shape.report(n as u16, stats, peak, busy[n])
         })
         .collect();
     let messages = super::sent_by_kind(&nodes);
