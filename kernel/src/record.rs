@@ -12,6 +12,8 @@
 //! without rewriting the hits the last one used: a record clears a hit's storage when the
 //! first part for it arrives, so opening one costs the same for a view of one hit as for
 //! the deepest chain a view may ask for, and a worker touches only the hits its view calls for.
+//! Slots are written when first needed, not when the worker is built: building a worker then
+//! writes none of its 64 records of 1,368 bytes, only ever as many as were open at once.
 
 use crate::msg::{HitRecord, Outcome};
 use crate::shade::MAX_LIGHTS;
@@ -19,6 +21,7 @@ use crate::tree;
 use crate::view::MAX_DEPTH;
 use core::fmt;
 use glam::Vec3;
+use heapless::Vec;
 
 /// Most hits in one pixel's chain.
 pub const MAX_HITS: usize = MAX_DEPTH as usize + 1;
@@ -243,10 +246,11 @@ impl PartialEq for PixelRecord {
 }
 
 /// A worker's pixel records in `N` fixed slots, each open (holding a pixel in flight) or free.
-/// Invariant: `in_use` is the number of open slots.
+/// Invariants: `in_use` is the number of open slots; only the first `slots.len()` can be open
+/// (the rest have never been written).
 #[derive(Clone, Debug)]
 pub struct Records<const N: usize> {
-    slots: [PixelRecord; N],
+    slots: Vec<PixelRecord, N>,
     open: [bool; N],
     in_use: usize,
 }
@@ -254,7 +258,7 @@ pub struct Records<const N: usize> {
 impl<const N: usize> Default for Records<N> {
     fn default() -> Self {
         Records {
-            slots: [PixelRecord::new(0); N],
+            slots: Vec::new(),
             open: [false; N],
             in_use: 0,
         }
@@ -264,10 +268,19 @@ impl<const N: usize> Default for Records<N> {
 impl<const N: usize> Records<N> {
     /// Open a free slot for `pixel`: its index, or `None` when every slot is open.
     pub fn open(&mut self, pixel: u32) -> Option<u16> {
-        let slot = self.open.iter().position(|&open| !open)?;
+        let written = self.slots.len();
+        let slot = match self.open.get(..written)?.iter().position(|&open| !open) {
+            Some(slot) => {
+                self.slots.get_mut(slot)?.reopen(pixel);
+                slot
+            }
+            None => {
+                self.slots.push(PixelRecord::new(pixel)).ok()?;
+                written
+            }
+        };
         let index = u16::try_from(slot).ok()?;
-        self.slots.get_mut(slot)?.reopen(pixel);
-        self.open[slot] = true;
+        *self.open.get_mut(slot)? = true;
         self.in_use += 1;
         Some(index)
     }
@@ -427,5 +440,25 @@ mod tests {
         assert!(records.get(a).is_none() && records.get(b).is_some());
         assert!(records.get(5).is_none());
         assert_eq!(records.open(3).map(usize::from), Some(a));
+    }
+
+    #[test]
+    fn a_slot_is_written_first_when_every_written_one_is_open() {
+        let mut records = Records::<4>::default();
+        assert_eq!(records.slots.len(), 0, "building writes no record");
+        let slots: [usize; 3] =
+            core::array::from_fn(|p| usize::from(records.open(p as u32).unwrap()));
+        assert_eq!(slots, [0, 1, 2]);
+        records.close(1);
+        assert_eq!(
+            records.open(10).map(usize::from),
+            Some(1),
+            "a free written slot first"
+        );
+        assert_eq!(records.slots.len(), 3);
+        assert_eq!(records.open(11).map(usize::from), Some(3));
+        assert_eq!(records.open(12), None, "every slot is open");
+        assert_eq!((records.in_use(), records.slots.len()), (4, 4));
+        assert_eq!(records.get(1).map(|r| r.pixel), Some(10));
     }
 }
