@@ -219,7 +219,10 @@ pub fn preflight(volume: &Volume, view: &View, machine: &Machine) -> Result<(), 
         }
         return Ok(());
     }
-    if machine.clusters == 0 || machine.nodes == 0 || machine.nodes % machine.clusters != 0 {
+    if machine.clusters == 0
+        || machine.nodes == 0
+        || !machine.nodes.is_multiple_of(machine.clusters)
+    {
         return Err(RenderError::Machine(format!(
             "{} nodes do not split into {} clusters",
             machine.nodes, machine.clusters

@@ -155,6 +155,18 @@ enum Token {
     Passed,
 }
 
+/// The arguments of a worker that [`Worker::check`] found fit: the only way to
+/// [`Worker::from_checked`].
+#[derive(Debug)]
+pub struct Checked<'a, T> {
+    view: &'a View,
+    slab: Slab<'a, T>,
+    partition: &'a Partition,
+    place: Place,
+    generation: Generation,
+    flow: FlowControl,
+}
+
 /// One node. `PENDING` bounds each direction's continuation queue, `RECORDS` the pixel
 /// records, `OUTBOX` the messages waiting for the port.
 #[derive(Debug)]
@@ -208,6 +220,20 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
         generation: Generation,
         flow: FlowControl,
     ) -> Result<Self, WorkerError> {
+        Self::check(view, slab, partition, place, generation, flow).map(Self::from_checked)
+    }
+
+    /// The checks of [`Worker::new`] alone. A host that places a worker in memory of its own
+    /// builds it from their result with [`Worker::from_checked`], which cannot fail: a worker
+    /// is over 100 KB, and building it in a `Result` cost two copies of it on the way.
+    pub fn check(
+        view: &'a View,
+        slab: Slab<'a, T>,
+        partition: &'a Partition,
+        place: Place,
+        generation: Generation,
+        flow: FlowControl,
+    ) -> Result<Checked<'a, T>, WorkerError> {
         let layout = place.layout;
         if place.cluster >= layout.clusters()
             || place.position >= layout.size()
@@ -232,6 +258,29 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
                 needed,
             });
         }
+        Ok(Checked {
+            view,
+            slab,
+            partition,
+            place,
+            generation,
+            flow,
+        })
+    }
+
+    /// The worker that [`Worker::check`] allowed.
+    #[inline(always)]
+    pub fn from_checked(checked: Checked<'a, T>) -> Self {
+        let Checked {
+            view,
+            slab,
+            partition,
+            place,
+            generation,
+            flow,
+        } = checked;
+        let layout = place.layout;
+        let shadow_lights = view.effects().shadow_lights;
         let spec = view.spec();
         let cluster_pixels =
             u64::from(layout.rows(place.cluster, spec.height)) * u64::from(spec.width);
@@ -239,7 +288,7 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
         // The token starts at the ring end nearest the viewpoint: rays travel from there.
         let token_upward = !(spec.camera.forward().x < 0.0);
         let starter = if token_upward { 0 } else { layout.size() - 1 };
-        Ok(Worker {
+        Worker {
             view,
             slab,
             partition,
@@ -273,7 +322,7 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
             },
             #[cfg(feature = "mutants")]
             mutants: Mutants::default(),
-        })
+        }
     }
 
     /// This node's id.

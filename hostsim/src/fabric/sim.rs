@@ -464,14 +464,12 @@ pub fn node_worker<'a, T: Sample>(
         cluster,
         position,
     };
-    Ok(Box::new(SimWorker::new(
-        view,
-        slab,
-        partition,
-        place,
-        cfg.generation,
-        flow,
-    )?))
+    let checked = SimWorker::check(view, slab, partition, place, cfg.generation, flow)?;
+    // Built where it stays: a worker built on the stack was copied into its box whole.
+    Ok(Box::write(
+        Box::new_uninit(),
+        SimWorker::from_checked(checked),
+    ))
 }
 
 fn run_typed<T: Sample + Sync>(
