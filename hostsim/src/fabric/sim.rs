@@ -320,6 +320,14 @@ struct Envelope {
     arrival: f64,
 }
 
+/// What delivering an envelope needs of it once its message is decoded.
+struct Delivered {
+    from: Option<u16>,
+    to: Dest,
+    len: usize,
+    arrival: f64,
+}
+
 #[derive(Default)]
 struct Mailbox {
     by_class: [VecDeque<(Dest, Msg)>; 7],
@@ -368,8 +376,22 @@ impl Network {
     }
 
     fn push(&mut self, from: Option<u16>, to: Dest, msg: &Msg) {
-        let mut bytes = [0u8; MAX_MSG_LEN];
-        let len = msg.encode(&mut bytes);
+        self.seq += 1;
+        self.sent += 1;
+        // Encoded where it waits: encoding on the stack cost a copy of the envelope.
+        self.inflight.push(Envelope {
+            from,
+            to,
+            len: 0,
+            bytes: [0u8; MAX_MSG_LEN],
+            seq: self.seq,
+            arrival: f64::NAN,
+        });
+        let Some(env) = self.inflight.last_mut() else {
+            return;
+        };
+        env.len = msg.encode(&mut env.bytes);
+        let len = env.len;
         if let Dest::Node(n) = to {
             if let Some(u) = self.used.get_mut(usize::from(n)) {
                 *u += len;
@@ -379,16 +401,6 @@ impl Network {
                 }
             }
         }
-        self.seq += 1;
-        self.sent += 1;
-        self.inflight.push(Envelope {
-            from,
-            to,
-            len,
-            bytes,
-            seq: self.seq,
-            arrival: f64::NAN,
-        });
     }
 }
 
@@ -615,8 +627,20 @@ fn run_typed<T: Sample + Sync>(
         };
         match choice {
             Choice::Deliver(i) => {
-                let env = net.inflight.swap_remove(i);
-                let msg = Msg::decode(&env.bytes[..env.len]).map_err(|error| SimError::Decode {
+                // Decoded where it waited, then dropped: moving the envelope out first
+                // cost a copy of it.
+                let Some(waiting) = net.inflight.get(i) else {
+                    return Err(fail(format!("no message {i} in flight"), events, &trace));
+                };
+                let decoded = Msg::decode(&waiting.bytes[..waiting.len]);
+                let env = Delivered {
+                    from: waiting.from,
+                    to: waiting.to,
+                    len: waiting.len,
+                    arrival: waiting.arrival,
+                };
+                net.inflight.swap_remove(i);
+                let msg = decoded.map_err(|error| SimError::Decode {
                     from: env.from.unwrap_or(u16::MAX),
                     error,
                 })?;
