@@ -216,8 +216,8 @@ fn main() {
         let data: &'static [u8] =
             &VOLUME[stored.start as usize * plane..stored.end as usize * plane];
         let slab = Slab::new(grid, planes, view.ghost_planes(), data).ok();
-        let worker = slab.and_then(|s| {
-            Worker::new(
+        let checked = slab.and_then(|s| {
+            BoardWorker::check(
                 view,
                 s,
                 partition,
@@ -231,8 +231,9 @@ fn main() {
             )
             .ok()
         });
-        match worker {
-            Some(w) => WORKERS[usize::from(j)].init(w),
+        // Built in its static cell, not on a stack that may be smaller than a worker.
+        match checked {
+            Some(c) => WORKERS[usize::from(j)].init_with(|| Worker::from_checked(c)),
             None => panic!("board {j}: the example's fixed configuration is valid"),
         }
     });

@@ -16,6 +16,13 @@ fn porting_md_memory_map_figures_hold() {
         text.contains(&format!("{worker} bytes")),
         "PORTING.md must quote the simulator worker's size: {worker} bytes"
     );
+    // The board example's worker: queues of 8, 16 records, an outbox of 8.
+    let board = size_of::<voxcube_kernel::worker::Worker<'static, u8, 8, 16, 8>>();
+    let board = format!("{},{:03}", board / 1000, board % 1000);
+    assert!(
+        text.contains(&format!("{board} in the board example's")),
+        "PORTING.md must quote the board example worker's size: {board}"
+    );
 }
 
 #[test]
