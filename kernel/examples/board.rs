@@ -23,7 +23,7 @@ use voxcube_kernel::surface::IsoSurface;
 use voxcube_kernel::topology::Layout;
 use voxcube_kernel::trace::trace_pixel;
 use voxcube_kernel::view::{Mode, View, ViewSpec};
-use voxcube_kernel::worker::{Generation, Place, Worker};
+use voxcube_kernel::worker::{Generation, Place, Setup, Worker};
 use voxcube_kernel::Vec3;
 
 /// The volume: `N³` samples of a ball, built at compile time, plane-major.
@@ -216,24 +216,24 @@ fn main() {
         let data: &'static [u8] =
             &VOLUME[stored.start as usize * plane..stored.end as usize * plane];
         let slab = Slab::new(grid, planes, view.ghost_planes(), data).ok();
-        let checked = slab.and_then(|s| {
-            BoardWorker::check(
+        let checked = slab.and_then(|slab| {
+            BoardWorker::check(Setup {
                 view,
-                s,
+                slab,
                 partition,
-                Place {
+                place: Place {
                     layout,
                     cluster: 0,
                     position: j,
                 },
-                Generation::Distributed,
+                generation: Generation::Distributed,
                 flow,
-            )
+            })
             .ok()
         });
         // Built in its static cell, not on a stack that may be smaller than a worker.
         match checked {
-            Some(c) => WORKERS[usize::from(j)].init_with(|| Worker::from_checked(c)),
+            Some(c) => WORKERS[usize::from(j)].init_with(|| Worker::new(c)),
             None => panic!("board {j}: the example's fixed configuration is valid"),
         }
     });

@@ -155,17 +155,27 @@ enum Token {
     Passed,
 }
 
-/// The arguments of a worker that [`Worker::check`] found fit: the only way to
-/// [`Worker::from_checked`].
+/// What a worker is built from.
 #[derive(Debug)]
-pub struct Checked<'a, T> {
-    view: &'a View,
-    slab: Slab<'a, T>,
-    partition: &'a Partition,
-    place: Place,
-    generation: Generation,
-    flow: FlowControl,
+pub struct Setup<'a, T> {
+    /// The view it renders.
+    pub view: &'a View,
+    /// Its slab, which must own `partition`'s planes for its ring position, with the view's
+    /// ghost planes.
+    pub slab: Slab<'a, T>,
+    /// The machine's partition of the volume into slabs.
+    pub partition: &'a Partition,
+    /// Its cluster and ring position.
+    pub place: Place,
+    /// How its primary rays are generated.
+    pub generation: Generation,
+    /// Its flow control.
+    pub flow: FlowControl,
 }
+
+/// A [`Setup`] that [`Worker::check`] found fit: the only way to [`Worker::new`].
+#[derive(Debug)]
+pub struct Checked<'a, T>(Setup<'a, T>);
 
 /// One node. `PENDING` bounds each direction's continuation queue, `RECORDS` the pixel
 /// records, `OUTBOX` the messages waiting for the port.
@@ -210,30 +220,19 @@ pub struct Worker<'a, T, const PENDING: usize, const RECORDS: usize, const OUTBO
 impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: usize>
     Worker<'a, T, PENDING, RECORDS, OUTBOX>
 {
-    /// A worker at `place`, tracing `slab` (which must own `partition`'s planes for its ring
-    /// position, with the view's ghost planes), under `flow` control.
-    pub fn new(
-        view: &'a View,
-        slab: Slab<'a, T>,
-        partition: &'a Partition,
-        place: Place,
-        generation: Generation,
-        flow: FlowControl,
-    ) -> Result<Self, WorkerError> {
-        Self::check(view, slab, partition, place, generation, flow).map(Self::from_checked)
-    }
-
-    /// The checks of [`Worker::new`] alone. A host that places a worker in memory of its own
-    /// builds it from their result with [`Worker::from_checked`], which cannot fail: a worker
-    /// is over 100 KB, and building it in a `Result` cost two copies of it on the way.
-    pub fn check(
-        view: &'a View,
-        slab: Slab<'a, T>,
-        partition: &'a Partition,
-        place: Place,
-        generation: Generation,
-        flow: FlowControl,
-    ) -> Result<Checked<'a, T>, WorkerError> {
+    /// Whether a worker can be built from `setup`. The checks come apart from building,
+    /// which [`Worker::new`] does and which cannot fail, so that a host can build a worker
+    /// where it stays: a worker is tens of kilobytes, and one built in a `Result` was copied
+    /// whole twice on its way into its box.
+    pub fn check(setup: Setup<'a, T>) -> Result<Checked<'a, T>, WorkerError> {
+        let Setup {
+            view,
+            slab,
+            partition,
+            place,
+            flow,
+            ..
+        } = &setup;
         let layout = place.layout;
         if place.cluster >= layout.clusters()
             || place.position >= layout.size()
@@ -258,27 +257,20 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
                 needed,
             });
         }
-        Ok(Checked {
-            view,
-            slab,
-            partition,
-            place,
-            generation,
-            flow,
-        })
+        Ok(Checked(setup))
     }
 
     /// The worker that [`Worker::check`] allowed.
     #[inline(always)]
-    pub fn from_checked(checked: Checked<'a, T>) -> Self {
-        let Checked {
+    pub fn new(checked: Checked<'a, T>) -> Self {
+        let Setup {
             view,
             slab,
             partition,
             place,
             generation,
             flow,
-        } = checked;
+        } = checked.0;
         let layout = place.layout;
         let shadow_lights = view.effects().shadow_lights;
         let spec = view.spec();

@@ -39,7 +39,7 @@ use voxcube_kernel::slab::{Slab, SlabError};
 use voxcube_kernel::topology::hops;
 use voxcube_kernel::topology::Layout;
 use voxcube_kernel::view::View;
-use voxcube_kernel::worker::{Generation, Place, Progress, Worker, WorkerError};
+use voxcube_kernel::worker::{Generation, Place, Progress, Setup, Worker, WorkerError};
 
 /// Worker capacities in the simulator: continuations per direction, pixel records, outbox.
 pub type SimWorker<'a, T> = Worker<'a, T, 32, 64, 16>;
@@ -476,12 +476,16 @@ pub fn node_worker<'a, T: Sample>(
         cluster,
         position,
     };
-    let checked = SimWorker::check(view, slab, partition, place, cfg.generation, flow)?;
+    let checked = SimWorker::check(Setup {
+        view,
+        slab,
+        partition,
+        place,
+        generation: cfg.generation,
+        flow,
+    })?;
     // Built where it stays: a worker built on the stack was copied into its box whole.
-    Ok(Box::write(
-        Box::new_uninit(),
-        SimWorker::from_checked(checked),
-    ))
+    Ok(Box::write(Box::new_uninit(), SimWorker::new(checked)))
 }
 
 fn run_typed<T: Sample + Sync>(
