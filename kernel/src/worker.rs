@@ -951,9 +951,18 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
             let pixel = row * spec.width + (n % width) as u32;
             let row_end = (n / width + 1) * width;
             if n < self.misses_until {
-                // Certainly a miss (see below): the background, without setting up the ray.
-                self.cursor += 1;
-                self.emit(pixel, rgba8(spec.background));
+                // Certain misses (see below): the background, without setting up their rays,
+                // to the end of the run or until a batch of pixels has gone to the outbox (one
+                // message a poll, as for a ray). One pixel a poll cost a poll's machinery for
+                // each: a third of a ring of one's polls on SOD.
+                let run = self.misses_until.min(row_end) - n;
+                for k in 0..run {
+                    self.cursor += 1;
+                    self.emit(pixel + k as u32, rgba8(spec.background));
+                    if self.batch.count == 0 {
+                        break;
+                    }
+                }
                 return true;
             }
             let Some(ray) = self.view.primary_ray(pixel) else {
