@@ -23,7 +23,7 @@ use voxcube_kernel::surface::IsoSurface;
 use voxcube_kernel::topology::Layout;
 use voxcube_kernel::trace::trace_pixel;
 use voxcube_kernel::view::{Mode, View, ViewSpec};
-use voxcube_kernel::worker::{Generation, Place, Setup, Worker};
+use voxcube_kernel::worker::{Generation, Place, Setup, Worker, RAYS_PER_POLL};
 use voxcube_kernel::Vec3;
 
 /// The volume: `N³` samples of a ball, built at compile time, plane-major.
@@ -228,6 +228,7 @@ fn main() {
                 },
                 generation: Generation::Distributed,
                 flow,
+                rays_per_poll: RAYS_PER_POLL,
             })
             .ok()
         });

@@ -136,6 +136,11 @@ impl fmt::Display for WorkerError {
 
 impl core::error::Error for WorkerError {}
 
+/// Primary rays (or runs of certain misses) a poll generates at most while nothing else is
+/// pending, unless the [`Setup`] says otherwise: a poll's machinery around one ray cost about
+/// as much as the ray's own set-up.
+pub const RAYS_PER_POLL: u8 = 4;
+
 /// What a poll did.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Progress {
@@ -171,6 +176,10 @@ pub struct Setup<'a, T> {
     pub generation: Generation,
     /// Its flow control.
     pub flow: FlowControl,
+    /// Primary rays a poll generates at most while nothing else is pending (at least 1;
+    /// [`RAYS_PER_POLL`] unless a host models time per poll, as the timed simulator does:
+    /// there a node reads its links between any two rays).
+    pub rays_per_poll: u8,
 }
 
 /// A [`Setup`] that [`Worker::check`] found fit: the only way to [`Worker::new`].
@@ -187,6 +196,7 @@ pub struct Worker<'a, T, const PENDING: usize, const RECORDS: usize, const OUTBO
     place: Place,
     node: u16,
     generation: Generation,
+    rays_per_poll: u8,
     cursor: u64,
     /// Ring position 0 only: the pixels from the cursor up to here (in its row) certainly
     /// miss, so it sends their background without setting up their rays.
@@ -231,6 +241,7 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
             partition,
             place,
             flow,
+            rays_per_poll,
             ..
         } = &setup;
         let layout = place.layout;
@@ -246,7 +257,7 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
         {
             return Err(WorkerError::Slab);
         }
-        if PENDING == 0 || RECORDS == 0 || OUTBOX < 3 {
+        if PENDING == 0 || RECORDS == 0 || OUTBOX < 3 || *rays_per_poll == 0 {
             return Err(WorkerError::Capacity);
         }
         let shadow_lights = view.effects().shadow_lights;
@@ -270,6 +281,7 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
             place,
             generation,
             flow,
+            rays_per_poll,
         } = checked.0;
         let layout = place.layout;
         let shadow_lights = view.effects().shadow_lights;
@@ -287,6 +299,7 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
             place,
             node,
             generation,
+            rays_per_poll,
             cursor: 0,
             misses_until: 0,
             cluster_pixels,
@@ -377,7 +390,8 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
 
     /// Do a bounded amount of work: send what waits, read acks and results, start one ray
     /// (a queued continuation first, then a received ray), or — when nothing at all is
-    /// pending — generate a primary ray; pass the token, answer the host.
+    /// pending — generate up to its setup's `rays_per_poll` primary rays; pass the token,
+    /// answer the host.
     pub fn poll(&mut self, port: &mut impl Port) -> Progress {
         let mut worked = self.flush(port);
         while let Some((from, msg)) = port.try_recv(Class::Ack) {
@@ -396,13 +410,19 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
             worked = true;
         }
         let stepped = self.outbox_free() >= 3 && (self.step_pending() || self.step_received(port));
-        let generated = !stepped
-            && !worked
-            && port.pending() == 0
-            && self.pending_up.is_empty()
-            && self.pending_down.is_empty()
-            && self.outbox_free() >= 3
-            && self.generate();
+        let mut generated = false;
+        if !stepped && !worked {
+            for _ in 0..self.rays_per_poll {
+                let free = port.pending() == 0
+                    && self.pending_up.is_empty()
+                    && self.pending_down.is_empty()
+                    && self.outbox_free() >= 3;
+                if !(free && self.generate()) {
+                    break;
+                }
+                generated = true;
+            }
+        }
         worked |= stepped || generated;
         if !worked && self.batch.count > 0 && self.outbox_free() >= 1 {
             self.flush_batch();

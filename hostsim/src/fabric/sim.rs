@@ -39,7 +39,9 @@ use voxcube_kernel::slab::{Slab, SlabError};
 use voxcube_kernel::topology::hops;
 use voxcube_kernel::topology::Layout;
 use voxcube_kernel::view::View;
-use voxcube_kernel::worker::{Generation, Place, Progress, Setup, Worker, WorkerError};
+use voxcube_kernel::worker::{
+    Generation, Place, Progress, Setup, Worker, WorkerError, RAYS_PER_POLL,
+};
 
 /// Worker capacities in the simulator: continuations per direction, pixel records, outbox.
 pub type SimWorker<'a, T> = Worker<'a, T, 32, 64, 16>;
@@ -483,6 +485,8 @@ pub fn node_worker<'a, T: Sample>(
         place,
         generation: cfg.generation,
         flow,
+        // A timed run charges time per poll: its nodes read their links between rays.
+        rays_per_poll: if cfg.time.is_some() { 1 } else { RAYS_PER_POLL },
     })?;
     // Built where it stays: a worker built on the stack was copied into its box whole.
     Ok(Box::write(Box::new_uninit(), SimWorker::new(checked)))
@@ -1054,6 +1058,38 @@ pub fn missing_rows(image: &[Option<[u8; 4]>], width: u32) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_worker_that_may_generate_no_ray_a_poll_is_refused_and_one_is_enough() {
+        let jobs = crate::scene::Scene::default_scene()
+            .and_then(crate::scene::Scene::load)
+            .unwrap();
+        let (volume, view) = (&jobs[0].volume, &jobs[0].views[0].view);
+        let VolumeData::U8(data) = &volume.data else {
+            panic!("the default scene is u8");
+        };
+        let partition = Partition::uniform(volume.grid.dims()[0], 1).unwrap();
+        let cfg = SimConfig::cluster(1, 0).unwrap();
+        let (flow, _) = super::super::flow_for(&cfg, view).unwrap();
+        let setup = |rays_per_poll| Setup {
+            view,
+            slab: Slab::new(volume.grid, partition.planes(0), view.ghost_planes(), data).unwrap(),
+            partition: &partition,
+            place: Place {
+                layout: cfg.layout,
+                cluster: 0,
+                position: 0,
+            },
+            generation: Generation::Distributed,
+            flow,
+            rays_per_poll,
+        };
+        assert_eq!(
+            SimWorker::check(setup(0)).map(|_| ()),
+            Err(WorkerError::Capacity)
+        );
+        assert!(SimWorker::check(setup(1)).is_ok());
+    }
 
     #[test]
     fn a_push_past_capacity_is_an_overflow_even_when_the_buffer_drains_later() {

@@ -285,8 +285,9 @@ fn run_typed<T: Sample + Send + Sync>(
                 while !done.load(Ordering::Acquire) {
                     let mut busy = false;
                     // A node is polled while it has work, up to BURST times, and the clock is
-                    // read once per burst: a poll is about one ray, and reading the clock around
-                    // each took 4% of a frame. Each burst's time runs from the previous read.
+                    // read once per burst: a poll is one to four rays, and reading the clock
+                    // around each took 4% of a frame. Each burst's time runs from the previous
+                    // read.
                     let mut t = Instant::now();
                     for ((w, port), spent) in share.iter_mut().zip(&mut ports).zip(&mut busy_time) {
                         let mut polls = 0;
