@@ -175,16 +175,15 @@ impl<T: Sample> Iterator for Pixels<'_, '_, T> {
             return None;
         }
         self.next += 1;
-        let ray = (pixel >= self.misses_until)
-            .then(|| self.view.primary_ray(pixel))
-            .flatten();
-        Some(match ray {
+        let background = self.view.spec().background;
+        if pixel < self.misses_until {
+            return Some(background);
+        }
+        Some(match self.view.primary_ray(pixel) {
             Some(ray) => trace_primary(self.view, self.slab, ray, self.counters),
             None => {
-                if pixel >= self.misses_until {
-                    self.misses_until = pixel + 1 + self.view.misses_after(pixel);
-                }
-                self.view.spec().background
+                self.misses_until = pixel + 1 + self.view.misses_after(pixel);
+                background
             }
         })
     }
