@@ -6,10 +6,10 @@
 //! yield a finite value. Each read is counted.
 
 use crate::counters::Counters;
-use crate::grid::{floor_index, Grid, Model};
+use crate::grid::{Grid, Model};
 use crate::sample::Sample;
 use crate::slab::Slab;
-use glam::{Vec3, Vec4};
+use glam::{Vec3, Vec3A, Vec4};
 
 #[inline]
 fn read<T: Sample>(slab: &Slab<'_, T>, x: u32, y: u32, z: u32, counters: &mut Counters) -> f32 {
@@ -318,32 +318,25 @@ fn unit_differences<T: Sample>(slab: &Slab<'_, T>, p: Vec3) -> Option<[(f32, f32
     let grid = slab.grid();
     let dims = grid.dims();
     let site = locate(grid, Model::Cell, p);
-    for a in 0..3 {
-        let (i, n) = (site.lo[a], dims[a]);
-        // Cells i - 1 and i + 1 both inside the grid: then `p[a]` is in [1, n - 2), no read
-        // clamps, and the unchanged coordinates (at least 1, never -0.0) add 0.0 exactly.
-        if i < 1 || i + 3 > n {
-            return None;
-        }
-        let frac = site.frac[a].to_bits();
-        let lands = |v: f32, cell: u32| {
-            v >= 0.0 && floor_index(v) == cell && (v - cell as f32).to_bits() == frac
-        };
-        if !(lands(p[a] + 1.0, i + 1) && lands(p[a] - 1.0, i - 1)) {
-            return None;
-        }
+    // Cells i - 1 and i + 1 both inside the grid: then `p[a]` is in [1, n - 2), no read
+    // clamps, and the unchanged coordinates (at least 1, never -0.0) add 0.0 exactly.
+    if (0..3).any(|a| site.lo[a] < 1 || site.lo[a] + 3 > dims[a]) || !unit_steps_exact(p) {
+        return None;
     }
     let [i, j, k] = site.lo;
+    // Planes i - 1 ..= i + 2, rows k - 1 ..= k + 2, nodes j - 1 ..= j + 2: every node the six
+    // cells span, checked at once. A row's offsets are from (i - 1, j - 1, k - 1).
+    let window = slab.window([i - 1, j - 1, k - 1], 4)?;
     // Rows by plane x and row z: nodes j - 1 ..= j + 2, or nodes j and j + 1.
-    let wide = |x: u32, z: u32| nodes::<T, 4>(slab, x, z, j - 1);
-    let narrow = |x: u32, z: u32| nodes::<T, 2>(slab, x, z, j);
-    let (a0, a1) = (wide(i, k)?, wide(i + 1, k)?);
-    let (b0, b1) = (wide(i, k + 1)?, wide(i + 1, k + 1)?);
-    let (c0, c1) = (narrow(i, k - 1)?, narrow(i + 1, k - 1)?);
-    let (d0, d1) = (narrow(i, k + 2)?, narrow(i + 1, k + 2)?);
+    let wide = |dx: usize, dz: usize| window.nodes::<4>(dx, dz, 0).map(|n| n.map(T::to_f32));
+    let narrow = |dx: usize, dz: usize| window.nodes::<2>(dx, dz, 1).map(|n| n.map(T::to_f32));
+    let (a0, a1) = (wide(1, 1)?, wide(2, 1)?);
+    let (b0, b1) = (wide(1, 2)?, wide(2, 2)?);
+    let (c0, c1) = (narrow(1, 0)?, narrow(2, 0)?);
+    let (d0, d1) = (narrow(1, 3)?, narrow(2, 3)?);
     let (behind_x, ahead_x) = (
-        (narrow(i - 1, k)?, narrow(i - 1, k + 1)?),
-        (narrow(i + 2, k)?, narrow(i + 2, k + 1)?),
+        (narrow(0, 1)?, narrow(0, 2)?),
+        (narrow(3, 1)?, narrow(3, 2)?),
     );
     let Vec3 {
         x: fx,
@@ -407,22 +400,24 @@ fn unit_differences<T: Sample>(slab: &Slab<'_, T>, p: Vec3) -> Option<[(f32, f32
     ])
 }
 
-/// Nodes `y .. y + N` of row `z` of plane `x`, as `f32`; `None` where any is not stored.
+/// Whether `p ± 1` is exact on every axis, for `p` with every coordinate in `[1, 2^23]`: then
+/// each neighbour `p ± e_a` is one cell over with `p`'s own fraction, which is what
+/// [`unit_differences`] needs (its fraction is `p ± 1 - (i ± 1)`, exact, and so `p - i`).
+///
+/// For such a coordinate `fl(p + 1)` lies in `[p, 2p]`, so `fl(p + 1) - p` is exact (Sterbenz)
+/// and equals 1 just when the sum did not round; `p - 1` likewise. Two operations a lane
+/// instead of a floor and a fraction compared per axis (tested equal to that definition).
 #[inline(always)]
-fn nodes<T: Sample, const N: usize>(
-    slab: &Slab<'_, T>,
-    x: u32,
-    z: u32,
-    y: u32,
-) -> Option<[f32; N]> {
-    let row = slab.row(x, z)?.get(y as usize..y as usize + N)?;
-    Some(core::array::from_fn(|n| row[n].to_f32()))
+fn unit_steps_exact(p: Vec3) -> bool {
+    let p = Vec3A::from(p);
+    let (ahead, behind) = (p + Vec3A::ONE, p - Vec3A::ONE);
+    ((ahead - p).cmpeq(Vec3A::ONE) & (p - behind).cmpeq(Vec3A::ONE)).all()
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::grid::{Grid, MAX_DIM};
+    use crate::grid::{floor_index, Grid, MAX_DIM};
     use heapless::Vec;
 
     /// Clamp `v` into `[0, n - 1]`; NaN becomes 0 (`max` returns the other operand).
@@ -708,6 +703,51 @@ mod tests {
         let (mut c, mut d) = (Counters::default(), Counters::default());
         let g = gradient(&whole, Model::Cell, Vec3::splat(3.3), 0.5, &mut c);
         assert_eq!(g, reference(&whole, Vec3::splat(3.3), 0.5, &mut d));
+    }
+
+    #[test]
+    fn unit_steps_are_exact_where_each_neighbour_lands_one_cell_over_with_the_same_fraction() {
+        // The definition, per axis: `p ± 1` floors to the next cell and leaves the same
+        // fraction.
+        let lands = |v: f32, cell: u32, frac: f32| {
+            v >= 0.0 && floor_index(v) == cell && (v - cell as f32).to_bits() == frac.to_bits()
+        };
+        let defined = |x: f32| {
+            let i = floor_index(x);
+            let frac = x - i as f32;
+            lands(x + 1.0, i + 1, frac) && lands(x - 1.0, i - 1, frac)
+        };
+        let mut next = crate::testing::xorshift(0x9e37_79b9);
+        let (mut exact, mut rounded) = (0, 0);
+        for n in 0..200_000u32 {
+            let r = next();
+            // Near every power of two up to 2^23, where `x + 1` may round, and anywhere.
+            let x = match n % 2 {
+                0 => {
+                    let power = (1u32 << (r % 24)) as f32;
+                    f32::from_bits((power.to_bits() as i32 + (r >> 8) as i32 % 9 - 4) as u32)
+                }
+                _ => 1.0 + (r >> 8) as f32 / (1 << 24) as f32 * ((1 << 23) as f32 - 1.0),
+            };
+            if !(1.0..=(1u32 << 23) as f32).contains(&x) {
+                continue;
+            }
+            // Each axis alone, the others at a coordinate where both steps are exact.
+            for axis in 0..3 {
+                let mut p = Vec3::splat(1.5);
+                p[axis] = x;
+                assert_eq!(unit_steps_exact(p), defined(x), "{x:e} on axis {axis}");
+            }
+            if defined(x) {
+                exact += 1;
+            } else {
+                rounded += 1;
+            }
+        }
+        assert!(
+            exact > 10_000 && rounded > 10_000,
+            "{exact} exact, {rounded} not"
+        );
     }
 
     #[test]

@@ -71,6 +71,29 @@ pub struct Slab<'a, T> {
     blocks: Option<Blocks<'a>>,
 }
 
+/// A neighbourhood of a slab's nodes checked once by [`Slab::window`]: rows addressed from its
+/// first node, plane by plane and row by row.
+#[derive(Clone, Copy, Debug)]
+pub struct Window<'a, T> {
+    /// The slab's storage from the window's first node on.
+    data: &'a [T],
+    /// Samples from one plane to the next.
+    plane: usize,
+    /// Samples from one row to the next.
+    row: usize,
+}
+
+impl<'a, T: Sample> Window<'a, T> {
+    /// `N` nodes along Y of the row `dz` rows and `dx` planes past the first node, from `dy`
+    /// nodes along it; `None` only past the end of the storage (the window's own offsets are
+    /// in the slab by construction).
+    #[inline(always)]
+    pub fn nodes<const N: usize>(&self, dx: usize, dz: usize, dy: usize) -> Option<&'a [T; N]> {
+        let start = dx * self.plane + dz * self.row + dy;
+        self.data.get(start..start + N)?.try_into().ok()
+    }
+}
+
 impl<'a, T: Sample> Slab<'a, T> {
     /// A slab owning planes `owned`, with `ghost` planes each side, over `data` (plane-major,
     /// exactly the stored planes of [`stored_planes`]).
@@ -146,6 +169,27 @@ impl<'a, T: Sample> Slab<'a, T> {
         self.stored_start..self.stored_end
     }
 
+    /// The stored nodes from `(x, y, z)` through `(x, y, z) + span - 1` on every axis, for
+    /// many reads of one neighbourhood: its bounds are checked here once, and each row is
+    /// then an offset from the first node. `None` where any node is outside the stored
+    /// planes or the grid.
+    #[inline(always)]
+    pub fn window(&self, [x, y, z]: [u32; 3], span: u32) -> Option<Window<'a, T>> {
+        let [_, ny, nz] = self.grid.dims();
+        let reach = span.checked_sub(1)?;
+        let fits = |first: u32, end: u32| first.checked_add(reach).is_some_and(|last| last < end);
+        if x < self.stored_start || !(fits(x, self.stored_end) && fits(y, ny) && fits(z, nz)) {
+            return None;
+        }
+        let (ny, nz) = (ny as usize, nz as usize);
+        let start = ((x - self.stored_start) as usize * nz + z as usize) * ny + y as usize;
+        Some(Window {
+            data: self.data.get(start..)?,
+            plane: nz * ny,
+            row: ny,
+        })
+    }
+
     /// The samples of row `z` of plane `x`, in Y order; `None` outside the stored planes or
     /// the grid.
     #[inline(always)]
@@ -210,6 +254,30 @@ impl<'a, T: Sample> Slab<'a, T> {
 mod tests {
     use super::*;
     use glam::Vec3;
+
+    #[test]
+    fn a_window_reads_the_nodes_get_reads_and_only_stored_ones() {
+        let grid = Grid::new([6, 5, 4], Vec3::ONE).unwrap();
+        let data: [u8; 4 * 20] = core::array::from_fn(|i| i as u8);
+        // Planes 2 and 3 owned, 1 to 4 stored.
+        let slab = Slab::new(grid, 2..4, 1, &data).unwrap();
+        let window = slab.window([1, 1, 0], 4).unwrap();
+        for (dx, dz, dy) in [(0, 0, 0), (3, 3, 0), (2, 1, 1), (1, 3, 2)] {
+            let nodes = window.nodes::<2>(dx, dz, dy).unwrap();
+            for (n, &v) in nodes.iter().enumerate() {
+                let (x, y, z) = (1 + dx as u32, 1 + (dy + n) as u32, dz as u32);
+                assert_eq!(Some(v), slab.get(x, y, z), "({x}, {y}, {z})");
+            }
+        }
+        // Any node of the span outside the stored planes or the grid: no window.
+        assert!(slab.window([0, 0, 0], 2).is_none());
+        assert!(slab.window([3, 0, 0], 3).is_none());
+        assert!(slab.window([1, 2, 0], 4).is_none());
+        assert!(slab.window([1, 0, 1], 4).is_none());
+        assert!(slab.window([1, 0, 0], 0).is_none());
+        assert!(slab.window([1, u32::MAX, 0], 2).is_none());
+        assert!(slab.window([4, 4, 3], 1).is_some());
+    }
 
     #[test]
     fn slab_reads_only_its_stored_planes() {
