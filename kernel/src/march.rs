@@ -17,10 +17,9 @@ use crate::counters::Counters;
 use crate::field;
 use crate::grid::Model;
 use crate::lattice::Lattice;
-use crate::lighting::lighting;
+use crate::lighting::unshadowed_color;
 use crate::ray::{Entry, Ray};
 use crate::sample::Sample;
-use crate::shade::MAX_LIGHTS;
 use crate::slab::Slab;
 use crate::surface::{self, IsoSurface};
 use crate::transfer::corrected_opacity;
@@ -248,16 +247,14 @@ pub fn march<T: Sample>(
                 if alpha > 0.0 {
                     let base = tf.color_at(span);
                     // Compositing casts no shadows: every light is fully visible.
-                    let light = lighting(
+                    let color = unshadowed_color(
                         view,
                         slab,
                         base,
                         p4.truncate(),
-                        None,
                         ray.ray.dir_world,
                         counters,
                     );
-                    let color = light.color(&[1.0; MAX_LIGHTS]);
                     ray.color += color * (ray.weight * alpha);
                     ray.weight *= 1.0 - alpha;
                     if !(ray.weight > spec.cutoff) {
