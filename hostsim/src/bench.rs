@@ -420,10 +420,11 @@ pub fn table(rows: &[Row], runs: usize) -> String {
     }
     let _ = writeln!(
         out,
-        "medians of {runs} runs, a view's machines taking turns; samples/s counts evaluated lattice samples; the ceiling is a \
-         tight trilinear loop over every lattice sample of the same rays on one core (best of \
-         {runs}); 'of ceil.' is samples/s per working core over the ceiling; '4-ray/s' is the \
-         same loop with four neighbouring rays per step in SIMD lanes (ended rays ride along)"
+        "medians of {runs} runs, a view's machines taking turns; samples/s counts evaluated \
+         lattice samples; the ceiling is a tight trilinear loop over every lattice sample of \
+         the same rays on one core (best of {runs}); 'of ceil.' is samples/s per working core \
+         over the ceiling; '4-ray/s' is the same loop with four neighbouring rays per step in \
+         SIMD lanes (ended rays ride along)"
     );
     let _ = writeln!(out, "{}", build_line());
     out.push_str(&targets(rows));
@@ -443,8 +444,8 @@ fn build_line() -> String {
     .filter_map(|(name, on)| on.then_some(name))
     .collect();
     if extensions.is_empty() {
-        "built for the baseline of its target (no vector extension past it); \
-         RUSTFLAGS='-C target-cpu=native' builds for this machine's"
+        "built for its target's baseline, no vector extension past it \
+         (RUSTFLAGS='-C target-cpu=native' builds for this machine's CPU)"
             .to_string()
     } else {
         format!("built with {}", extensions.join(", "))

@@ -1,7 +1,9 @@
 //! The lighting of one point before shadowing: its ambient term, each light's direct term, and
 //! which lights need a shadow ray. A surface hit's [`Lighting`] is what a distributed trace
 //! sends to the pixel's home; the home multiplies in the visibilities that come back and
-//! combines them by [`crate::tree::surface_color`], exactly as the in-process tracer does.
+//! combines them by [`crate::tree::surface_color`], exactly as the in-process tracer does. A
+//! composited sample, which no shadow darkens, gets the same colour from [`unshadowed_color`]
+//! without the record.
 //!
 //! Invariant: `direct[l]` is zero for every light `l ≥ lights`; a light needs a shadow ray only
 //! if it casts shadows and lights the point (`direct[l] ≠ 0`).
