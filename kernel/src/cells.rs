@@ -261,7 +261,7 @@ mod tests {
     use crate::grid::{Grid, Model};
     use crate::surface::IsoSurface;
     use crate::transfer::{ControlPoint, TransferFunction};
-    use crate::view::{Mode, ViewSpec};
+    use crate::view::Mode;
     use glam::Vec3;
 
     fn view(grid: &Grid, mode: Mode) -> View {
@@ -273,21 +273,7 @@ mod tests {
             Projection::Orthographic { width: 20.0 },
         )
         .unwrap();
-        let spec = ViewSpec {
-            width: 4,
-            height: 4,
-            camera,
-            model: Model::Cell,
-            dt: 0.5,
-            gradient_distance: 1.0,
-            mode,
-            shading: None,
-            lights: heapless::Vec::new(),
-            background: Vec3::ZERO,
-            cutoff: 1.0 / 512.0,
-            max_depth: 2,
-            refine_steps: 2,
-        };
+        let spec = crate::testing::spec(camera, mode);
         View::new(spec, grid).unwrap()
     }
 

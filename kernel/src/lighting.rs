@@ -136,7 +136,7 @@ fn normal<T: Sample>(
 mod tests {
     use super::*;
     use crate::camera::{Camera, Projection};
-    use crate::grid::{Grid, Model};
+    use crate::grid::Grid;
     use crate::shade::{Light, Shading};
     use crate::transfer::{ControlPoint, TransferFunction};
     use crate::view::{Mode, ViewSpec};
@@ -156,19 +156,9 @@ mod tests {
         }])
         .unwrap();
         let spec = ViewSpec {
-            width: 4,
-            height: 4,
-            camera,
-            model: Model::Cell,
-            dt: 0.5,
-            gradient_distance: 1.0,
-            mode: Mode::Composite(tf),
             shading,
             lights: heapless::Vec::from_slice(lights).unwrap(),
-            background: Vec3::ZERO,
-            cutoff: 1.0 / 512.0,
-            max_depth: 2,
-            refine_steps: 2,
+            ..crate::testing::spec(camera, Mode::Composite(tf))
         };
         View::new(spec, grid).unwrap()
     }

@@ -282,17 +282,9 @@ mod tests {
         let spec = ViewSpec {
             width: size[0],
             height: size[1],
-            camera,
             model,
-            dt: 0.5,
-            gradient_distance: 1.0,
-            mode: Mode::Surfaces(surfaces),
-            shading: None,
-            lights: heapless::Vec::new(),
-            background: Vec3::ZERO,
-            cutoff: 1.0 / 512.0,
             max_depth: 0,
-            refine_steps: 2,
+            ..crate::testing::spec(camera, Mode::Surfaces(surfaces))
         };
         View::new(spec, grid).unwrap()
     }
