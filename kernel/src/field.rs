@@ -315,18 +315,17 @@ pub fn gradient<T: Sample>(
 /// is the one [`interpolate`] performs, on the same operands in the same order, in lanes that
 /// all hold data.
 fn unit_differences<T: Sample>(slab: &Slab<'_, T>, p: Vec3) -> Option<[(f32, f32); 3]> {
-    let grid = slab.grid();
-    let dims = grid.dims();
-    let site = locate(grid, Model::Cell, p);
-    // Cells i - 1 and i + 1 both inside the grid: then `p[a]` is in [1, n - 2), no read
-    // clamps, and the unchanged coordinates (at least 1, never -0.0) add 0.0 exactly.
-    if (0..3).any(|a| site.lo[a] < 1 || site.lo[a] + 3 > dims[a]) || !unit_steps_exact(p) {
-        return None;
-    }
+    let site = locate(slab.grid(), Model::Cell, p);
     let [i, j, k] = site.lo;
     // Planes i - 1 ..= i + 2, rows k - 1 ..= k + 2, nodes j - 1 ..= j + 2: every node the six
-    // cells span, checked at once. A row's offsets are from (i - 1, j - 1, k - 1).
-    let window = slab.window([i - 1, j - 1, k - 1], 4)?;
+    // cells span, stored and checked at once; a row's offsets are from (i - 1, j - 1, k - 1).
+    // So cells i - 1 and i + 1 lie inside the grid on every axis: `p[a]` is in [1, n - 2), no
+    // read clamps, and the unchanged coordinates (at least 1, never -0.0) add 0.0 exactly.
+    let corner = [i.checked_sub(1)?, j.checked_sub(1)?, k.checked_sub(1)?];
+    let window = slab.window(corner, 4)?;
+    if !unit_steps_exact(p) {
+        return None;
+    }
     // Rows by plane x and row z: nodes j - 1 ..= j + 2, or nodes j and j + 1.
     let wide = |dx: usize, dz: usize| window.nodes::<4>(dx, dz, 0).map(|n| n.map(T::to_f32));
     let narrow = |dx: usize, dz: usize| window.nodes::<2>(dx, dz, 1).map(|n| n.map(T::to_f32));
