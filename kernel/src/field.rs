@@ -649,10 +649,8 @@ mod tests {
     #[test]
     fn shared_gradient_reads_equal_six_reads_in_every_bit() {
         // A field with no structure to hide behind: every node a different hash.
-        const DIMS: [u32; 3] = [9, 7, 8];
-        let hash = |i: usize| ((i as u32).wrapping_mul(2_654_435_761) >> 7) as f32 * 1e-3;
-        let data: [f32; 9 * 7 * 8] = core::array::from_fn(hash);
-        let grid = Grid::new(DIMS, Vec3::new(1.0, 0.5, 2.0)).unwrap();
+        const DIMS: [u32; 3] = crate::testing::HASHED_DIMS;
+        let (data, grid) = crate::testing::hashed_field();
         let whole = Slab::whole(grid, &data).unwrap();
         // Planes 3 and 4 owned, 2 to 5 stored: neighbours past those are not stored.
         let part = Slab::new(grid, 3..5, 1, &data[2 * 56..6 * 56]).unwrap();

@@ -165,10 +165,8 @@ mod tests {
 
     #[test]
     fn an_unshadowed_colour_is_the_lighting_of_every_light_fully_visible_in_every_bit() {
-        const DIMS: [u32; 3] = [9, 7, 8];
-        let hash = |i: usize| ((i as u32).wrapping_mul(2_654_435_761) >> 9) as f32 * 1e-4;
-        let data: [f32; 9 * 7 * 8] = core::array::from_fn(hash);
-        let grid = Grid::new(DIMS, Vec3::new(1.0, 0.5, 2.0)).unwrap();
+        const DIMS: [u32; 3] = crate::testing::HASHED_DIMS;
+        let (data, grid) = crate::testing::hashed_field();
         let slab = Slab::whole(grid, &data).unwrap();
         // A point light right at a sample: that light lights nothing there. (A composited view
         // casts no shadows: no light may ask for them.)

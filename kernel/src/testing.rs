@@ -1,6 +1,6 @@
 //! What the kernel's unit tests share: a seeded pseudo-random sequence, so that a failing
-//! case comes back on every run without a random-number crate in a `no_std` kernel, and the
-//! parameters of a small view.
+//! case comes back on every run without a random-number crate in a `no_std` kernel, the
+//! parameters of a small view, and a small field of hashed values.
 
 /// Marsaglia's xorshift32 from `seed` (non-zero): the same numbers on every run.
 pub fn xorshift(seed: u32) -> impl FnMut() -> u32 {
@@ -30,5 +30,19 @@ pub fn spec(camera: crate::camera::Camera, mode: crate::view::Mode) -> crate::vi
         cutoff: 1.0 / 512.0,
         max_depth: 2,
         refine_steps: 2,
+    }
+}
+
+/// The dimensions of [`hashed_field`].
+pub const HASHED_DIMS: [u32; 3] = [9, 7, 8];
+
+/// A small anisotropic field with no structure for a shortcut to hide behind: every node a
+/// different hash, plane-major, on a grid of spacing (1, ½, 2).
+pub fn hashed_field() -> ([f32; 9 * 7 * 8], crate::grid::Grid) {
+    let hash = |i: usize| ((i as u32).wrapping_mul(2_654_435_761) >> 7) as f32 * 1e-3;
+    let grid = crate::grid::Grid::new(HASHED_DIMS, glam::Vec3::new(1.0, 0.5, 2.0));
+    match grid {
+        Ok(grid) => (core::array::from_fn(hash), grid),
+        Err(e) => panic!("the hashed field's grid: {e}"),
     }
 }
