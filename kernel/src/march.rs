@@ -153,11 +153,8 @@ pub fn march<T: Sample>(
         if ray.k > ray.lattice.last {
             return Stop::Exit;
         }
-        let t = ray.lattice.t(ray.k);
-        // In four lanes, straight into `locate`'s vector.
-        let p4 = ray.ray.at4(t);
         // The corner decides whether the sample is read; the rest of its site only if so.
-        let corner = field::corner4(grid, spec.model, p4);
+        let Probe { t, p4, corner } = Probe::of(ray, grid, spec.model, ray.k);
         let plane = corner.plane();
         if !slab.owns(plane) {
             return Stop::Leave { plane };
@@ -176,8 +173,8 @@ pub fn march<T: Sample>(
                 if let Some(reach) = here.reach {
                     // Provably nothing here: no crossing, no opacity. The lattice index moves
                     // on, over every further sample in the same slab whose block is within
-                    // `reach`.
-                    let last = skip_run(ray, slab, blocks, block, reach, spec.model);
+                    // `reach`, and on through the empty blocks after it.
+                    let last = leap(ray, slab, blocks, block, reach, spec.model);
                     skip_to(view, ray, last, counters);
                     continue;
                 }
@@ -269,6 +266,28 @@ pub fn march<T: Sample>(
         ray.primed = true;
         ray.done_here = 0;
         ray.k += 1;
+    }
+}
+
+/// Where a lattice sample lies: its parameter, its position in four lanes (as `locate` takes
+/// it) and its corner.
+#[derive(Clone, Copy, Debug)]
+struct Probe {
+    t: f32,
+    p4: Vec4,
+    corner: field::Corner,
+}
+
+impl Probe {
+    #[inline(always)]
+    fn of(ray: &RayState, grid: &crate::grid::Grid, model: Model, k: u32) -> Probe {
+        let t = ray.lattice.t(k);
+        let p4 = ray.ray.at4(t);
+        Probe {
+            t,
+            p4,
+            corner: field::corner4(grid, model, p4),
+        }
     }
 }
 
@@ -397,14 +416,57 @@ fn cell_run<T: Sample>(
     ray.k
 }
 
-/// The last sample of the run starting at `ray.k` that stays in `slab` and in the blocks at
-/// most `reach` ahead of that sample's `block` along each axis (`blocks` serve the ray's
+/// The last sample of the leaps starting at `ray.k`, in `block`, whose leap map says every
+/// block within `reach` ahead is empty: a [`skip_run`] over that box, then another from the
+/// sample after it for as long as that sample is on the lattice, in `slab`'s planes and in a
+/// block the map calls empty (distance at least 1). That is what [`march`]'s loop would do
+/// next, turn by turn, with the same samples and verdicts ([`Verdict::of`] reads the same
+/// distance, and a ray that has skipped may skip again: [`skip_to`] leaves it with nothing
+/// pending, and [`View::may_skip`] asks no more). Most leaps on a noisy volume
+/// cross a single block (SOD at iso 50: 26% of blocks are not empty, so nearly every empty
+/// one has one ahead that is not), and a turn of the loop cost more than the leap itself.
+#[inline]
+fn leap<T: Sample>(
+    ray: &RayState,
+    slab: &Slab<'_, T>,
+    blocks: &Blocks<'_>,
+    mut block: (u32, u32, u32),
+    mut reach: u32,
+    model: Model,
+) -> u32 {
+    let grid = slab.grid();
+    let mut k = ray.k;
+    loop {
+        let last = skip_run(ray, k, slab, blocks, block, reach, model);
+        let next = match last.checked_add(1) {
+            Some(next) if next <= ray.lattice.last => next,
+            _ => return last,
+        };
+        let probe = Probe::of(ray, grid, model, next);
+        if !slab.owns(probe.corner.plane()) {
+            return last;
+        }
+        let landing = blocks.block_of(probe.corner.lo);
+        match blocks.leap(landing) {
+            Some(distance) if distance > 0 => {
+                block = landing;
+                reach = u32::from(distance - 1);
+                k = next;
+            }
+            _ => return last,
+        }
+    }
+}
+
+/// The last sample of the run starting at sample `k` (in `block`) that stays in `slab` and in
+/// the blocks at most `reach` ahead of `block` along each axis (`blocks` serve the ray's
 /// octant): every sample between lies there too, since positions, cells and owner planes are
 /// monotone along the lattice, each axis the way the octant says, and those blocks form a
 /// box. The exit point is only an estimate; each candidate is checked with the exact
 /// arithmetic of the samples themselves, halving on failure.
 fn skip_run<T: Sample>(
     ray: &RayState,
+    k: u32,
     slab: &Slab<'_, T>,
     blocks: &Blocks<'_>,
     block: (u32, u32, u32),
@@ -417,7 +479,7 @@ fn skip_run<T: Sample>(
     let owned = slab.owned();
     lo.x = lo.x.max(owned.start as f32 - shift);
     hi.x = hi.x.min(owned.end as f32 - shift);
-    let (o, d, t) = (ray.ray.origin, ray.ray.dir, ray.lattice.t(ray.k));
+    let (o, d, t) = (ray.ray.origin, ray.ray.dir, ray.lattice.t(k));
     let mut t_out = f32::INFINITY;
     for a in 0..3 {
         if d[a] > 0.0 {
@@ -428,24 +490,24 @@ fn skip_run<T: Sample>(
     }
     let ahead = ((t_out - t) / ray.lattice.dt).max(0.0);
     let mut n = if ahead.is_finite() {
-        (ahead as u32).min(ray.lattice.last - ray.k.min(ray.lattice.last))
+        (ahead as u32).min(ray.lattice.last - k.min(ray.lattice.last))
     } else {
         0
     };
     let grid = slab.grid();
     while n > 0 {
-        let q = ray.ray.at4(ray.lattice.t(ray.k + n));
+        let q = ray.ray.at4(ray.lattice.t(k + n));
         let at = field::corner4(grid, model, q);
         let landing = blocks.block_of(at.lo);
         // A leap lands only in a block the map itself calls empty: a voxel-model sample on
         // the grid's last X face reads a column past the blocks', whose range is unknown.
         let empty = landing == block || blocks.leap(landing).is_some_and(|d| d > 0);
         if slab.owns(at.plane()) && blocks.reaches(block, landing, reach) && empty {
-            return ray.k + n;
+            return k + n;
         }
         n /= 2;
     }
-    ray.k
+    k
 }
 
 /// The nearest surface crossing not yet reported on the segment ending at sample `k` (value
