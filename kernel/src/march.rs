@@ -500,9 +500,12 @@ fn skip_run<T: Sample>(
         let at = field::corner4(grid, model, q);
         let landing = blocks.block_of(at.lo);
         // A leap lands only in a block the map itself calls empty: a voxel-model sample on
-        // the grid's last X face reads a column past the blocks', whose range is unknown.
-        let empty = landing == block || blocks.leap(landing).is_some_and(|d| d > 0);
-        if slab.owns(at.plane()) && blocks.reaches(block, landing, reach) && empty {
+        // the grid's last X face reads a column past the blocks', whose range is unknown. Its
+        // own block is in its box and empty, the common landing, so it is asked first.
+        let lands = landing == block
+            || (blocks.reaches(block, landing, reach)
+                && blocks.leap(landing).is_some_and(|d| d > 0));
+        if slab.owns(at.plane()) && lands {
             return k + n;
         }
         n /= 2;
