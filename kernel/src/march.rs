@@ -408,7 +408,9 @@ fn cell_run<T: Sample>(
     while n > 0 {
         let q = ray.ray.at4(ray.lattice.t(ray.k + n));
         let c = field::corner4(grid, Model::Cell, q).lo;
-        if (0..3).all(|a| lo[a] <= c[a] && c[a] <= hi[a]) && slab.owns(c[0]) {
+        // The cell the run starts in is in the box and owned (the loop checked): the common
+        // landing, asked first.
+        if c == cell || ((0..3).all(|a| lo[a] <= c[a] && c[a] <= hi[a]) && slab.owns(c[0])) {
             return ray.k + n;
         }
         n /= 2;
