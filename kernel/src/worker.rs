@@ -541,6 +541,10 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
                 return false;
             }
         }
+        if size == 1 {
+            // A ring of one has no position ahead either way: nothing below can refuse.
+            return true;
+        }
         // Rays go ahead in their direction: the ray itself, and shadow rays either way.
         let own = Class::of_ray(kind, t.ray.ray.dir.x);
         for (c, class) in CREDIT_CLASSES.iter().enumerate().skip(1) {
