@@ -169,6 +169,13 @@ impl<'v> Verdicts<'v> {
         }
     }
 
+    /// Whether the view judges a range by its greatest value alone: a surfaces view, whose
+    /// [`View::empty`] is [`View::below_surfaces`] of it.
+    #[inline]
+    fn by_greatest(&self) -> bool {
+        matches!(self.view.spec().mode, Mode::Surfaces(_))
+    }
+
     #[inline]
     fn empty(&mut self, r: Range) -> bool {
         if !self.remember {
@@ -216,40 +223,60 @@ fn block_mask<T: Sample>(
         }
     }
     // Each cell's least and greatest corner, in three passes over pairs of neighbours (along
-    // x, z, then y) instead of fourteen comparisons a cell.
-    let (mut lo, mut hi) = (nodes, nodes);
-    for x in 0..EDGE {
-        for z in 0..NODES {
-            for y in 0..NODES {
-                lo[x][z][y] = lo[x][z][y].min(nodes[x + 1][z][y]);
-                hi[x][z][y] = hi[x][z][y].max(nodes[x + 1][z][y]);
-            }
-        }
-    }
-    for x in 0..EDGE {
-        for z in 0..EDGE {
-            for y in 0..NODES {
-                lo[x][z][y] = lo[x][z][y].min(lo[x][z + 1][y]);
-                hi[x][z][y] = hi[x][z][y].max(hi[x][z + 1][y]);
-            }
-        }
-    }
+    // x, z, then y) instead of fourteen comparisons a cell. A surfaces view's verdict reads
+    // the greatest alone (`View::empty`), so its least is not found.
+    let hi = corner_extremes(&nodes, f32::max);
+    let lo = match verdicts.by_greatest() {
+        false => corner_extremes(&nodes, f32::min),
+        true => hi,
+    };
     let cells = len.map(|n| n.saturating_sub(1).max(1));
     let mut mask = 0;
     for x in 0..cells[0] {
         for z in 0..cells[2] {
             for y in 0..cells[1] {
-                let range = Range {
-                    min: lo[x][z][y].min(lo[x][z][y + 1]),
-                    max: hi[x][z][y].max(hi[x][z][y + 1]),
+                let max = hi[x][z][y].max(hi[x][z][y + 1]);
+                let empty = match verdicts.by_greatest() {
+                    false => verdicts.empty(Range {
+                        min: lo[x][z][y].min(lo[x][z][y + 1]),
+                        max,
+                    }),
+                    true => verdicts.view.below_surfaces(max),
                 };
-                if !verdicts.empty(range) {
+                if !empty {
                     mask |= 1 << (x + EDGE * (y + EDGE * z));
                 }
             }
         }
     }
     Some(mask)
+}
+
+/// The nodes of a block, each replaced (over the first `EDGE` along x and z) by `pick` of it
+/// and its neighbours one over along x and then z: what is left for the y pass of a cell.
+#[inline(always)]
+fn corner_extremes(
+    nodes: &[[[f32; NODES]; NODES]; NODES],
+    pick: fn(f32, f32) -> f32,
+) -> [[[f32; NODES]; NODES]; NODES] {
+    let mut out = *nodes;
+    for x in 0..EDGE {
+        for z in 0..NODES {
+            for y in 0..NODES {
+                out[x][z][y] = pick(out[x][z][y], nodes[x + 1][z][y]);
+            }
+        }
+    }
+    for plane in out.iter_mut().take(EDGE) {
+        for z in 0..EDGE {
+            // Row z from row z + 1, which this pass has not changed yet.
+            let (near, far) = plane.split_at_mut(z + 1);
+            for (node, next) in near[z].iter_mut().zip(&far[0]) {
+                *node = pick(*node, *next);
+            }
+        }
+    }
+    out
 }
 
 #[cfg(test)]
