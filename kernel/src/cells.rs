@@ -149,13 +149,15 @@ pub fn build_columns<T: Sample>(
 /// Slots of [`Verdicts`].
 const SLOTS: usize = 1024;
 
-/// The view's verdicts on the ranges it was last asked about. Cells repeat a few ranges (a
-/// `u8` volume has at most 32,896), and the test against a transfer function walks its
-/// points; a verdict is a pure function of the range, so a remembered one is exact.
+/// The view's verdicts on cells. A surfaces view's is [`View::below_surfaces`] of a cell's
+/// greatest corner ([`View::empty`] reads nothing else): one comparison, with no least corner
+/// to find and nothing worth remembering. A composited view's walks the transfer function's
+/// points; cells repeat a few ranges (a `u8` volume has at most 32,896), and a verdict is a
+/// pure function of the range, so those are remembered, exactly.
 struct Verdicts<'v> {
     view: &'v View,
-    /// Whether to remember: a surfaces view's test is one comparison, cheaper than a lookup.
-    remember: bool,
+    /// Whether the greatest corner alone decides: a surfaces view.
+    by_greatest: bool,
     /// By slot: the range's bits, and whether the view calls it empty.
     seen: [Option<(u64, bool)>; SLOTS],
 }
@@ -164,23 +166,14 @@ impl<'v> Verdicts<'v> {
     fn new(view: &'v View) -> Verdicts<'v> {
         Verdicts {
             view,
-            remember: matches!(view.spec().mode, Mode::Composite(_)),
+            by_greatest: matches!(view.spec().mode, Mode::Surfaces(_)),
             seen: [None; SLOTS],
         }
     }
 
-    /// Whether the view judges a range by its greatest value alone: a surfaces view, whose
-    /// [`View::empty`] is [`View::below_surfaces`] of it.
-    #[inline]
-    fn by_greatest(&self) -> bool {
-        matches!(self.view.spec().mode, Mode::Surfaces(_))
-    }
-
+    /// The verdict on a range, remembered (for views that read more than its greatest value).
     #[inline]
     fn empty(&mut self, r: Range) -> bool {
-        if !self.remember {
-            return self.view.empty(r);
-        }
         let key = u64::from(r.min.to_bits()) << 32 | u64::from(r.max.to_bits());
         // Fibonacci hashing: the top bits of the product mix every bit of the key.
         let slot = (key.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 54) as usize % SLOTS;
@@ -222,26 +215,22 @@ fn block_mask<T: Sample>(
             }
         }
     }
-    // Each cell's least and greatest corner, in three passes over pairs of neighbours (along
-    // x, z, then y) instead of fourteen comparisons a cell. A surfaces view's verdict reads
-    // the greatest alone (`View::empty`), so its least is not found.
+    // Each cell's greatest corner, and its least where the verdict reads it, in three passes
+    // over pairs of neighbours (along x, z, then y) instead of fourteen comparisons a cell.
     let hi = corner_extremes(&nodes, f32::max);
-    let lo = match verdicts.by_greatest() {
-        false => corner_extremes(&nodes, f32::min),
-        true => hi,
-    };
+    let lo = (!verdicts.by_greatest).then(|| corner_extremes(&nodes, f32::min));
     let cells = len.map(|n| n.saturating_sub(1).max(1));
     let mut mask = 0;
     for x in 0..cells[0] {
         for z in 0..cells[2] {
             for y in 0..cells[1] {
                 let max = hi[x][z][y].max(hi[x][z][y + 1]);
-                let empty = match verdicts.by_greatest() {
-                    false => verdicts.empty(Range {
+                let empty = match &lo {
+                    None => verdicts.view.below_surfaces(max),
+                    Some(lo) => verdicts.empty(Range {
                         min: lo[x][z][y].min(lo[x][z][y + 1]),
                         max,
                     }),
-                    true => verdicts.view.below_surfaces(max),
                 };
                 if !empty {
                     mask |= 1 << (x + EDGE * (y + EDGE * z));
