@@ -306,7 +306,7 @@ impl Verdict {
     fn of(view: &View, blocks: &Blocks<'_>, block: (u32, u32, u32)) -> Verdict {
         let entry = blocks.entry(block);
         let reach = match entry.leap {
-            Some(distance) => distance.checked_sub(1).map(u32::from),
+            Some(distance) => reach_of(distance),
             None => view.empty(entry.range).then_some(0),
         };
         Verdict {
@@ -315,6 +315,13 @@ impl Verdict {
             cells: entry.cells,
         }
     }
+}
+
+/// How many blocks ahead of a block every block is empty, from its leap map's chessboard
+/// `distance` to the nearest that is not; `None` for a block that is not empty (0).
+#[inline]
+fn reach_of(distance: u8) -> Option<u32> {
+    distance.checked_sub(1).map(u32::from)
 }
 
 /// Skip samples `ray.k ..= last`, which provably contribute nothing.
@@ -449,13 +456,13 @@ fn leap<T: Sample>(
             return last;
         }
         let landing = blocks.block_of(probe.corner.lo);
-        match blocks.leap(landing) {
-            Some(distance) if distance > 0 => {
+        match blocks.leap(landing).and_then(reach_of) {
+            Some(ahead) => {
                 block = landing;
-                reach = u32::from(distance - 1);
+                reach = ahead;
                 k = next;
             }
-            _ => return last,
+            None => return last,
         }
     }
 }
