@@ -434,6 +434,11 @@ impl<'a> Blocks<'a> {
         }
     }
 
+    /// Every block's cell mask, in storage order, when the blocks carry masks.
+    pub fn masks(&self) -> Option<&'a [CellMask]> {
+        self.cells
+    }
+
     /// The cells of block `(bx, by, bz)` the view cannot skip: every cell without masks or
     /// outside the slab's columns.
     #[inline]

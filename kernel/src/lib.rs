@@ -11,7 +11,7 @@
 //! - data: [`sample`], [`grid`], [`slab`], [`field`] (nearest and trilinear reads, gradients);
 //! - empty-space skipping: [`blocks`] (min/max blocks), [`leaps`] (a view's chessboard
 //!   distances between them, ahead of each octant of ray directions), [`cells`] (a view's
-//!   empty cells inside them);
+//!   empty cells inside them), [`scan`] (a ray's next samples against those cells);
 //! - geometry: [`ray`] (box clipping), [`lattice`], [`camera`];
 //! - appearance: [`transfer`], [`surface`], [`shade`], [`lighting`], [`view`] (one view's parameters and the
 //!   effects it calls for);
@@ -44,6 +44,7 @@ pub mod port;
 pub mod ray;
 pub mod record;
 pub mod sample;
+pub mod scan;
 pub mod shade;
 pub mod shift;
 pub mod slab;

@@ -20,6 +20,7 @@ use crate::lattice::Lattice;
 use crate::lighting::unshadowed_color;
 use crate::ray::{Entry, Ray};
 use crate::sample::Sample;
+use crate::scan;
 use crate::slab::Slab;
 use crate::surface::{self, IsoSurface};
 use crate::transfer::corrected_opacity;
@@ -143,12 +144,20 @@ pub fn march<T: Sample>(
     // What the last sample's block says: consecutive samples mostly share a block, and its
     // verdict (a leap distance or the test against the view) is not free.
     let mut known: Option<Verdict> = None;
-    // Found at the first run through an empty cell: many calls end before one.
-    let mut exits: Option<Exits> = None;
     // The blocks as this ray reads them: the leap map of its direction's octant.
     let blocks = slab
         .blocks()
         .map(|b| b.toward(crate::leaps::Octant::of(ray.ray.dir)));
+    // A run through empty cells scans the samples after it where that pays for this ray
+    // ([`scan::pays`]), else jumps over a box of empty cells, whose exit is estimated with
+    // `exits`, found at the first jump: many calls end before one.
+    let masks = match &blocks {
+        Some(blocks) if by_cell && scan::pays(&ray.ray, &ray.lattice) => {
+            scan::Masks::of(blocks, grid, slab.owned())
+        }
+        _ => None,
+    };
+    let mut exits: Option<Exits> = None;
     loop {
         if ray.k > ray.lattice.last {
             return Stop::Exit;
@@ -181,8 +190,15 @@ pub fn march<T: Sample>(
                 if by_cell && here.cells & cells::bit(corner.lo) == 0 {
                     // An empty cell of a block that is not empty: this sample and the ones
                     // after it in the cube of empty cells ahead.
-                    let exits = exits.get_or_insert_with(|| Exits::new(ray));
-                    let last = cell_run(ray, slab, blocks, corner.lo, here.cells, exits);
+                    let last = match &masks {
+                        Some(masks) => {
+                            ray.k + scan::empty_run(&ray.ray, &ray.lattice, ray.k, masks)
+                        }
+                        None => {
+                            let exits = exits.get_or_insert_with(|| Exits::new(ray));
+                            cell_run(ray, slab, blocks, corner.lo, here.cells, exits)
+                        }
+                    };
                     skip_to(view, ray, last, counters);
                     continue;
                 }
