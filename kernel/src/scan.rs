@@ -38,6 +38,9 @@ pub const STEPS: u32 = 8;
 /// Δt = 0.3, 4,407 M against 4,491 M.
 pub const MIN_STEP: f32 = 0.2;
 
+/// Cells per block edge, as the lanes count them.
+const EDGE: f32 = BLOCK as f32;
+
 /// `2^23`: added to a whole number below it, leaves that number in the mantissa's low bits.
 const MAGIC: f32 = (1u32 << 23) as f32;
 
@@ -95,12 +98,20 @@ fn floor_small(v: Vec4) -> Vec4 {
     nearest - Vec4::select(nearest.cmpgt(v), Vec4::ONE, Vec4::ZERO)
 }
 
+/// `floor(c / 4)` in every lane of `c`, a whole number in `[0, 2^23)`: `c / 4` is exact and
+/// lies on a whole number `n` or a quarter, a half or three quarters past it, so `c / 4 + 5/8`
+/// is nearest to `n + 1`, and adding `2^23` rounds to that exactly (the sum lies where `f32`
+/// holds the whole numbers and no more).
+#[inline(always)]
+fn quarter_floor(c: Vec4) -> Vec4 {
+    (c * (1.0 / EDGE) + Vec4::splat(0.625) + Vec4::splat(MAGIC)) - Vec4::splat(MAGIC + 1.0)
+}
+
 /// How many of the samples after sample `k` of `ray` on `lattice` lie, one after the other, in
 /// cells `masks` call empty, in the slab's owned planes and on the lattice: at most
 /// `4 · STEPS`.
 #[inline(never)]
 pub fn empty_run(ray: &Ray, lattice: &Lattice, k: u32, masks: &Masks<'_>) -> u32 {
-    const EDGE: f32 = BLOCK as f32;
     let o = ray.origin;
     let d = ray.dir;
     let (t0, dt) = (Vec4::splat(lattice.t_entry), Vec4::splat(lattice.dt));
@@ -124,7 +135,7 @@ pub fn empty_run(ray: &Ray, lattice: &Lattice, k: u32, masks: &Masks<'_>) -> u32
             )
         };
         let (cx, cy, cz) = (cell(o.x, d.x, lx), cell(o.y, d.y, ly), cell(o.z, d.z, lz));
-        let block = |c: Vec4| floor_small(c * (1.0 / EDGE));
+        let block = |c: Vec4| quarter_floor(c);
         let (bx, by, bz) = (block(cx), block(cy), block(cz));
         // `Blocks::index` and `cells::bit` in one number, the bit's index in the storage's
         // bits; for an owned sample every term is a whole number below that, so exact. A
@@ -274,6 +285,15 @@ mod tests {
             empty_run(ray, lattice, k, &every)
         }
         assert!(compare(unowned).is_err());
+    }
+
+    #[test]
+    fn a_quarter_floor_is_the_block_of_a_cell() {
+        let top = (1u32 << 23) - 1;
+        for c in (0..1 << 16).chain(top - (1 << 16)..=top) {
+            let lanes = Vec4::splat(c as f32);
+            assert_eq!(quarter_floor(lanes), Vec4::splat((c / BLOCK) as f32), "{c}");
+        }
     }
 
     #[test]
