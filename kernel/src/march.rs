@@ -189,7 +189,7 @@ pub fn march<T: Sample>(
                 }
                 if by_cell && here.cells & cells::bit(corner.lo) == 0 {
                     // An empty cell of a block that is not empty: this sample and the ones
-                    // after it in the cube of empty cells ahead.
+                    // after it in empty cells, scanned, or in the cube of empty cells ahead.
                     let last = match &masks {
                         Some(masks) => {
                             ray.k + scan::empty_run(&ray.ray, &ray.lattice, ray.k, masks)

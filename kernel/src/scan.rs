@@ -109,7 +109,9 @@ fn quarter_floor(c: Vec4) -> Vec4 {
 
 /// How many of the samples after sample `k` of `ray` on `lattice` lie, one after the other, in
 /// cells `masks` call empty, in the slab's owned planes and on the lattice: at most
-/// `4 · STEPS`.
+/// `4 · STEPS`. Out of line: inlined into the marcher it left the loop fewer registers
+/// (SOD surfaces 340.4 M instructions against 338.3 M, 1024×768 surfaces 2,601 M against
+/// 2,584 M).
 #[inline(never)]
 pub fn empty_run(ray: &Ray, lattice: &Lattice, k: u32, masks: &Masks<'_>) -> u32 {
     let o = ray.origin;
@@ -135,14 +137,13 @@ pub fn empty_run(ray: &Ray, lattice: &Lattice, k: u32, masks: &Masks<'_>) -> u32
             )
         };
         let (cx, cy, cz) = (cell(o.x, d.x, lx), cell(o.y, d.y, ly), cell(o.z, d.z, lz));
-        let block = |c: Vec4| quarter_floor(c);
-        let (bx, by, bz) = (block(cx), block(cy), block(cz));
+        let (bx, by, bz) = (quarter_floor(cx), quarter_floor(cy), quarter_floor(cz));
         // `Blocks::index` and `cells::bit` in one number, the bit's index in the storage's
         // bits; for an owned sample every term is a whole number below that, so exact. A
         // cell-model corner's block is inside the counts along Y and Z, so
         // `Blocks::block_of`'s clamp there changes nothing; along X an owned plane's block
-        // is inside the slab's columns, which cover its stored planes. (Other lanes' numbers
-        // are not read.)
+        // is inside the slab's columns, which cover its stored planes. (Another lane's number
+        // may be anything: its bit is not used.)
         let block = (bx - Vec4::splat(masks.first)) * masks.column + bz * masks.ny + by;
         let bit = (cx - bx * EDGE) + (cy - by * EDGE) * EDGE + (cz - bz * EDGE) * (EDGE * EDGE);
         let cells = (block * 64.0 + bit + Vec4::splat(MAGIC)).to_array();
