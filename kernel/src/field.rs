@@ -123,16 +123,28 @@ pub fn corner4(grid: &Grid, model: Model, q: Vec4) -> Corner {
     }
 }
 
+/// `2^23`: the least `f32` from which on every representable number is whole, so adding it
+/// to a number in `[0, 2^23]` rounds that number to a whole one and leaves it in the
+/// mantissa's low bits.
+pub(crate) const MAGIC: f32 = (1u32 << 23) as f32;
+
 /// The first three lanes of `v` as integers, each lane a whole number in `[0, 2^23]` (as
-/// [`locate`] clamps them, `n ≤ MAX_DIM`): exact. Adding 2^23 leaves the number itself in the
-/// mantissa bits, with no rounding for such lanes. `as` would check every lane for NaN and
+/// [`locate`] clamps them, `n ≤ MAX_DIM`): exact. `as` would check every lane for NaN and
 /// overflow, one lane at a time, which no lane here needs: that took a tenth of the sample
 /// loop.
 #[inline(always)]
 fn whole_lanes(v: Vec4) -> [u32; 3] {
-    const MAGIC: f32 = (1u32 << 23) as f32;
-    let [x, y, z, _] = (v + Vec4::splat(MAGIC)).to_array();
-    [x, y, z].map(|lane| lane.to_bits() - MAGIC.to_bits())
+    let [x, y, z, _] = whole_lanes4(v);
+    [x, y, z]
+}
+
+/// Every lane of `v` as an integer, exactly for a whole number in `[0, 2^23]` ([`MAGIC`]); any
+/// other lane gives some integer, never a panic.
+#[inline(always)]
+pub(crate) fn whole_lanes4(v: Vec4) -> [u32; 4] {
+    (v + Vec4::splat(MAGIC))
+        .to_array()
+        .map(|lane| lane.to_bits().wrapping_sub(MAGIC.to_bits()))
 }
 
 /// The field value at index-space point `p` under `model`.

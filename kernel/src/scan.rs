@@ -19,6 +19,7 @@
 
 use crate::blocks::{Blocks, BLOCK};
 use crate::cells::CellMask;
+use crate::field::{whole_lanes4, MAGIC};
 use crate::grid::Grid;
 use crate::lattice::Lattice;
 use crate::ray::Ray;
@@ -42,9 +43,6 @@ pub const MIN_STEP: f32 = 0.2;
 
 /// Cells per block edge, as the lanes count them.
 const EDGE: f32 = BLOCK as f32;
-
-/// `2^23`: added to a whole number below it, leaves that number in the mantissa's low bits.
-const MAGIC: f32 = (1u32 << 23) as f32;
 
 /// Whether scanning pays for `ray` sampled on `lattice`: see [`MIN_STEP`].
 #[inline]
@@ -148,10 +146,9 @@ pub fn empty_run(ray: &Ray, lattice: &Lattice, k: u32, masks: &Masks<'_>) -> u32
         // may be anything: its bit is not used.)
         let block = (bx - Vec4::splat(masks.first)) * masks.column + bz * masks.ny + by;
         let bit = (cx - bx * EDGE) + (cy - by * EDGE) * EDGE + (cz - bz * EDGE) * (EDGE * EDGE);
-        let cells = (block * 64.0 + bit + Vec4::splat(MAGIC)).to_array();
+        let cells = whole_lanes4(block * 64.0 + bit);
         let owned = (cx.cmpge(own0) & cx.cmplt(own1)).bitmask();
-        for (lane, cell) in cells.iter().enumerate() {
-            let cell = cell.to_bits().wrapping_sub(MAGIC.to_bits());
+        for (lane, &cell) in cells.iter().enumerate() {
             let empty = masks
                 .cells
                 .get((cell / 64) as usize)
