@@ -121,6 +121,11 @@ pub struct Blocks<'a> {
     leaps: Option<&'a [u8]>,
     /// One view's cell masks ([`crate::cells`]), when the marcher may skip single cells.
     cells: Option<&'a [CellMask]>,
+    /// One view's cell leap maps ([`crate::cell_leaps`]), one per octant in `cell_octants`,
+    /// and the one of the octant traced, when there is one.
+    cell_maps: &'a [u8],
+    cell_octants: u8,
+    cell_leaps: Option<&'a [u8]>,
     x0: u32,
     x1: u32,
     ny: u32,
@@ -201,6 +206,9 @@ impl<'a> Blocks<'a> {
             toward: Octant::default(),
             leaps: None,
             cells: None,
+            cell_maps: &[],
+            cell_octants: 0,
+            cell_leaps: None,
             x0,
             x1,
             ny: count(ny),
@@ -391,11 +399,38 @@ impl<'a> Blocks<'a> {
             0 => None,
             _ => self.maps.get(rank * len..(rank + 1) * len),
         };
+        let rank = (self.cell_octants & (bit - 1)).count_ones() as usize;
+        let len = len * crate::cell_leaps::PER_BLOCK;
+        let cell_leaps = match self.cell_octants & bit {
+            0 => None,
+            _ => self.cell_maps.get(rank * len..(rank + 1) * len),
+        };
         Blocks {
             toward: octant,
             leaps,
+            cell_leaps,
             ..self
         }
+    }
+
+    /// The same blocks, leaping cell by cell by the maps in `maps`: one per octant in
+    /// `octants`, in octant order ([`crate::cell_leaps::build`] from the cell masks of the view
+    /// being traced, like a leap map). An octant left out leaps by blocks and scans cells.
+    pub fn with_cell_leaps(self, maps: &'a [u8], octants: u8) -> Result<Blocks<'a>, BlocksError> {
+        let per_map = self.data.len() * crate::cell_leaps::PER_BLOCK;
+        BlocksError::check_storage(per_map * octants.count_ones() as usize, maps.len())?;
+        Ok(Blocks {
+            cell_maps: maps,
+            cell_octants: octants,
+            ..self
+        }
+        .toward(self.toward))
+    }
+
+    /// The cell leap map of [`Blocks::toward`]'s octant, when the blocks carry one.
+    #[inline]
+    pub fn cell_leaps(&self) -> Option<crate::cell_leaps::CellLeaps<'a>> {
+        crate::cell_leaps::CellLeaps::new(self, self.cell_leaps?).ok()
     }
 
     /// The octant whose rays these blocks serve.

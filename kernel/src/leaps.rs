@@ -94,6 +94,31 @@ pub fn octants(view: &View) -> u8 {
     mask
 }
 
+/// The octants `view`'s primary rays take, one bit per octant: the one of their direction for
+/// a parallel projection (every pixel's is the same, and so its sign bits), else those
+/// [`octants`] finds for them. Transparency rays go on the same way.
+pub fn primary_octants(view: &View) -> u8 {
+    let spec = view.spec();
+    let (w, h) = (spec.width, spec.height);
+    match spec.camera.projection() {
+        crate::camera::Projection::Orthographic { .. } => {
+            let dir = spec.camera.primary(0, 0, w, h).1 * view.inv_spacing();
+            1 << Octant::of(dir).index()
+        }
+        crate::camera::Projection::Perspective { .. } => {
+            let (x, y) = (w.saturating_sub(1), h.saturating_sub(1));
+            let corners = [(0, 0), (x, 0), (0, y), (x, y)]
+                .map(|(x, y)| spec.camera.primary(x, y, w, h).1 * view.inv_spacing());
+            let (lo, hi) = corners
+                .iter()
+                .fold((corners[0], corners[0]), |(lo, hi), &d| {
+                    (lo.min(d), hi.max(d))
+                });
+            spread(lo, hi)
+        }
+    }
+}
+
 /// The octants of every direction between `lo` and `hi` (per axis), and of those within a
 /// rounding of them.
 fn spread(lo: Vec3, hi: Vec3) -> u8 {

@@ -12,6 +12,7 @@
 //! every iso value, and the cut face is lit with the face's normal.
 
 use crate::blocks::Blocks;
+use crate::cell_leaps::CellLeaps;
 use crate::cells::{self, CellMask};
 use crate::counters::Counters;
 use crate::field;
@@ -151,8 +152,14 @@ pub fn march<T: Sample>(
     // A run through empty cells scans the samples after it where that pays for this ray
     // ([`scan::pays`]), else jumps over a box of empty cells, whose exit is estimated with
     // `exits`, found at the first jump: many calls end before one.
+    // Where the view has a cell leap map for this octant, a ray leaps from cell to cell by
+    // it, and asks no block.
+    let cell_leaps = match &blocks {
+        Some(blocks) if by_cell => blocks.cell_leaps(),
+        _ => None,
+    };
     let masks = match &blocks {
-        Some(blocks) if by_cell && scan::pays(&ray.ray, &ray.lattice) => {
+        Some(blocks) if by_cell && cell_leaps.is_none() && scan::pays(&ray.ray, &ray.lattice) => {
             scan::Masks::of(blocks, grid, slab.owned())
         }
         _ => None,
@@ -168,7 +175,18 @@ pub fn march<T: Sample>(
         if !slab.owns(plane) {
             return Stop::Leave { plane };
         }
-        if let Some(blocks) = &blocks {
+        if let Some(leaps) = &cell_leaps {
+            if view.may_skip(ray) {
+                let distance = leaps.distance(corner.lo);
+                if distance > 0 {
+                    // Provably nothing in this cell or in the cube of cells ahead of it.
+                    let exits = exits.get_or_insert_with(|| Exits::new(ray));
+                    let last = cell_leap(ray, slab, leaps, corner.lo, distance, exits);
+                    skip_to(view, ray, last, counters);
+                    continue;
+                }
+            }
+        } else if let Some(blocks) = &blocks {
             let block = blocks.block_of(corner.lo);
             let here = match known {
                 Some(v) if v.block == block => v,
@@ -439,6 +457,69 @@ fn cell_run<T: Sample>(
         n /= 2;
     }
     ray.k
+}
+
+/// The last sample of the cell leaps starting at `ray.k`, a cell-model sample in the cell
+/// whose low corner is `cell`, at `distance` (at least 1) in `leaps`: the last that stays in
+/// the cube of cells reaching `distance − 1` ahead of that cell for the ray's octant and in
+/// `slab`'s owned planes (every sample between does too: cells and owner planes are monotone
+/// along the lattice, each axis the way the octant says, and the cube and the owned planes
+/// are intervals on every axis), then on from the sample after it for as long as that sample
+/// is on the lattice, owned, and in a cell the map calls empty: what [`march`]'s loop would
+/// do next, turn by turn. Each cube's exit is only an estimate, checked with the samples' own
+/// arithmetic, halving on failure.
+#[inline]
+fn cell_leap<T: Sample>(
+    ray: &RayState,
+    slab: &Slab<'_, T>,
+    leaps: &CellLeaps<'_>,
+    mut cell: [u32; 3],
+    mut distance: u8,
+    exits: &Exits,
+) -> u32 {
+    let grid = slab.grid();
+    let owned = slab.owned();
+    let octant = crate::leaps::Octant::of(ray.ray.dir);
+    let mut k = ray.k;
+    loop {
+        let spans: [(u32, u32); 3] =
+            core::array::from_fn(|a| octant.span(a, cell[a], u32::from(distance) - 1));
+        let faces = |c: [u32; 3]| Vec4::new(c[0] as f32, c[1] as f32, c[2] as f32, 0.0);
+        let near = faces(spans.map(|s| s.0)).max(Vec4::new(owned.start as f32, 0.0, 0.0, 0.0));
+        let far = (faces(spans.map(|s| s.1)) + Vec4::ONE).min(Vec4::new(
+            owned.end as f32,
+            f32::MAX,
+            f32::MAX,
+            0.0,
+        ));
+        let ahead = exits.steps(ray.lattice.t(k), near, far);
+        let mut n = ahead.min(ray.lattice.last - k.min(ray.lattice.last));
+        let last = loop {
+            if n == 0 {
+                break k;
+            }
+            let c = field::corner4(grid, Model::Cell, ray.ray.at4(ray.lattice.t(k + n))).lo;
+            let inside = (0..3).all(|a| spans[a].0 <= c[a] && c[a] <= spans[a].1);
+            if inside && slab.owns(c[0]) {
+                break k + n;
+            }
+            n /= 2;
+        };
+        let next = match last.checked_add(1) {
+            Some(next) if next <= ray.lattice.last => next,
+            _ => return last,
+        };
+        let c = field::corner4(grid, Model::Cell, ray.ray.at4(ray.lattice.t(next))).lo;
+        if !slab.owns(c[0]) {
+            return last;
+        }
+        match leaps.distance(c) {
+            0 => return last,
+            d => {
+                (k, cell, distance) = (next, c, d);
+            }
+        }
+    }
 }
 
 /// The last sample of the leaps starting at `ray.k`, in `block`, whose leap map says every
