@@ -196,19 +196,29 @@ pub fn machines(cores: u32, size: Size) -> Vec<(String, Machine, u32)> {
         ),
     ];
     if size == Size::PAPER {
-        // What leaping over empty blocks and skipping single empty cells gain: the same
-        // render, one block per jump, and without cell masks. Not candidates for the targets
-        // (their names start with neither "direct" nor "threads").
+        // What leaping over empty blocks, skipping single empty cells and leaping from cell
+        // to cell gain: the same render, one block per jump (and no cell leaps), without
+        // cell masks, and without cell leaps. Not candidates for the targets (their names
+        // start with neither "direct" nor "threads").
         for (at, name, skipping) in [
             (
                 1,
                 "no leaps",
                 SkipMode {
                     leap: false,
+                    cell_leaps: false,
                     ..SkipMode::ALL
                 },
             ),
             (2, "no cell masks", SkipMode::LEAPS),
+            (
+                3,
+                "no cell leaps",
+                SkipMode {
+                    cell_leaps: false,
+                    ..SkipMode::ALL
+                },
+            ),
         ] {
             all.insert(
                 at,

@@ -63,14 +63,16 @@ pub fn worker_bytes() -> usize {
     size_of::<SimWorker<'static, u8>>()
 }
 
-/// Bytes of the min/max blocks a slab storing planes `stored` of `grid` keeps, with `maps`
-/// leap maps of one view (a byte per block each, [`voxcube_kernel::leaps`]) and its cell mask
-/// ([`voxcube_kernel::cells`]).
-pub fn block_bytes(grid: &Grid, stored: std::ops::Range<u32>, maps: usize) -> usize {
+/// Bytes of the min/max blocks a slab storing planes `stored` of `grid` keeps, with the leap
+/// maps of `needs` (a byte per block each, [`voxcube_kernel::leaps`]), its view's cell mask
+/// ([`voxcube_kernel::cells`]) and its cell leap maps (a byte per cell each,
+/// [`voxcube_kernel::cell_leaps`]).
+pub fn block_bytes(grid: &Grid, stored: std::ops::Range<u32>, needs: ViewNeeds) -> usize {
     voxcube_kernel::blocks::extent_for(grid, stored).2
         * (size_of::<voxcube_kernel::blocks::Range>()
-            + maps * size_of::<u8>()
-            + size_of::<voxcube_kernel::cells::CellMask>())
+            + needs.maps * size_of::<u8>()
+            + size_of::<voxcube_kernel::cells::CellMask>()
+            + needs.cell_maps * voxcube_kernel::cell_leaps::PER_BLOCK)
 }
 
 /// What a view asks of every node's memory besides its planes.
@@ -81,6 +83,9 @@ pub struct ViewNeeds {
     /// Leap maps: one per octant of ray directions the view takes (one for a parallel
     /// projection without shadows, at most eight).
     pub maps: usize,
+    /// Cell leap maps: none is needed, a node holds them where they fit
+    /// ([`crate::render::node_skipping`]).
+    pub cell_maps: usize,
 }
 
 impl ViewNeeds {
@@ -89,7 +94,13 @@ impl ViewNeeds {
         ViewNeeds {
             ghost: view.ghost_planes(),
             maps: voxcube_kernel::leaps::octants(view).count_ones() as usize,
+            cell_maps: 0,
         }
+    }
+
+    /// The same, with `cell_maps` cell leap maps.
+    pub fn with_cell_maps(self, cell_maps: usize) -> ViewNeeds {
+        ViewNeeds { cell_maps, ..self }
     }
 }
 
@@ -165,7 +176,7 @@ pub fn largest_node(
         .map(|j| {
             let s = stored_planes(grid, partition.planes(j), needs.ghost);
             (s.end - s.start) as usize * grid.plane_len() * sample_bytes
-                + block_bytes(grid, s, needs.maps)
+                + block_bytes(grid, s, needs)
         })
         .max()?;
     Some(NodeMemory {
@@ -193,7 +204,7 @@ pub fn max_owned_planes(
         let stored = 0..(owned + 2 * needs.ghost).min(nx);
         let memory = NodeMemory {
             slab: (stored.end - stored.start) as usize * grid.plane_len() * sample_bytes
-                + block_bytes(grid, stored, needs.maps),
+                + block_bytes(grid, stored, needs),
             buffer,
             worker: worker_bytes(),
             allowance: CODE_AND_STACK,
@@ -252,13 +263,17 @@ mod tests {
     fn the_plane_cap_is_the_largest_slab_that_fits() {
         let grid = Grid::new([208, 208, 208], Vec3::ONE).unwrap();
         let (ghost, buffer) = (3, 16 * 1024);
-        let needs = ViewNeeds { ghost, maps: 1 };
+        let needs = ViewNeeds {
+            ghost,
+            maps: 1,
+            cell_maps: 0,
+        };
         let cap = max_owned_planes(Profile::ncube2(), &grid, 1, needs, buffer);
         assert!(cap > 0 && cap < 208, "{cap}");
         let memory = |owned: u32| {
             let stored = 0..owned + 2 * ghost;
             stored.len() * grid.plane_len()
-                + block_bytes(&grid, stored, 1)
+                + block_bytes(&grid, stored, needs)
                 + buffer
                 + worker_bytes()
                 + CODE_AND_STACK
@@ -268,14 +283,23 @@ mod tests {
     }
 
     #[test]
-    fn each_leap_map_costs_a_byte_per_block() {
+    fn each_leap_map_costs_a_byte_per_block_and_each_cell_leap_map_a_byte_per_cell() {
         let grid = Grid::new([97, 97, 116], Vec3::ONE).unwrap();
         let blocks = voxcube_kernel::blocks::extent_for(&grid, 0..10).2;
         assert_eq!(blocks, 3 * 24 * 29);
-        assert_eq!(block_bytes(&grid, 0..10, 1), blocks * 17);
+        let needs = |maps: usize, cell_maps: usize| ViewNeeds {
+            ghost: 3,
+            maps,
+            cell_maps,
+        };
+        assert_eq!(block_bytes(&grid, 0..10, needs(1, 0)), blocks * 17);
         assert_eq!(
-            block_bytes(&grid, 0..10, 8) - block_bytes(&grid, 0..10, 1),
+            block_bytes(&grid, 0..10, needs(8, 0)) - block_bytes(&grid, 0..10, needs(1, 0)),
             blocks * 7
+        );
+        assert_eq!(
+            block_bytes(&grid, 0..10, needs(1, 2)) - block_bytes(&grid, 0..10, needs(1, 0)),
+            blocks * 2 * 64
         );
     }
 
@@ -289,7 +313,11 @@ mod tests {
                 &grid,
                 1,
                 size,
-                ViewNeeds { ghost: 3, maps: 1 },
+                ViewNeeds {
+                    ghost: 3,
+                    maps: 1,
+                    cell_maps: 0,
+                },
                 &buffer,
             )
         };

@@ -80,6 +80,11 @@ pub enum Command {
         /// changes no pixel, only the time).
         #[arg(long)]
         no_cells: bool,
+        /// Leap over empty cells no further than one block's cell mask shows (scanning or
+        /// jumping inside it), not by the distances between the cells that may show (a debug
+        /// option: it changes no pixel, only the time).
+        #[arg(long)]
+        no_cell_leaps: bool,
         /// Set up every primary ray on every node that walks its pixel, not passing over the
         /// pixels of a row a node certainly does not start or that certainly miss (a debug
         /// option: it changes no pixel, only the time).
@@ -351,6 +356,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             no_skip,
             no_leap,
             no_cells,
+            no_cell_leaps,
             no_row_leaps,
             balance,
         } => {
@@ -373,6 +379,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                         skip: !no_skip,
                         leap: !no_leap,
                         cells: !no_cells,
+                        cell_leaps: !no_cells && !no_cell_leaps,
                         rows: !no_row_leaps,
                     };
                     m.profile = match profile {
@@ -560,6 +567,7 @@ fn mpi_serve(
     // Balanced: the node takes the host's cuts and shifts to them.
     let cfg = crate::fabric::sim::SimConfig {
         shift: balanced,
+        skipping: crate::render::node_skipping(volume, view, machine, balanced),
         ..machine.sim_config()?
     };
     Ok(crate::fabric::mpi::serve(world, volume, view, &cfg)?)
@@ -577,6 +585,7 @@ fn mpi_host(
     let cfg = crate::fabric::sim::SimConfig {
         cuts: cuts.map(<[u32]>::to_vec),
         shift: cuts.is_some(),
+        skipping: crate::render::node_skipping(volume, view, machine, cuts.is_some()),
         ..machine.sim_config()?
     };
     match crate::fabric::mpi::host(world, volume, view, &cfg) {

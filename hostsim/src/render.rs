@@ -262,6 +262,40 @@ pub fn preflight(volume: &Volume, view: &View, machine: &Machine) -> Result<(), 
     Ok(())
 }
 
+/// How `machine`'s nodes skip empty space in `view`: `machine.skipping`, without cell leap
+/// maps where a node could not hold them beside everything [`preflight`] counts. They are an
+/// acceleration, not a need: a machine that fits without them renders without them, the
+/// same pixels. Slabs `balanced` by the host may grow up to the cap balancing keeps them
+/// under ([`budget::max_owned_planes`]), so then that slab must fit. Every node and the host
+/// decide alike from the same inputs.
+pub fn node_skipping(volume: &Volume, view: &View, machine: &Machine, balanced: bool) -> SkipMode {
+    let mode = machine.skipping;
+    let maps = crate::fabric::cell_leap_octants(view, mode).count_ones() as usize;
+    let Ok(cfg) = machine.sim_config() else {
+        return mode;
+    };
+    if maps == 0 || machine.fabric == Fabric::Direct {
+        return mode;
+    }
+    let (grid, bytes, buffer) = (&volume.grid, volume.data.kind().bytes(), cfg.buffer());
+    let (least, with_maps) = (
+        budget::ViewNeeds::of(view),
+        budget::ViewNeeds::of(view).with_cell_maps(maps),
+    );
+    let fits = match balanced {
+        true => {
+            let cap = budget::max_owned_planes(machine.profile, grid, bytes, least, buffer);
+            budget::max_owned_planes(machine.profile, grid, bytes, with_maps, buffer) >= cap
+        }
+        false => budget::largest_node(grid, bytes, machine.cluster_size(), with_maps, buffer)
+            .is_some_and(|m| m.total() <= machine.profile.node_memory),
+    };
+    SkipMode {
+        cell_leaps: mode.cell_leaps && fits,
+        ..mode
+    }
+}
+
 /// Render `view` of `volume` on `machine`.
 pub fn render_on(volume: &Volume, view: &View, machine: &Machine) -> Result<Rendered, RenderError> {
     render_on_with_progress(volume, view, machine, &|_| {})
@@ -297,6 +331,7 @@ pub fn render_cut(
             let cfg = SimConfig {
                 cuts: cuts.map(<[u32]>::to_vec),
                 shift: cuts.is_some(),
+                skipping: node_skipping(volume, view, machine, cuts.is_some()),
                 ..machine.sim_config()?
             };
             let run = match machine.fabric {

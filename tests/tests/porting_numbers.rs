@@ -32,7 +32,11 @@ fn porting_md_slab_figure_holds() {
     let grid =
         voxcube_kernel::grid::Grid::new([97, 97, 116], voxcube_kernel::Vec3::ONE).expect("grid");
     // The paper's view: a parallel projection without shadows, so one leap map.
-    let needs = voxcube::budget::ViewNeeds { ghost: 3, maps: 1 };
+    let needs = voxcube::budget::ViewNeeds {
+        ghost: 3,
+        maps: 1,
+        cell_maps: 0,
+    };
     let slab = voxcube::budget::largest_node(&grid, 1, 16, needs, 0)
         .expect("fits")
         .slab;

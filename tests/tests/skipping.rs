@@ -29,16 +29,24 @@ fn check(text: &str, file: &str) {
             let blocks = render_skipping(&job.volume, &v.view, SkipMode::BLOCKS).expect("renders");
             let on = render_skipping(&job.volume, &v.view, SkipMode::LEAPS).expect("renders");
             let all = render_skipping(&job.volume, &v.view, SkipMode::ALL).expect("renders");
+            // Cell masks without cell leaps: runs through empty cells scanned or jumped.
             let cells_only = SkipMode {
                 leap: false,
+                cell_leaps: false,
                 ..SkipMode::ALL
             };
             let cells = render_skipping(&job.volume, &v.view, cells_only).expect("renders");
+            let no_cell_leaps = SkipMode {
+                cell_leaps: false,
+                ..SkipMode::ALL
+            };
+            let masked = render_skipping(&job.volume, &v.view, no_cell_leaps).expect("renders");
             for (mode, r) in [
                 ("skipping", &blocks),
                 ("leaping", &on),
                 ("skipping cells", &cells),
-                ("leaping and skipping cells", &all),
+                ("leaping and skipping cells", &masked),
+                ("leaping from cell to cell", &all),
             ] {
                 assert!(
                     r.pixels == off.pixels,
@@ -51,6 +59,8 @@ fn check(text: &str, file: &str) {
             // A leap skips exactly the samples that one-block jumps skip, only in fewer jumps,
             // with cell masks or without.
             assert_eq!(on.counters, blocks.counters, "{}/{}", job.name, v.name);
+            assert_eq!(masked.counters, cells.counters, "{}/{}", job.name, v.name);
+            // Cell leaps skip exactly the samples in the cells the masks clear.
             assert_eq!(all.counters, cells.counters, "{}/{}", job.name, v.name);
             assert!(
                 all.counters.skipped >= on.counters.skipped,
@@ -188,9 +198,10 @@ fn trace_all<T: Sample>(view: &View, slab: &Slab<'_, T>) -> Vec<[u8; 4]> {
         .collect()
 }
 
-/// Negative controls: the marcher really leaps by the map it is given, and really skips the
-/// cells its masks clear. A map or masks built for a higher iso value, whose empty blocks and
-/// cells reach further, make it skip parts of the lower surface.
+/// Negative controls: the marcher really leaps by the map it is given, really skips the cells
+/// its masks clear, and really leaps by the cell leap map it is given. A map, masks or a cell
+/// leap map built for a higher iso value, whose empty blocks and cells reach further, make it
+/// skip parts of the lower surface.
 #[test]
 fn a_leap_map_or_cell_masks_built_for_another_view_change_the_image() {
     let text = r#"
@@ -218,9 +229,14 @@ iso = 200.0
     let reference = render_skipping(&job.volume, low, SkipMode::OFF).expect("renders");
     let cells_only = SkipMode {
         leap: false,
+        cell_leaps: false,
         ..SkipMode::ALL
     };
-    for (what, mode) in [("leap map", SkipMode::LEAPS), ("cell masks", cells_only)] {
+    for (what, mode) in [
+        ("leap map", SkipMode::LEAPS),
+        ("cell masks", cells_only),
+        ("cell leap map", SkipMode::ALL),
+    ] {
         let own = trace_with_skipping_of(&job.volume, low, low, mode);
         let foreign = trace_with_skipping_of(&job.volume, low, high, mode);
         assert!(
@@ -254,7 +270,8 @@ proptest! {
     /// Skipping changes no pixel on hard cases too: random blobby volumes with anisotropic
     /// spacing, cameras inside and outside and along an axis, steps from 1/64 to 2 cell edges
     /// (long runs through empty cells), both models, surfaces and compositing. And a leap
-    /// skips exactly the samples one-block jumps skip, with cell masks.
+    /// skips exactly the samples one-block jumps skip, with cell masks, and cell leaps exactly
+    /// the samples the masks skip.
     #[test]
     fn skipping_changes_no_pixel_on_random_hard_cases(
         dims in prop::array::uniform3(1u32..14),
@@ -293,9 +310,10 @@ proptest! {
         let s = voxcube_tests::spec(cam, 12, 9, model, dt, mode);
         let view = voxcube_tests::view(s, &volume);
         let off = render_skipping(&volume, &view, SkipMode::OFF).expect("renders");
-        let cells_only = SkipMode { leap: false, ..SkipMode::ALL };
+        let cells_only = SkipMode { leap: false, cell_leaps: false, ..SkipMode::ALL };
+        let no_cell_leaps = SkipMode { cell_leaps: false, ..SkipMode::ALL };
         let mut counters = Vec::new();
-        for mode in [SkipMode::BLOCKS, SkipMode::LEAPS, cells_only, SkipMode::ALL] {
+        for mode in [SkipMode::BLOCKS, SkipMode::LEAPS, cells_only, no_cell_leaps, SkipMode::ALL] {
             let r = render_skipping(&volume, &view, mode).expect("renders");
             prop_assert!(r.pixels == off.pixels, "{mode:?} changed the image");
             prop_assert_eq!(r.counters.slab_misses, 0);
@@ -303,6 +321,7 @@ proptest! {
         }
         prop_assert_eq!(&counters[0], &counters[1]);
         prop_assert_eq!(&counters[2], &counters[3]);
+        prop_assert_eq!(&counters[3], &counters[4]);
     }
 }
 
@@ -493,4 +512,42 @@ fn every_node_skips_by_the_same_storage_however_the_build_is_threaded() {
         }
     }
     assert_eq!(compared, 3 * (8 + 4 + 1));
+}
+
+/// Cell leap maps are an acceleration, not a need: a node holds them only where its memory has
+/// room beside everything it needs, and a machine that has no room for them renders without
+/// them. A byte a cell takes about what a byte sample does: a small volume's nodes hold them,
+/// one that alone fills most of an nCUBE 2 node does not, on one node or balanced.
+#[test]
+fn nodes_hold_cell_leap_maps_only_where_they_fit() {
+    use voxcube::render::{node_skipping, preflight, Fabric, Machine};
+    let cam = |n: f32| {
+        voxcube_tests::perspective(
+            Vec3::new(n * 2.5, n * 0.4, n * 0.5),
+            Vec3::splat(n / 2.0),
+            Vec3::Y,
+            40.0,
+        )
+    };
+    let machine = Machine::new(Fabric::Sim, 1, 1, 1);
+    let small = blobs([40, 40, 40], Vec3::ONE, 7);
+    let view = blob_view(cam(40.0), &small);
+    assert!(node_skipping(&small, &view, &machine, false).cell_leaps);
+    assert!(node_skipping(&small, &view, &machine, true).cell_leaps);
+    let big = voxcube_tests::volume_u8([140, 140, 140], Vec3::ONE, |x, y, z| (x ^ y ^ z) as u8);
+    let view = blob_view(cam(140.0), &big);
+    preflight(&big, &view, &machine).expect("fits without cell leap maps");
+    assert!(!node_skipping(&big, &view, &machine, false).cell_leaps);
+    assert!(!node_skipping(&big, &view, &machine, true).cell_leaps);
+    // Turned off, they stay off; the direct render is the host's own, not a node.
+    let off = Machine {
+        skipping: SkipMode {
+            cell_leaps: false,
+            ..SkipMode::ALL
+        },
+        ..machine
+    };
+    assert!(!node_skipping(&small, &blob_view(cam(40.0), &small), &off, false).cell_leaps);
+    let direct = Machine::new(Fabric::Direct, 1, 1, 1);
+    assert!(node_skipping(&big, &view, &direct, false).cell_leaps);
 }

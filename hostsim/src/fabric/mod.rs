@@ -57,19 +57,21 @@ pub struct RunShape<'a> {
 
 impl<'a> RunShape<'a> {
     /// The shape of a run of `view` on `layout`, slabs `partition` of `grid`, samples of
-    /// `sample_bytes`.
+    /// `sample_bytes`, its nodes skipping as `skipping` says (which cell leap maps they hold).
     pub fn new(
         layout: Layout,
         partition: &'a Partition,
         grid: &'a Grid,
         view: &View,
         sample_bytes: usize,
+        skipping: SkipMode,
     ) -> RunShape<'a> {
+        let cell_maps = cell_leap_octants(view, skipping).count_ones() as usize;
         RunShape {
             layout,
             partition,
             grid,
-            needs: ViewNeeds::of(view),
+            needs: ViewNeeds::of(view).with_cell_maps(cell_maps),
             sample_bytes,
         }
     }
@@ -83,7 +85,7 @@ impl<'a> RunShape<'a> {
         let stored = stored_planes(grid, planes.clone(), needs.ghost);
         let memory = NodeMemory {
             slab: (stored.end - stored.start) as usize * grid.plane_len() * self.sample_bytes
-                + block_bytes(grid, stored.clone(), needs.maps),
+                + block_bytes(grid, stored.clone(), needs),
             buffer: peak,
             worker: worker_bytes(),
             allowance: CODE_AND_STACK,
@@ -280,6 +282,9 @@ pub struct SkipMode {
     /// Skip samples in empty cells of blocks that are not empty, by one view's cell masks
     /// (only when skipping, and in the cell model).
     pub cells: bool,
+    /// Leap from empty cell to empty cell by distances between the cells the masks keep
+    /// (only with cell masks; `voxcube_kernel::cell_leaps`).
+    pub cell_leaps: bool,
     /// Pass over the pixels of a row that a node certainly does not start, or that
     /// certainly miss, without setting up their rays (parallel projections only;
     /// `voxcube_kernel::starts`).
@@ -292,6 +297,7 @@ impl SkipMode {
         skip: false,
         leap: false,
         cells: false,
+        cell_leaps: false,
         rows: false,
     };
     /// Empty samples skipped by whole blocks, each jump ending at its block's faces.
@@ -299,6 +305,7 @@ impl SkipMode {
         skip: true,
         leap: false,
         cells: false,
+        cell_leaps: false,
         rows: true,
     };
     /// Empty samples skipped by whole blocks, each jump leaping over every empty block around.
@@ -306,6 +313,7 @@ impl SkipMode {
         skip: true,
         leap: true,
         cells: false,
+        cell_leaps: false,
         rows: true,
     };
     /// Leaps, and single empty cells skipped too (the default).
@@ -313,6 +321,7 @@ impl SkipMode {
         skip: true,
         leap: true,
         cells: true,
+        cell_leaps: true,
         rows: true,
     };
 
@@ -326,9 +335,22 @@ impl SkipMode {
     }
 }
 
+/// The octants whose cell leap maps a node skipping as `mode` says holds for `view`: those
+/// of its primary rays (transparency rays go on the same way), which trace nearly all
+/// samples; a shadow ray, and any ray of another octant, leaps by blocks. None without cell
+/// masks, which they are built from.
+pub fn cell_leap_octants(view: &View, mode: SkipMode) -> u8 {
+    let by_cell = view.spec().model == voxcube_kernel::grid::Model::Cell;
+    match mode.skip && mode.cells && mode.cell_leaps && by_cell {
+        true => voxcube_kernel::leaps::primary_octants(view),
+        false => 0,
+    }
+}
+
 /// A node's storage for skipping empty space in one view: its min/max blocks, their
-/// chessboard distances ahead (a map per octant the view's rays take) and their cell masks,
-/// each empty when that acceleration is off.
+/// chessboard distances ahead (a map per octant the view's rays take), their cell masks and
+/// the distances between cells (a map per octant of the primary rays), each empty when that
+/// acceleration is off.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Skipping {
     ranges: Vec<voxcube_kernel::blocks::Range>,
@@ -336,6 +358,9 @@ pub struct Skipping {
     leaps: Vec<u8>,
     octants: u8,
     cells: Vec<voxcube_kernel::cells::CellMask>,
+    /// One cell leap map per octant in `cell_octants`, in octant order.
+    cell_leaps: Vec<u8>,
+    cell_octants: u8,
 }
 
 /// `all` cut into consecutive pieces of `sizes` (the last piece short if they overrun).
@@ -450,11 +475,44 @@ impl Skipping {
             true => (leaps, octants),
             false => (Vec::new(), 0),
         };
+        let cells = if masked { cells } else { Vec::new() };
+        // A cell leap map from the masks for each octant the view's rays take, one job each.
+        let masked = match blocks.with_cells(&cells) {
+            Ok(masked) if !cells.is_empty() => Some(masked),
+            _ => None,
+        };
+        let cell_octants = match masked {
+            Some(_) => cell_leap_octants(view, mode),
+            None => 0,
+        };
+        let per_map = len * voxcube_kernel::cell_leaps::PER_BLOCK;
+        let mut cell_leaps = vec![0; cell_octants.count_ones() as usize * per_map];
+        let chosen = (0..voxcube_kernel::leaps::OCTANTS).filter(|o| cell_octants >> o & 1 == 1);
+        let jobs: Vec<Part<'_>> = cell_leaps
+            .chunks_mut(per_map)
+            .zip(chosen)
+            .filter_map(|(map, octant)| {
+                let (masked, octant) = (masked?, voxcube_kernel::leaps::Octant::from_index(octant));
+                Some(Box::new(move || {
+                    voxcube_kernel::cell_leaps::build(&masked, octant, map).is_ok()
+                }) as Part<'_>)
+            })
+            .collect();
+        if !run_parts(jobs, threads).into_iter().all(|built| built) {
+            cell_leaps.clear();
+        }
+        let cell_octants = if cell_leaps.is_empty() {
+            0
+        } else {
+            cell_octants
+        };
         Skipping {
             ranges,
             leaps,
             octants,
-            cells: if masked { cells } else { Vec::new() },
+            cells,
+            cell_leaps,
+            cell_octants,
         }
     }
 
@@ -475,6 +533,10 @@ impl Skipping {
         };
         let blocks = match blocks.with_cells(&self.cells) {
             Ok(masked) if !self.cells.is_empty() => masked,
+            _ => blocks,
+        };
+        let blocks = match blocks.with_cell_leaps(&self.cell_leaps, self.cell_octants) {
+            Ok(leaping) if self.cell_octants != 0 => leaping,
             _ => blocks,
         };
         slab.with_blocks(blocks)

@@ -810,7 +810,14 @@ fn run_typed<T: Sample + Sync>(
         }
     }
     let (image, stats) = host.finish().map_err(end_fail)?;
-    let shape = super::RunShape::new(layout, &partition, &grid, view, size_of::<T>());
+    let shape = super::RunShape::new(
+        layout,
+        &partition,
+        &grid,
+        view,
+        size_of::<T>(),
+        cfg.skipping,
+    );
     // The host keeps the nodes' statistics by node id.
     let nodes = stats
         .into_iter()

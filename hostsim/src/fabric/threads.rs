@@ -342,7 +342,14 @@ fn run_typed<T: Sample + Send + Sync>(
         result
     });
     let (image, reports) = outcome?;
-    let shape = super::RunShape::new(layout, &partition, &grid, view, size_of::<T>());
+    let shape = super::RunShape::new(
+        layout,
+        &partition,
+        &grid,
+        view,
+        size_of::<T>(),
+        cfg.skipping,
+    );
     let nodes: Vec<NodeReport> = reports
         .into_iter()
         .enumerate()
