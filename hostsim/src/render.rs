@@ -271,12 +271,16 @@ pub fn preflight(volume: &Volume, view: &View, machine: &Machine) -> Result<(), 
 pub fn node_skipping(volume: &Volume, view: &View, machine: &Machine, balanced: bool) -> SkipMode {
     let mode = machine.skipping;
     let maps = crate::fabric::cell_leap_octants(view, mode).count_ones() as usize;
-    let Ok(cfg) = machine.sim_config() else {
-        return mode;
-    };
     if maps == 0 || machine.fabric == Fabric::Direct {
         return mode;
     }
+    // A machine without a layout renders nothing (`preflight` says why); hold no maps.
+    let Ok(cfg) = machine.sim_config() else {
+        return SkipMode {
+            cell_leaps: false,
+            ..mode
+        };
+    };
     let (grid, bytes, buffer) = (&volume.grid, volume.data.kind().bytes(), cfg.buffer());
     let (least, with_maps) = (
         budget::ViewNeeds::of(view),

@@ -31,6 +31,8 @@ pub const MAX_DISTANCE: u8 = 32;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CellLeaps<'a> {
     map: &'a [u8],
+    /// The octant whose rays it serves.
+    octant: Octant,
     /// The global X of the map's first cell.
     x0: u32,
     /// Cells along X and Y.
@@ -39,16 +41,23 @@ pub struct CellLeaps<'a> {
 }
 
 impl<'a> CellLeaps<'a> {
-    /// The map of `blocks` in `map` (one octant's part of [`build`]'s storage).
+    /// The map of `blocks` in `map` (one octant's part of [`build`]'s storage), for the rays
+    /// of the octant `blocks` serve.
     pub fn new(blocks: &Blocks<'_>, map: &'a [u8]) -> Result<CellLeaps<'a>, BlocksError> {
         let (cols, ny, nz) = blocks.shape();
         BlocksError::check_storage((cols * ny * nz) as usize * PER_BLOCK, map.len())?;
         Ok(CellLeaps {
             map,
+            octant: blocks.octant(),
             x0: blocks.first_column() * BLOCK,
             width: cols * BLOCK,
             height: ny * BLOCK,
         })
+    }
+
+    /// The octant whose rays read this map (the blocks' [`Blocks::toward`] when it was found).
+    pub fn octant(&self) -> Octant {
+        self.octant
     }
 
     /// The distance of the cell whose low corner is `lo` ([`crate::field::Site::lo`] of a

@@ -149,15 +149,15 @@ pub fn march<T: Sample>(
     let blocks = slab
         .blocks()
         .map(|b| b.toward(crate::leaps::Octant::of(ray.ray.dir)));
-    // A run through empty cells scans the samples after it where that pays for this ray
-    // ([`scan::pays`]), else jumps over a box of empty cells, whose exit is estimated with
-    // `exits`, found at the first jump: many calls end before one.
     // Where the view has a cell leap map for this octant, a ray leaps from cell to cell by
-    // it, and asks no block.
+    // it, and asks no block; its leaps' exits are estimated with `exits`.
     let cell_leaps = match &blocks {
         Some(blocks) if by_cell => blocks.cell_leaps(),
         _ => None,
     };
+    // Else a run through empty cells scans the samples after it where that pays for this ray
+    // ([`scan::pays`]), or jumps over a box of empty cells, whose exit is estimated with
+    // `exits`, found at the first jump: many calls end before one.
     let masks = match &blocks {
         Some(blocks) if by_cell && cell_leaps.is_none() && scan::pays(&ray.ray, &ray.lattice) => {
             scan::Masks::of(blocks, grid, slab.owned())
@@ -477,9 +477,7 @@ fn cell_leap<T: Sample>(
     mut distance: u8,
     exits: &Exits,
 ) -> u32 {
-    let grid = slab.grid();
-    let owned = slab.owned();
-    let octant = crate::leaps::Octant::of(ray.ray.dir);
+    let (grid, owned, octant) = (slab.grid(), slab.owned(), leaps.octant());
     let mut k = ray.k;
     loop {
         let spans: [(u32, u32); 3] =

@@ -476,30 +476,29 @@ impl Skipping {
             false => (Vec::new(), 0),
         };
         let cells = if masked { cells } else { Vec::new() };
-        // A cell leap map from the masks for each octant the view's rays take, one job each.
-        let masked = match blocks.with_cells(&cells) {
-            Ok(masked) if !cells.is_empty() => Some(masked),
-            _ => None,
-        };
-        let cell_octants = match masked {
+        // A cell leap map from the masks for each octant of the primary rays, one job each.
+        let with_masks = blocks.with_cells(&cells).ok().filter(|_| !cells.is_empty());
+        let cell_octants = match with_masks {
             Some(_) => cell_leap_octants(view, mode),
             None => 0,
         };
         let per_map = len * voxcube_kernel::cell_leaps::PER_BLOCK;
         let mut cell_leaps = vec![0; cell_octants.count_ones() as usize * per_map];
-        let chosen = (0..voxcube_kernel::leaps::OCTANTS).filter(|o| cell_octants >> o & 1 == 1);
-        let jobs: Vec<Part<'_>> = cell_leaps
-            .chunks_mut(per_map)
-            .zip(chosen)
-            .filter_map(|(map, octant)| {
-                let (masked, octant) = (masked?, voxcube_kernel::leaps::Octant::from_index(octant));
-                Some(Box::new(move || {
-                    voxcube_kernel::cell_leaps::build(&masked, octant, map).is_ok()
-                }) as Part<'_>)
-            })
-            .collect();
-        if !run_parts(jobs, threads).into_iter().all(|built| built) {
-            cell_leaps.clear();
+        if let Some(with_masks) = with_masks {
+            let chosen = (0..voxcube_kernel::leaps::OCTANTS).filter(|o| cell_octants >> o & 1 == 1);
+            let jobs: Vec<Part<'_>> = cell_leaps
+                .chunks_mut(per_map)
+                .zip(chosen)
+                .map(|(map, octant)| -> Part<'_> {
+                    let octant = voxcube_kernel::leaps::Octant::from_index(octant);
+                    Box::new(move || {
+                        voxcube_kernel::cell_leaps::build(&with_masks, octant, map).is_ok()
+                    })
+                })
+                .collect();
+            if !run_parts(jobs, threads).into_iter().all(|built| built) {
+                cell_leaps.clear();
+            }
         }
         let cell_octants = if cell_leaps.is_empty() {
             0
