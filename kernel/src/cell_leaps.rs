@@ -78,19 +78,61 @@ impl<'a> CellLeaps<'a> {
 /// cell's chessboard distance, for rays of `octant`, to the nearest cell ahead that the
 /// blocks' cell masks say may show. Blocks without masks show everywhere: every distance is 0.
 pub fn build(blocks: &Blocks<'_>, octant: Octant, out: &mut [u8]) -> Result<(), BlocksError> {
+    build_planes(blocks, octant, 0..planes(blocks), out)
+}
+
+/// Planes of cells (along Z) of a map of `blocks`.
+pub fn planes(blocks: &Blocks<'_>) -> usize {
+    (blocks.shape().2 * BLOCK) as usize
+}
+
+/// Bytes of one plane of cells of a map of `blocks`.
+pub fn plane_len(blocks: &Blocks<'_>) -> usize {
+    let (cols, ny, _) = blocks.shape();
+    (cols * BLOCK) as usize * (ny * BLOCK) as usize
+}
+
+/// The planes to build with [`build_planes`] for the exact distances of planes `part` of a map
+/// of `planes` planes, for rays of `octant`: the part and [`MAX_DISTANCE`] planes ahead of it.
+pub fn with_planes_ahead(
+    part: core::ops::Range<usize>,
+    planes: usize,
+    octant: Octant,
+) -> core::ops::Range<usize> {
+    let more = usize::from(MAX_DISTANCE);
+    match octant.down(2) {
+        true => part.start.saturating_sub(more)..part.end.min(planes),
+        false => part.start.min(planes)..part.end.saturating_add(more).min(planes),
+    }
+}
+
+/// [`build`]'s planes `planes` alone (`out` holds them, one after the other), as if no cell
+/// lay beyond them: each distance is [`build`]'s where at least [`MAX_DISTANCE`] planes lie
+/// between its cell and the last of `planes` ahead (a distance depends on no cell further
+/// away), and may be larger elsewhere. So a build split into parts of planes, each built with
+/// that many planes more ahead of it, gives the same bits.
+pub fn build_planes(
+    blocks: &Blocks<'_>,
+    octant: Octant,
+    planes: core::ops::Range<usize>,
+    out: &mut [u8],
+) -> Result<(), BlocksError> {
     let (cols, ny, nz) = blocks.shape();
-    let len = (cols * ny * nz) as usize;
-    BlocksError::check_storage(len * PER_BLOCK, out.len())?;
+    let (b, ny, nz) = (BLOCK as usize, ny as usize, nz as usize);
+    let plane_len = cols as usize * b * ny * b;
+    let last = planes.end.min(nz * b);
+    let planes = planes.start.min(last)..last;
+    BlocksError::check_storage(planes.len() * plane_len, out.len())?;
     let Some(masks) = blocks.masks() else {
         out.fill(0);
         return Ok(());
     };
-    BlocksError::check_storage(len, masks.len())?;
-    let (b, ny, nz) = (BLOCK as usize, ny as usize, nz as usize);
-    let dims = [cols as usize * b, ny * b, nz * b];
+    BlocksError::check_storage(cols as usize * ny * nz, masks.len())?;
+    let dims = [cols as usize * b, ny * b, planes.len()];
     // The blocks are stored X columns slowest, then Z, then Y: a row's blocks are `ny · nz`
     // apart, and its cells in each are one row of four bits of the block's mask.
     let obstacles = |row: &mut [u8], y: usize, z: usize| {
+        let z = planes.start + z;
         let first = (z / b) * ny + y / b;
         let shift = b * (y % b + b * (z % b));
         for (cells, mask) in row

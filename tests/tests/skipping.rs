@@ -331,10 +331,14 @@ proptest! {
 #[test]
 fn skipping_built_on_threads_is_the_same_storage() {
     let mut compared = 0;
-    for (dims, seed) in [
-        ([37, 21, 30], 7u64),
-        ([9, 40, 13], 0x3c_1d_05),
-        ([5, 6, 7], 11),
+    // The last two are long in Z, seen from both sides: a cell leap map built in parts of
+    // planes needs the planes ahead of each part, below it or above it.
+    for (dims, seed, side) in [
+        ([37, 21, 30], 7u64, 1.0),
+        ([9, 40, 13], 0x3c_1d_05, 1.0),
+        ([5, 6, 7], 11, 1.0),
+        ([10, 9, 150], 0x7e, 1.0),
+        ([10, 9, 150], 0x7e, -1.0),
     ] {
         let volume = blobs(dims, Vec3::ONE, seed);
         let VolumeData::U8(data) = &volume.data else {
@@ -342,7 +346,12 @@ fn skipping_built_on_threads_is_the_same_storage() {
         };
         let grid = volume.grid;
         let target = Vec3::from_array(dims.map(|n| n as f32 / 2.0));
-        let cam = voxcube_tests::ortho(target + Vec3::new(40.0, 9.0, 17.0), target, Vec3::Y, 30.0);
+        let cam = voxcube_tests::ortho(
+            target + Vec3::new(40.0, 9.0, 17.0) * side,
+            target,
+            Vec3::Y,
+            30.0,
+        );
         let point = |value: f32, opacity: f32| ControlPoint {
             value,
             color: Vec3::ONE,
@@ -373,14 +382,17 @@ fn skipping_built_on_threads_is_the_same_storage() {
                     for threads in [2, 3, 8] {
                         let many = Skipping::build_on(slab, &view, skipping, threads);
                         // Not assert_eq: the storage runs to thousands of entries.
-                        assert!(many == one, "{dims:?} {model:?} {skipping:?} on {threads}");
+                        assert!(
+                            many == one,
+                            "{dims:?} {side} {model:?} {skipping:?} on {threads}"
+                        );
                         compared += 1;
                     }
                 }
             }
         }
     }
-    assert_eq!(compared, 3 * 3 * 3 * 3 * 3);
+    assert_eq!(compared, 5 * 3 * 3 * 3 * 3);
 }
 
 /// Every pixel of `view` traced directly on `volume`'s whole slab, its blocks leaping by
@@ -550,4 +562,71 @@ fn nodes_hold_cell_leap_maps_only_where_they_fit() {
     assert!(!node_skipping(&small, &blob_view(cam(40.0), &small), &off, false).cell_leaps);
     let direct = Machine::new(Fabric::Direct, 1, 1, 1);
     assert!(node_skipping(&big, &view, &direct, false).cell_leaps);
+}
+
+/// A cell leap map built in parts of planes, each with [`MAX_DISTANCE`] planes more ahead of
+/// it, is the map built whole, in every octant; the same parts built without the planes
+/// ahead are not (the negative control: the planes ahead are what makes the parts exact).
+///
+/// [`MAX_DISTANCE`]: voxcube_kernel::cell_leaps::MAX_DISTANCE
+#[test]
+fn a_cell_leap_map_built_in_parts_of_planes_is_the_whole_map() {
+    use voxcube_kernel::blocks::{extent, Blocks, Range};
+    use voxcube_kernel::cell_leaps::{build, build_planes, plane_len, planes, with_planes_ahead};
+    use voxcube_kernel::leaps::Octant;
+    let volume = blobs([10, 9, 150], Vec3::ONE, 0x7e);
+    let VolumeData::U8(data) = &volume.data else {
+        unreachable!("blobs are bytes")
+    };
+    let slab = Slab::whole(volume.grid, data.as_slice()).expect("slab");
+    let mut ranges = vec![Range::UNKNOWN; extent(&slab).2];
+    Blocks::build(&slab, &mut ranges).expect("storage");
+    let blocks = Blocks::new(&slab, &ranges).expect("storage");
+    let cam = voxcube_tests::ortho(Vec3::new(60.0, 10.0, 90.0), Vec3::splat(5.0), Vec3::Y, 30.0);
+    let view = voxcube_tests::view(
+        voxcube_tests::spec(
+            cam,
+            4,
+            4,
+            Model::Cell,
+            0.5,
+            voxcube_tests::surfaces(&[(150.0, 0.0)]),
+        ),
+        &volume,
+    );
+    let mut masks = vec![0; ranges.len()];
+    voxcube_kernel::cells::build(&slab, &blocks, &view, &mut masks).expect("storage");
+    let blocks = blocks.with_cells(&masks).expect("storage");
+    let (all, plane) = (planes(&blocks), plane_len(&blocks));
+    let mut differs = 0;
+    for octant in (0..8).map(Octant::from_index) {
+        let mut whole = vec![0; ranges.len() * 64];
+        build(&blocks, octant, &mut whole).expect("storage");
+        for n in [2, 3, 5] {
+            let mut parts = vec![0; whole.len()];
+            let mut bare = vec![0; whole.len()];
+            for i in 0..n {
+                let part = i * all / n..(i + 1) * all / n;
+                let region = with_planes_ahead(part.clone(), all, octant);
+                let mut built = vec![0; region.len() * plane];
+                build_planes(&blocks, octant, region.clone(), &mut built).expect("storage");
+                let at = (part.start - region.start) * plane;
+                parts[part.start * plane..part.end * plane]
+                    .copy_from_slice(&built[at..at + part.len() * plane]);
+                build_planes(
+                    &blocks,
+                    octant,
+                    part.clone(),
+                    &mut bare[part.start * plane..part.end * plane],
+                )
+                .expect("storage");
+            }
+            assert!(parts == whole, "{octant:?} in {n} parts");
+            differs += usize::from(bare != whole);
+        }
+    }
+    assert!(
+        differs > 0,
+        "parts built without the planes ahead differ somewhere"
+    );
 }

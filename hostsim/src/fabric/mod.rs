@@ -486,16 +486,36 @@ impl Skipping {
         let mut cell_leaps = vec![0; cell_octants.count_ones() as usize * per_map];
         if let Some(with_masks) = with_masks {
             let chosen = (0..voxcube_kernel::leaps::OCTANTS).filter(|o| cell_octants >> o & 1 == 1);
-            let jobs: Vec<Part<'_>> = cell_leaps
-                .chunks_mut(per_map)
-                .zip(chosen)
-                .map(|(map, octant)| -> Part<'_> {
-                    let octant = voxcube_kernel::leaps::Octant::from_index(octant);
-                    Box::new(move || {
-                        voxcube_kernel::cell_leaps::build(&with_masks, octant, map).is_ok()
-                    })
-                })
-                .collect();
+            // Each map in parts of planes, one a thread: a part is built with the planes ahead
+            // of it that its distances depend on, and keeps its own.
+            use voxcube_kernel::cell_leaps::{build_planes, plane_len, planes, with_planes_ahead};
+            let (all, plane) = (planes(&with_masks), plane_len(&with_masks));
+            let n = threads.clamp(1, all.max(1));
+            let parts: Vec<std::ops::Range<usize>> =
+                (0..n).map(|i| i * all / n..(i + 1) * all / n).collect();
+            let mut jobs: Vec<Part<'_>> = Vec::new();
+            for (map, octant) in cell_leaps.chunks_mut(per_map).zip(chosen) {
+                let octant = voxcube_kernel::leaps::Octant::from_index(octant);
+                let pieces = split_sizes(map, parts.iter().map(|p| p.len() * plane));
+                for (out, part) in pieces.zip(parts.clone()) {
+                    jobs.push(Box::new(move || {
+                        let region = with_planes_ahead(part.clone(), all, octant);
+                        if region == part {
+                            return build_planes(&with_masks, octant, part, out).is_ok();
+                        }
+                        let mut built = vec![0; region.len() * plane];
+                        let at = (part.start - region.start) * plane;
+                        let ok = build_planes(&with_masks, octant, region, &mut built).is_ok();
+                        match built.get(at..at + out.len()) {
+                            Some(own) if ok => {
+                                out.copy_from_slice(own);
+                                true
+                            }
+                            _ => false,
+                        }
+                    }));
+                }
+            }
             if !run_parts(jobs, threads).into_iter().all(|built| built) {
                 cell_leaps.clear();
             }
