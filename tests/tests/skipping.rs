@@ -395,6 +395,18 @@ fn skipping_built_on_threads_is_the_same_storage() {
     assert_eq!(compared, 5 * 3 * 3 * 3 * 3);
 }
 
+/// `volume`'s whole slab (of blobs, bytes) and its blocks' ranges.
+fn whole_slab_blocks(volume: &Volume) -> (Slab<'_, u8>, Vec<voxcube_kernel::blocks::Range>) {
+    use voxcube_kernel::blocks::{extent, Blocks, Range};
+    let VolumeData::U8(data) = &volume.data else {
+        unreachable!("blobs are bytes")
+    };
+    let slab = Slab::whole(volume.grid, data.as_slice()).expect("slab");
+    let mut ranges = vec![Range::UNKNOWN; extent(&slab).2];
+    Blocks::build(&slab, &mut ranges).expect("storage");
+    (slab, ranges)
+}
+
 /// Every pixel of `view` traced directly on `volume`'s whole slab, its blocks leaping by
 /// `maps` of the octants in `label` (each map built for the octant `built_for` says of it).
 fn trace_with_octant_maps(
@@ -403,14 +415,9 @@ fn trace_with_octant_maps(
     label: u8,
     built_for: &dyn Fn(usize) -> usize,
 ) -> Vec<[u8; 4]> {
-    use voxcube_kernel::blocks::{extent, Blocks, Range};
+    use voxcube_kernel::blocks::Blocks;
     use voxcube_kernel::leaps::{self, Octant};
-    let VolumeData::U8(data) = &volume.data else {
-        unreachable!("blobs are bytes")
-    };
-    let slab = Slab::whole(volume.grid, data.as_slice()).expect("slab");
-    let mut ranges = vec![Range::UNKNOWN; extent(&slab).2];
-    Blocks::build(&slab, &mut ranges).expect("storage");
+    let (slab, ranges) = whole_slab_blocks(volume);
     let blocks = Blocks::new(&slab, &ranges).expect("storage");
     let len = ranges.len();
     let mut maps = vec![0u8; len * label.count_ones() as usize];
@@ -571,16 +578,11 @@ fn nodes_hold_cell_leap_maps_only_where_they_fit() {
 /// [`MAX_DISTANCE`]: voxcube_kernel::cell_leaps::MAX_DISTANCE
 #[test]
 fn a_cell_leap_map_built_in_parts_of_planes_is_the_whole_map() {
-    use voxcube_kernel::blocks::{extent, Blocks, Range};
+    use voxcube_kernel::blocks::Blocks;
     use voxcube_kernel::cell_leaps::{build, build_planes, plane_len, planes, with_planes_ahead};
     use voxcube_kernel::leaps::Octant;
     let volume = blobs([10, 9, 150], Vec3::ONE, 0x7e);
-    let VolumeData::U8(data) = &volume.data else {
-        unreachable!("blobs are bytes")
-    };
-    let slab = Slab::whole(volume.grid, data.as_slice()).expect("slab");
-    let mut ranges = vec![Range::UNKNOWN; extent(&slab).2];
-    Blocks::build(&slab, &mut ranges).expect("storage");
+    let (slab, ranges) = whole_slab_blocks(&volume);
     let blocks = Blocks::new(&slab, &ranges).expect("storage");
     let cam = voxcube_tests::ortho(Vec3::new(60.0, 10.0, 90.0), Vec3::splat(5.0), Vec3::Y, 30.0);
     let view = voxcube_tests::view(
