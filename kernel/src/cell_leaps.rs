@@ -7,9 +7,10 @@
 //!
 //! Invariants: a map is built from one view's cell masks ([`crate::cells`]), so a cell is an
 //! obstacle (distance 0) exactly where its mask bit is set: the same proof, cell by cell.
-//! Distances are exact up to [`MAX_DISTANCE`] (the seven neighbours
-//! ahead, as in [`crate::leaps`], a row at a time; tested against brute force) and capped
-//! there, which only shortens leaps. Cells outside
+//! Distances are exact up to [`MAX_DISTANCE`] (the seven neighbours ahead, as in
+//! [`crate::leaps`], a row at a time; tested against brute force) and capped there, which
+//! only shortens leaps; so a distance depends on no cell further away, and a map built in
+//! parts of planes, each with that many planes ahead of it, is the same map. Cells outside
 //! the slab's block columns or past the grid are not obstacles: the marcher checks that every
 //! landing is in an owned plane (so in the map) and in the cube, and the samples between lie
 //! in the same cube, since a ray's cells move monotonically, each axis the way its octant
@@ -45,7 +46,8 @@ impl<'a> CellLeaps<'a> {
     /// of the octant `blocks` serve.
     pub fn new(blocks: &Blocks<'_>, map: &'a [u8]) -> Result<CellLeaps<'a>, BlocksError> {
         let (cols, ny, nz) = blocks.shape();
-        BlocksError::check_storage((cols * ny * nz) as usize * PER_BLOCK, map.len())?;
+        let len = cols as usize * ny as usize * nz as usize;
+        BlocksError::check_storage(len * PER_BLOCK, map.len())?;
         Ok(CellLeaps {
             map,
             octant: blocks.octant(),

@@ -337,8 +337,9 @@ impl SkipMode {
 
 /// The octants whose cell leap maps a node skipping as `mode` says holds for `view`: those
 /// of its primary rays (transparency rays go on the same way), which trace nearly all
-/// samples; a shadow ray, and any ray of another octant, leaps by blocks. None without cell
-/// masks, which they are built from.
+/// samples. Any ray of another octant, as shadow rays mostly are, leaps by blocks; one in
+/// those octants, of whatever kind, leaps by the map. None without cell masks, which they
+/// are built from.
 pub fn cell_leap_octants(view: &View, mode: SkipMode) -> u8 {
     let by_cell = view.spec().model == voxcube_kernel::grid::Model::Cell;
     match mode.skip && mode.cells && mode.cell_leaps && by_cell {
