@@ -263,7 +263,8 @@ pub fn preflight(volume: &Volume, view: &View, machine: &Machine) -> Result<(), 
 }
 
 /// How `machine`'s nodes skip empty space in `view`: `machine.skipping`, without cell leap
-/// maps where a node could not hold them beside everything [`preflight`] counts. They are an
+/// maps where the view takes none ([`crate::fabric::cell_leap_octants`]) or a node could not
+/// hold them beside everything [`preflight`] counts. They are an
 /// acceleration, not a need: a machine that fits without them renders without them, the
 /// same pixels. Slabs `balanced` by the host may grow up to the cap balancing keeps them
 /// under ([`budget::max_owned_planes`]), so then that slab must fit. Every node and the host
@@ -271,8 +272,14 @@ pub fn preflight(volume: &Volume, view: &View, machine: &Machine) -> Result<(), 
 pub fn node_skipping(volume: &Volume, view: &View, machine: &Machine, balanced: bool) -> SkipMode {
     let mode = machine.skipping;
     let maps = crate::fabric::cell_leap_octants(view, mode).count_ones() as usize;
-    if maps == 0 || machine.fabric == Fabric::Direct {
+    if machine.fabric == Fabric::Direct {
         return mode;
+    }
+    if maps == 0 {
+        return SkipMode {
+            cell_leaps: false,
+            ..mode
+        };
     }
     // A machine without a layout renders nothing (`preflight` says why); hold no maps.
     let Ok(cfg) = machine.sim_config() else {

@@ -7,7 +7,7 @@
 use proptest::prelude::*;
 use voxcube::dataset::{Volume, VolumeData};
 use voxcube::fabric::sim::{self, SimConfig};
-use voxcube::fabric::{SkipMode, Skipping};
+use voxcube::fabric::{cell_leap_octants, SkipMode, Skipping};
 use voxcube::render::render_skipping;
 use voxcube::scene::Scene;
 use voxcube_kernel::grid::{Grid, Model};
@@ -541,11 +541,11 @@ fn every_node_skips_by_the_same_storage_however_the_build_is_threaded() {
 fn nodes_hold_cell_leap_maps_only_where_they_fit() {
     use voxcube::render::{node_skipping, preflight, Fabric, Machine};
     let cam = |n: f32| {
-        voxcube_tests::perspective(
+        voxcube_tests::ortho(
             Vec3::new(n * 2.5, n * 0.4, n * 0.5),
             Vec3::splat(n / 2.0),
             Vec3::Y,
-            40.0,
+            n * 1.5,
         )
     };
     let machine = Machine::new(Fabric::Sim, 1, 1, 1);
@@ -569,6 +569,14 @@ fn nodes_hold_cell_leap_maps_only_where_they_fit() {
     assert!(!node_skipping(&small, &blob_view(cam(40.0), &small), &off, false).cell_leaps);
     let direct = Machine::new(Fabric::Direct, 1, 1, 1);
     assert!(node_skipping(&big, &view, &direct, false).cell_leaps);
+    // Primary rays of one octant, and of several: the latter hold no maps, anywhere.
+    let parallel = blob_view(cam(40.0), &small);
+    assert_eq!(cell_leap_octants(&parallel, SkipMode::ALL).count_ones(), 1);
+    let eye = Vec3::splat(20.0);
+    let inside = voxcube_tests::perspective(eye, eye + Vec3::new(1.0, 0.3, 0.2), Vec3::Y, 100.0);
+    let spread = blob_view(inside, &small);
+    assert_eq!(cell_leap_octants(&spread, SkipMode::ALL), 0);
+    assert!(!node_skipping(&small, &spread, &machine, false).cell_leaps);
 }
 
 /// A cell leap map built in parts of planes, each with [`MAX_DISTANCE`] planes more ahead of
