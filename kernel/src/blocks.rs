@@ -392,19 +392,22 @@ impl<'a> Blocks<'a> {
     /// the blocks hold none for it.
     #[inline]
     pub fn toward(self, octant: Octant) -> Blocks<'a> {
-        let bit = 1u8 << octant.index();
-        let rank = (self.octants & (bit - 1)).count_ones() as usize;
+        // Maps of `len` bytes, one per octant in `octants`, in octant order: this octant's.
+        let of = |maps: &'a [u8], octants: u8, len: usize| {
+            let bit = 1u8 << octant.index();
+            let rank = (octants & (bit - 1)).count_ones() as usize;
+            match octants & bit {
+                0 => None,
+                _ => maps.get(rank * len..(rank + 1) * len),
+            }
+        };
         let len = self.data.len();
-        let leaps = match self.octants & bit {
-            0 => None,
-            _ => self.maps.get(rank * len..(rank + 1) * len),
-        };
-        let rank = (self.cell_octants & (bit - 1)).count_ones() as usize;
-        let len = len * crate::cell_leaps::PER_BLOCK;
-        let cell_leaps = match self.cell_octants & bit {
-            0 => None,
-            _ => self.cell_maps.get(rank * len..(rank + 1) * len),
-        };
+        let leaps = of(self.maps, self.octants, len);
+        let cell_leaps = of(
+            self.cell_maps,
+            self.cell_octants,
+            len * crate::cell_leaps::PER_BLOCK,
+        );
         Blocks {
             toward: octant,
             leaps,

@@ -160,10 +160,8 @@ pub fn build_planes(
 /// `dims`, then Y, then Z); `obstacles(row, y, z)` sets row `(y, z)`'s obstacles to 0 and
 /// leaves its other cells. Planes and rows are taken from the far end, so the rows ahead of a
 /// row are final when it is reached. First the row holds one more than the least of the
-/// three rows ahead of it (one over in Y, in Z, in both; a loop the compiler vectorizes),
-/// except at its obstacles, which hold 0 (every other cell holds at least 1). Then the row is
-/// taken from its far end, each cell the least of that, the same at the X ahead, and one more
-/// than the cell ahead in the row.
+/// three rows ahead of it (one over in Y, in Z, in both; a loop the compiler vectorizes);
+/// then [`along`] finishes it with the cells ahead in the row itself.
 fn ahead(
     d: &mut [u8],
     dims: [usize; 3],

@@ -73,17 +73,7 @@ impl Octant {
 pub fn octants(view: &View) -> u8 {
     let spec = view.spec();
     let inv = view.inv_spacing();
-    let (w, h) = (spec.width, spec.height);
-    // The primary directions: one for a parallel projection, the image's corners bound them
-    // for a perspective one (each component is monotone across the image).
-    let (x, y) = (w.saturating_sub(1), h.saturating_sub(1));
-    let corners =
-        [(0, 0), (x, 0), (0, y), (x, y)].map(|(x, y)| spec.camera.primary(x, y, w, h).1 * inv);
-    let (lo, hi) = corners
-        .iter()
-        .fold((corners[0], corners[0]), |(lo, hi), &d| {
-            (lo.min(d), hi.max(d))
-        });
+    let (lo, hi) = primary_bounds(view);
     let mut mask = spread(lo, hi);
     for light in spec.lights.iter().filter(|l| l.shadows) {
         mask |= match light.kind {
@@ -94,28 +84,30 @@ pub fn octants(view: &View) -> u8 {
     mask
 }
 
+/// The least and greatest of `view`'s primary directions in index space, per axis: one for
+/// a parallel projection; the image's corners bound them for a perspective one (each
+/// component is monotone across the image).
+fn primary_bounds(view: &View) -> (Vec3, Vec3) {
+    let spec = view.spec();
+    let (w, h) = (spec.width, spec.height);
+    let (x, y) = (w.saturating_sub(1), h.saturating_sub(1));
+    let corners = [(0, 0), (x, 0), (0, y), (x, y)]
+        .map(|(x, y)| spec.camera.primary(x, y, w, h).1 * view.inv_spacing());
+    corners
+        .iter()
+        .fold((corners[0], corners[0]), |(lo, hi), &d| {
+            (lo.min(d), hi.max(d))
+        })
+}
+
 /// The octants `view`'s primary rays take, one bit per octant: the one of their direction for
 /// a parallel projection (every pixel's is the same, and so its sign bits), else those
 /// [`octants`] finds for them. Transparency rays go on the same way.
 pub fn primary_octants(view: &View) -> u8 {
-    let spec = view.spec();
-    let (w, h) = (spec.width, spec.height);
-    match spec.camera.projection() {
-        crate::camera::Projection::Orthographic { .. } => {
-            let dir = spec.camera.primary(0, 0, w, h).1 * view.inv_spacing();
-            1 << Octant::of(dir).index()
-        }
-        crate::camera::Projection::Perspective { .. } => {
-            let (x, y) = (w.saturating_sub(1), h.saturating_sub(1));
-            let corners = [(0, 0), (x, 0), (0, y), (x, y)]
-                .map(|(x, y)| spec.camera.primary(x, y, w, h).1 * view.inv_spacing());
-            let (lo, hi) = corners
-                .iter()
-                .fold((corners[0], corners[0]), |(lo, hi), &d| {
-                    (lo.min(d), hi.max(d))
-                });
-            spread(lo, hi)
-        }
+    let (lo, hi) = primary_bounds(view);
+    match view.spec().camera.projection() {
+        crate::camera::Projection::Orthographic { .. } => 1 << Octant::of(lo).index(),
+        crate::camera::Projection::Perspective { .. } => spread(lo, hi),
     }
 }
 

@@ -420,11 +420,7 @@ impl Exits {
 /// The last sample of the run starting at `ray.k` (a cell-model sample in the empty cell
 /// whose low corner is `cell`, in a block whose cells the view cannot skip are `mask`) that
 /// stays in the box of empty cells [`cells::empty_box`] finds ahead of that cell for the
-/// octant `blocks` serve, and in `slab`'s owned planes: every sample between does too, since
-/// cell corners and owner planes are monotone along the lattice, each axis the way the
-/// octant says, and the box and the owned planes are intervals on every axis. The box's exit
-/// is only an estimate; each candidate is checked with the samples' own arithmetic, halving
-/// on failure.
+/// octant `blocks` serve, and in `slab`'s owned planes ([`last_in_box`]).
 #[inline]
 fn cell_run<T: Sample>(
     ray: &RayState,
@@ -438,36 +434,50 @@ fn cell_run<T: Sample>(
     let (first, last) = cells::empty_box(mask, offset, blocks.octant());
     let lo: [u32; 3] = core::array::from_fn(|a| cell[a] - offset[a] + first[a]);
     let hi: [u32; 3] = core::array::from_fn(|a| cell[a] - offset[a] + last[a]);
+    last_in_box(ray, ray.k, slab, cell, (lo, hi), exits)
+}
+
+/// The last sample from sample `k` on (in cell `cell`, owned, inside the box of cells `lo ..=
+/// hi`) that stays in that box and in `slab`'s owned planes, for a box of cells the view can
+/// skip: every sample between does too, since cell corners and owner planes are monotone
+/// along the lattice, each axis the way the ray's octant says, and the box and the owned
+/// planes are intervals on every axis. The box's exit is only an estimate; each candidate is
+/// checked with the samples' own arithmetic, halving on failure.
+#[inline]
+fn last_in_box<T: Sample>(
+    ray: &RayState,
+    k: u32,
+    slab: &Slab<'_, T>,
+    cell: [u32; 3],
+    (lo, hi): ([u32; 3], [u32; 3]),
+    exits: &Exits,
+) -> u32 {
     // The box's faces, nor past the owned planes (a cell-model sample's plane is its cell's).
     let owned = slab.owned();
     let faces = |c: [u32; 3]| Vec4::new(c[0] as f32, c[1] as f32, c[2] as f32, 0.0);
     let near = faces(lo).max(Vec4::new(owned.start as f32, 0.0, 0.0, 0.0));
     let far = (faces(hi) + Vec4::ONE).min(Vec4::new(owned.end as f32, f32::MAX, f32::MAX, 0.0));
-    let ahead = exits.steps(ray.lattice.t(ray.k), near, far);
-    let mut n = ahead.min(ray.lattice.last - ray.k.min(ray.lattice.last));
+    let ahead = exits.steps(ray.lattice.t(k), near, far);
+    let mut n = ahead.min(ray.lattice.last - k.min(ray.lattice.last));
     let grid = slab.grid();
     while n > 0 {
-        let q = ray.ray.at4(ray.lattice.t(ray.k + n));
+        let q = ray.ray.at4(ray.lattice.t(k + n));
         let c = field::corner4(grid, Model::Cell, q).lo;
-        // The cell the run starts in is in the box and owned (the loop checked): the common
-        // landing, asked first.
+        // The cell the run starts in is in the box and owned: the common landing, asked first.
         if c == cell || ((0..3).all(|a| lo[a] <= c[a] && c[a] <= hi[a]) && slab.owns(c[0])) {
-            return ray.k + n;
+            return k + n;
         }
         n /= 2;
     }
-    ray.k
+    k
 }
 
 /// The last sample of the cell leaps starting at `ray.k`, a cell-model sample in the cell
 /// whose low corner is `cell`, at `distance` (at least 1) in `leaps`: the last that stays in
-/// the cube of cells reaching `distance − 1` ahead of that cell for the ray's octant and in
-/// `slab`'s owned planes (every sample between does too: cells and owner planes are monotone
-/// along the lattice, each axis the way the octant says, and the cube and the owned planes
-/// are intervals on every axis), then on from the sample after it for as long as that sample
-/// is on the lattice, owned, and in a cell the map calls empty: what [`march`]'s loop would
-/// do next, turn by turn. Each cube's exit is only an estimate, checked with the samples' own
-/// arithmetic, halving on failure.
+/// the cube of cells reaching `distance − 1` ahead of that cell for the map's octant and in
+/// `slab`'s owned planes ([`last_in_box`]), then on from the sample after it for as long as
+/// that sample is on the lattice, owned, and in a cell the map calls empty: what [`march`]'s
+/// loop would do next, turn by turn.
 #[inline]
 fn cell_leap<T: Sample>(
     ray: &RayState,
@@ -477,32 +487,19 @@ fn cell_leap<T: Sample>(
     mut distance: u8,
     exits: &Exits,
 ) -> u32 {
-    let (grid, owned, octant) = (slab.grid(), slab.owned(), leaps.octant());
+    let (grid, octant) = (slab.grid(), leaps.octant());
     let mut k = ray.k;
     loop {
         let spans: [(u32, u32); 3] =
             core::array::from_fn(|a| octant.span(a, cell[a], u32::from(distance) - 1));
-        let faces = |c: [u32; 3]| Vec4::new(c[0] as f32, c[1] as f32, c[2] as f32, 0.0);
-        let near = faces(spans.map(|s| s.0)).max(Vec4::new(owned.start as f32, 0.0, 0.0, 0.0));
-        let far = (faces(spans.map(|s| s.1)) + Vec4::ONE).min(Vec4::new(
-            owned.end as f32,
-            f32::MAX,
-            f32::MAX,
-            0.0,
-        ));
-        let ahead = exits.steps(ray.lattice.t(k), near, far);
-        let mut n = ahead.min(ray.lattice.last - k.min(ray.lattice.last));
-        let last = loop {
-            if n == 0 {
-                break k;
-            }
-            let c = field::corner4(grid, Model::Cell, ray.ray.at4(ray.lattice.t(k + n))).lo;
-            let inside = (0..3).all(|a| spans[a].0 <= c[a] && c[a] <= spans[a].1);
-            if inside && slab.owns(c[0]) {
-                break k + n;
-            }
-            n /= 2;
-        };
+        let last = last_in_box(
+            ray,
+            k,
+            slab,
+            cell,
+            (spans.map(|s| s.0), spans.map(|s| s.1)),
+            exits,
+        );
         let next = match last.checked_add(1) {
             Some(next) if next <= ray.lattice.last => next,
             _ => return last,
