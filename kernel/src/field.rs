@@ -106,7 +106,7 @@ pub fn corner4(grid: &Grid, model: Model, q: Vec4) -> Corner {
     // truncation is the floor and exact (n ≤ 2^23, `Grid::new` checks). Equal to the
     // per-axis definition in the tests for every kind of f32.
     let (last_node, last_cell) = grid.last_indices();
-    let v = Vec4::select(q.cmpgt(Vec4::ZERO), q, Vec4::ZERO).min(last_node);
+    let v = clamped(q, last_node);
     match model {
         // The nearest node, halves rounding up: `v + 0.5` truncated, kept in the grid.
         Model::Voxel => Corner {
@@ -123,6 +123,22 @@ pub fn corner4(grid: &Grid, model: Model, q: Vec4) -> Corner {
     }
 }
 
+/// The cell-model [`Corner::lo`] of the point in the first three lanes of `q`, as whole
+/// floats in those lanes (the `w` lane is some whole number too): in every bit the corner
+/// [`corner4`] finds, for walks that compare cells with faces in vector lanes and need the
+/// integers only where they read a map.
+#[inline(always)]
+pub fn cell4(grid: &Grid, q: Vec4) -> Vec4 {
+    let (last_node, last_cell) = grid.last_indices();
+    clamped(q, last_node).min(last_cell).trunc()
+}
+
+/// `q` clamped into `[0, last_node]`: `q > 0` is false for NaN and -0.0, which land on +0.0.
+#[inline(always)]
+fn clamped(q: Vec4, last_node: Vec4) -> Vec4 {
+    Vec4::select(q.cmpgt(Vec4::ZERO), q, Vec4::ZERO).min(last_node)
+}
+
 /// `2^23`: the least `f32` from which on every representable number is whole, so adding it
 /// to a number in `[0, 2^23]` rounds that number to a whole one and leaves it in the
 /// mantissa's low bits.
@@ -133,7 +149,7 @@ pub(crate) const MAGIC: f32 = (1u32 << 23) as f32;
 /// overflow, one lane at a time, which no lane here needs: that took a tenth of the sample
 /// loop.
 #[inline(always)]
-fn whole_lanes(v: Vec4) -> [u32; 3] {
+pub(crate) fn whole_lanes(v: Vec4) -> [u32; 3] {
     let [x, y, z, _] = whole_lanes4(v);
     [x, y, z]
 }

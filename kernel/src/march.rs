@@ -181,7 +181,8 @@ pub fn march<T: Sample>(
                 if distance > 0 {
                     // Provably nothing in this cell or in the cube of cells ahead of it.
                     let exits = exits.get_or_insert_with(|| Exits::new(ray));
-                    let last = cell_leap(ray, slab, leaps, corner.lo, distance, exits);
+                    let cell = field::cell4(grid, p4);
+                    let last = cell_leap(ray, slab, leaps, cell, distance, exits);
                     skip_to(view, ray, last, counters);
                     continue;
                 }
@@ -402,7 +403,13 @@ impl Exits {
     /// zero where that cannot be told.
     #[inline]
     fn steps(&self, t: f32, lo: Vec4, hi: Vec4) -> u32 {
-        let faces = Vec4::select(self.rising, hi, lo);
+        self.steps_to(t, Vec4::select(self.rising, hi, lo))
+    }
+
+    /// About how many lattice steps after parameter `t` the ray reaches the first of the
+    /// planes `faces` (one per axis; those it does not move along are not read).
+    #[inline]
+    fn steps_to(&self, t: f32, faces: Vec4) -> u32 {
         let at = Vec4::select(
             self.moving,
             (faces - self.origin) * self.inv_dir,
@@ -473,46 +480,66 @@ fn last_in_box<T: Sample>(
 }
 
 /// The last sample of the cell leaps starting at `ray.k`, a cell-model sample in the cell
-/// whose low corner is `cell`, at `distance` (at least 1) in `leaps`: the last that stays in
-/// the cube of cells reaching `distance − 1` ahead of that cell for the map's octant and in
-/// `slab`'s owned planes ([`last_in_box`]), then on from the sample after it for as long as
-/// that sample is on the lattice, owned, and in a cell the map calls empty: what [`march`]'s
-/// loop would do next, turn by turn.
+/// whose low corner is `cell` (whole floats, [`field::cell4`]), at `distance` (at least 1) in
+/// `leaps`: the last that stays in the cube of cells reaching `distance − 1` ahead of that
+/// cell for the map's octant and in `slab`'s owned planes, then on from the sample after it
+/// for as long as that sample is on the lattice, owned, and in a cell the map calls empty:
+/// what [`march`]'s loop would do next, turn by turn. So the run ends just before the first
+/// sample that is in a cell the map does not call empty or in a plane `slab` does not own,
+/// whatever the estimates: they only decide how many turns that takes.
+///
+/// A turn works in the lanes of one vector. Cells and owner planes are monotone along the
+/// lattice, each axis the way the ray moves (as the positions are, and the clamp and floor
+/// after them), so a sample after `cell`'s lies in the cube and in the owned planes exactly
+/// when its cell is short of the cube's far face on every axis the ray moves up, and at or
+/// past it on every other (there the ray moves down, or keeps its cell); and then so does
+/// every sample between. The far faces are clamped to the owned planes' faces. The exit
+/// estimate ([`Exits::steps_to`]) is only an estimate: each candidate is checked so, halving
+/// on failure.
 #[inline]
 fn cell_leap<T: Sample>(
     ray: &RayState,
     slab: &Slab<'_, T>,
     leaps: &CellLeaps<'_>,
-    mut cell: [u32; 3],
+    mut cell: Vec4,
     mut distance: u8,
     exits: &Exits,
 ) -> u32 {
-    let (grid, octant) = (slab.grid(), leaps.octant());
+    let grid = slab.grid();
+    let owned = slab.owned();
+    // A cell-model sample's plane is its cell's: the owned cells span `[start, end)` in X.
+    let floor = Vec4::new(owned.start as f32, f32::MIN, f32::MIN, f32::MIN);
+    let ceiling = Vec4::new(owned.end as f32, f32::MAX, f32::MAX, f32::MAX);
+    let cell_at = |k: u32| field::cell4(grid, ray.ray.at4(ray.lattice.t(k)));
     let mut k = ray.k;
     loop {
-        let spans: [(u32, u32); 3] =
-            core::array::from_fn(|a| octant.span(a, cell[a], u32::from(distance) - 1));
-        let last = last_in_box(
-            ray,
-            k,
-            slab,
-            cell,
-            (spans.map(|s| s.0), spans.map(|s| s.1)),
-            exits,
-        );
+        let d = f32::from(distance);
+        let far = (cell + Vec4::select(exits.rising, Vec4::splat(d), Vec4::splat(1.0 - d)))
+            .max(floor)
+            .min(ceiling);
+        let in_cube = |c: Vec4| {
+            let inside = (exits.rising & c.cmplt(far)) | (!exits.rising & c.cmpge(far));
+            inside.bitmask() & 0b111 == 0b111
+        };
+        let mut n = exits
+            .steps_to(ray.lattice.t(k), far)
+            .min(ray.lattice.last - k.min(ray.lattice.last));
+        while n > 0 && !in_cube(cell_at(k + n)) {
+            n /= 2;
+        }
+        let last = k + n;
         let next = match last.checked_add(1) {
             Some(next) if next <= ray.lattice.last => next,
             _ => return last,
         };
-        let c = field::corner4(grid, Model::Cell, ray.ray.at4(ray.lattice.t(next))).lo;
-        if !slab.owns(c[0]) {
+        let landing = cell_at(next);
+        let lo = field::whole_lanes(landing);
+        if !slab.owns(lo[0]) {
             return last;
         }
-        match leaps.distance(c) {
+        match leaps.distance(lo) {
             0 => return last,
-            d => {
-                (k, cell, distance) = (next, c, d);
-            }
+            d => (k, cell, distance) = (next, landing, d),
         }
     }
 }
