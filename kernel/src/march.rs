@@ -16,7 +16,7 @@ use crate::cell_leaps::CellLeaps;
 use crate::cells::{self, CellMask};
 use crate::counters::Counters;
 use crate::field;
-use crate::grid::Model;
+use crate::grid::{Grid, Model};
 use crate::lattice::Lattice;
 use crate::lighting::unshadowed_color;
 use crate::ray::{Entry, Ray};
@@ -315,7 +315,7 @@ struct Probe {
 
 impl Probe {
     #[inline(always)]
-    fn of(ray: &RayState, grid: &crate::grid::Grid, model: Model, k: u32) -> Probe {
+    fn of(ray: &RayState, grid: &Grid, model: Model, k: u32) -> Probe {
         let t = ray.lattice.t(k);
         let p4 = ray.ray.at4(t);
         Probe {
@@ -399,17 +399,11 @@ impl Exits {
         }
     }
 
-    /// About how many lattice steps after parameter `t` the ray leaves the box `[lo, hi]`:
-    /// zero where that cannot be told.
-    #[inline]
-    fn steps(&self, t: f32, lo: Vec4, hi: Vec4) -> u32 {
-        self.steps_to(t, Vec4::select(self.rising, hi, lo))
-    }
-
     /// About how many lattice steps after parameter `t` the ray reaches the first of the
-    /// planes `faces` (one per axis; those it does not move along are not read).
+    /// planes `faces` (one per axis; those it does not move along are not read), zero where
+    /// that cannot be told.
     #[inline]
-    fn steps_to(&self, t: f32, faces: Vec4) -> u32 {
+    fn steps(&self, t: f32, faces: Vec4) -> u32 {
         let at = Vec4::select(
             self.moving,
             (faces - self.origin) * self.inv_dir,
@@ -427,7 +421,7 @@ impl Exits {
 /// The last sample of the run starting at `ray.k` (a cell-model sample in the empty cell
 /// whose low corner is `cell`, in a block whose cells the view cannot skip are `mask`) that
 /// stays in the box of empty cells [`cells::empty_box`] finds ahead of that cell for the
-/// octant `blocks` serve, and in `slab`'s owned planes ([`last_in_box`]).
+/// octant `blocks` serve, and in `slab`'s owned planes ([`last_short_of`]).
 #[inline]
 fn cell_run<T: Sample>(
     ray: &RayState,
@@ -439,63 +433,75 @@ fn cell_run<T: Sample>(
 ) -> u32 {
     let offset = cell.map(|c| c % crate::blocks::BLOCK);
     let (first, last) = cells::empty_box(mask, offset, blocks.octant());
-    let lo: [u32; 3] = core::array::from_fn(|a| cell[a] - offset[a] + first[a]);
-    let hi: [u32; 3] = core::array::from_fn(|a| cell[a] - offset[a] + last[a]);
-    last_in_box(ray, ray.k, slab, cell, (lo, hi), exits)
+    let face = |a: usize, end: [u32; 3], past: u32| (cell[a] - offset[a] + end[a] + past) as f32;
+    let lo = Vec4::new(face(0, first, 0), face(1, first, 0), face(2, first, 0), 0.0);
+    let hi = Vec4::new(face(0, last, 1), face(1, last, 1), face(2, last, 1), 0.0);
+    let far = OwnedFaces::of(slab).clamp(Vec4::select(exits.rising, hi, lo));
+    last_short_of(ray, ray.k, slab.grid(), far, exits)
 }
 
-/// The last sample from sample `k` on (in cell `cell`, owned, inside the box of cells `lo ..=
-/// hi`) that stays in that box and in `slab`'s owned planes, for a box of cells the view can
-/// skip: every sample between does too, since cell corners and owner planes are monotone
-/// along the lattice, each axis the way the ray's octant says, and the box and the owned
-/// planes are intervals on every axis. The box's exit is only an estimate; each candidate is
-/// checked with the samples' own arithmetic, halving on failure.
-#[inline]
-fn last_in_box<T: Sample>(
-    ray: &RayState,
-    k: u32,
-    slab: &Slab<'_, T>,
-    cell: [u32; 3],
-    (lo, hi): ([u32; 3], [u32; 3]),
-    exits: &Exits,
-) -> u32 {
-    // The box's faces, nor past the owned planes (a cell-model sample's plane is its cell's).
-    let owned = slab.owned();
-    let faces = |c: [u32; 3]| Vec4::new(c[0] as f32, c[1] as f32, c[2] as f32, 0.0);
-    let near = faces(lo).max(Vec4::new(owned.start as f32, 0.0, 0.0, 0.0));
-    let far = (faces(hi) + Vec4::ONE).min(Vec4::new(owned.end as f32, f32::MAX, f32::MAX, 0.0));
-    let ahead = exits.steps(ray.lattice.t(k), near, far);
-    let mut n = ahead.min(ray.lattice.last - k.min(ray.lattice.last));
-    let grid = slab.grid();
-    while n > 0 {
-        let q = ray.ray.at4(ray.lattice.t(k + n));
-        let c = field::corner4(grid, Model::Cell, q).lo;
-        // The cell the run starts in is in the box and owned: the common landing, asked first.
-        if c == cell || ((0..3).all(|a| lo[a] <= c[a] && c[a] <= hi[a]) && slab.owns(c[0])) {
-            return k + n;
+/// The faces of a slab's owned planes, as a box's far faces are clamped to them: a
+/// cell-model sample's plane is its cell's, so the owned cells span `[start, end)` in X.
+#[derive(Clone, Copy, Debug)]
+struct OwnedFaces {
+    floor: Vec4,
+    ceiling: Vec4,
+}
+
+impl OwnedFaces {
+    #[inline]
+    fn of<T: Sample>(slab: &Slab<'_, T>) -> OwnedFaces {
+        let owned = slab.owned();
+        OwnedFaces {
+            floor: Vec4::new(owned.start as f32, f32::MIN, f32::MIN, f32::MIN),
+            ceiling: Vec4::new(owned.end as f32, f32::MAX, f32::MAX, f32::MAX),
         }
+    }
+
+    /// A box's far faces (one per axis, as [`last_short_of`] reads them), nor past the
+    /// owned planes' faces. The box holds the cell the run starts in, which is owned, so
+    /// only the face on the ray's side ever moves.
+    #[inline]
+    fn clamp(&self, far: Vec4) -> Vec4 {
+        far.max(self.floor).min(self.ceiling)
+    }
+}
+
+/// The last sample from sample `k` on (a cell-model sample in a box of cells the view can
+/// skip, in owned planes) that stays in that box and in those planes, given by its far faces
+/// `far`, clamped to the owned planes' ([`OwnedFaces::clamp`]): on each axis the ray moves
+/// up, the box's upper face; on every other, its lower face. Every sample between lies there
+/// too.
+///
+/// Cells and owner planes are monotone along the lattice, each axis the way the ray moves (as
+/// the positions are, and the clamp and floor after them), so a sample after `k` lies in the
+/// box and in the owned planes exactly when its cell is short of `far` on every axis the ray
+/// moves up and at or past it on every other (there the ray moves down, or keeps its cell).
+/// The exit ([`Exits::steps`]) is only an estimate: each candidate is checked so, with the
+/// samples' own arithmetic, halving on failure.
+#[inline]
+fn last_short_of(ray: &RayState, k: u32, grid: &Grid, far: Vec4, exits: &Exits) -> u32 {
+    let in_box = |c: Vec4| {
+        let inside = (exits.rising & c.cmplt(far)) | (!exits.rising & c.cmpge(far));
+        inside.bitmask() & 0b111 == 0b111
+    };
+    let mut n = exits
+        .steps(ray.lattice.t(k), far)
+        .min(ray.lattice.last - k.min(ray.lattice.last));
+    while n > 0 && !in_box(field::cell4(grid, ray.ray.at4(ray.lattice.t(k + n)))) {
         n /= 2;
     }
-    k
+    k + n
 }
 
 /// The last sample of the cell leaps starting at `ray.k`, a cell-model sample in the cell
 /// whose low corner is `cell` (whole floats, [`field::cell4`]), at `distance` (at least 1) in
 /// `leaps`: the last that stays in the cube of cells reaching `distance − 1` ahead of that
-/// cell for the map's octant and in `slab`'s owned planes, then on from the sample after it
-/// for as long as that sample is on the lattice, owned, and in a cell the map calls empty:
-/// what [`march`]'s loop would do next, turn by turn. So the run ends just before the first
-/// sample that is in a cell the map does not call empty or in a plane `slab` does not own,
-/// whatever the estimates: they only decide how many turns that takes.
-///
-/// A turn works in the lanes of one vector. Cells and owner planes are monotone along the
-/// lattice, each axis the way the ray moves (as the positions are, and the clamp and floor
-/// after them), so a sample after `cell`'s lies in the cube and in the owned planes exactly
-/// when its cell is short of the cube's far face on every axis the ray moves up, and at or
-/// past it on every other (there the ray moves down, or keeps its cell); and then so does
-/// every sample between. The far faces are clamped to the owned planes' faces. The exit
-/// estimate ([`Exits::steps_to`]) is only an estimate: each candidate is checked so, halving
-/// on failure.
+/// cell for the map's octant and in `slab`'s owned planes ([`last_short_of`]), then on from
+/// the sample after it for as long as that sample is on the lattice, owned, and in a cell
+/// the map calls empty: what [`march`]'s loop would do next, turn by turn. So the run ends
+/// just before the first sample that is in a cell the map does not call empty or in a plane
+/// `slab` does not own, whatever the estimates: they only decide how many turns that takes.
 #[inline]
 fn cell_leap<T: Sample>(
     ray: &RayState,
@@ -506,33 +512,20 @@ fn cell_leap<T: Sample>(
     exits: &Exits,
 ) -> u32 {
     let grid = slab.grid();
-    let owned = slab.owned();
-    // A cell-model sample's plane is its cell's: the owned cells span `[start, end)` in X.
-    let floor = Vec4::new(owned.start as f32, f32::MIN, f32::MIN, f32::MIN);
-    let ceiling = Vec4::new(owned.end as f32, f32::MAX, f32::MAX, f32::MAX);
-    let cell_at = |k: u32| field::cell4(grid, ray.ray.at4(ray.lattice.t(k)));
+    let owned = OwnedFaces::of(slab);
     let mut k = ray.k;
     loop {
+        // The cube's far faces: `distance` cells up from the cell's low face, or its lowest
+        // cell's low face, `distance - 1` cells down.
         let d = f32::from(distance);
-        let far = (cell + Vec4::select(exits.rising, Vec4::splat(d), Vec4::splat(1.0 - d)))
-            .max(floor)
-            .min(ceiling);
-        let in_cube = |c: Vec4| {
-            let inside = (exits.rising & c.cmplt(far)) | (!exits.rising & c.cmpge(far));
-            inside.bitmask() & 0b111 == 0b111
-        };
-        let mut n = exits
-            .steps_to(ray.lattice.t(k), far)
-            .min(ray.lattice.last - k.min(ray.lattice.last));
-        while n > 0 && !in_cube(cell_at(k + n)) {
-            n /= 2;
-        }
-        let last = k + n;
+        let far =
+            owned.clamp(cell + Vec4::select(exits.rising, Vec4::splat(d), Vec4::splat(1.0 - d)));
+        let last = last_short_of(ray, k, grid, far, exits);
         let next = match last.checked_add(1) {
             Some(next) if next <= ray.lattice.last => next,
             _ => return last,
         };
-        let landing = cell_at(next);
+        let landing = field::cell4(grid, ray.ray.at4(ray.lattice.t(next)));
         let lo = field::whole_lanes(landing);
         if !slab.owns(lo[0]) {
             return last;
