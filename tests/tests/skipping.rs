@@ -662,7 +662,8 @@ fn nodes_hold_cell_leap_maps_only_where_they_fit() {
 #[test]
 fn a_cell_leap_map_built_in_parts_of_planes_is_the_whole_map() {
     use voxcube_kernel::blocks::Blocks;
-    use voxcube_kernel::cell_leaps::{build, build_planes, plane_len, planes, with_planes_ahead};
+    use voxcube_kernel::cell_leaps::with_planes_ahead;
+    use voxcube_kernel::cell_leaps::{build, build_planes, part, plane_len, planes};
     use voxcube_kernel::leaps::Octant;
     let volume = blobs([10, 9, 150], Vec3::ONE, 0x7e);
     let (slab, ranges) = whole_slab_blocks(&volume);
@@ -687,11 +688,15 @@ fn a_cell_leap_map_built_in_parts_of_planes_is_the_whole_map() {
     for octant in (0..8).map(Octant::from_index) {
         let mut whole = vec![0; ranges.len() * 64];
         build(&blocks, octant, &mut whole).expect("storage");
-        for n in [2, 3, 5] {
+        // Parts as the host splits a build, and parts of equal length.
+        for (n, balanced) in [2, 3, 5].into_iter().flat_map(|n| [(n, true), (n, false)]) {
             let mut parts = vec![0; whole.len()];
             let mut bare = vec![0; whole.len()];
-            for i in 0..n {
-                let part = i * all / n..(i + 1) * all / n;
+            let part_of = |i: usize| match balanced {
+                true => part(i, n, all, octant),
+                false => i * all / n..(i + 1) * all / n,
+            };
+            for part in (0..n).map(part_of) {
                 let region = with_planes_ahead(part.clone(), all, octant);
                 let mut built = vec![0; region.len() * plane];
                 build_planes(&blocks, octant, region.clone(), &mut built).expect("storage");
@@ -706,7 +711,10 @@ fn a_cell_leap_map_built_in_parts_of_planes_is_the_whole_map() {
                 )
                 .expect("storage");
             }
-            assert!(parts == whole, "{octant:?} in {n} parts");
+            assert!(
+                parts == whole,
+                "{octant:?} in {n} parts (balanced: {balanced})"
+            );
             differs += usize::from(bare != whole);
         }
     }

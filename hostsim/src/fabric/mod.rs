@@ -491,17 +491,20 @@ impl Skipping {
         if let Some(with_masks) = with_masks {
             let chosen = (0..voxcube_kernel::leaps::OCTANTS).filter(|o| cell_octants >> o & 1 == 1);
             // Each map in parts of planes, one a thread: a part is built with the planes ahead
-            // of it that its distances depend on, and keeps its own.
-            use voxcube_kernel::cell_leaps::{build_planes, plane_len, planes, with_planes_ahead};
+            // of it that its distances depend on, and keeps its own. The parts even out what
+            // each thread builds (`cell_leaps::part`).
+            use voxcube_kernel::cell_leaps::with_planes_ahead;
+            use voxcube_kernel::cell_leaps::{build_planes, part, plane_len, planes};
             let (all, plane) = (planes(&with_masks), plane_len(&with_masks));
             let n = threads.clamp(1, all.max(1));
-            let parts: Vec<std::ops::Range<usize>> =
-                (0..n).map(|i| i * all / n..(i + 1) * all / n).collect();
             let mut jobs: Vec<Part<'_>> = Vec::new();
             for (map, octant) in cell_leaps.chunks_mut(per_map).zip(chosen) {
                 let octant = voxcube_kernel::leaps::Octant::from_index(octant);
-                let pieces = split_sizes(map, parts.iter().map(|p| p.len() * plane));
-                for (out, part) in pieces.zip(parts.clone()) {
+                let parts: Vec<std::ops::Range<usize>> =
+                    (0..n).map(|i| part(i, n, all, octant)).collect();
+                let sizes: Vec<usize> = parts.iter().map(|p| p.len() * plane).collect();
+                let pieces = split_sizes(map, sizes.into_iter());
+                for (out, part) in pieces.zip(parts).filter(|(_, p)| !p.is_empty()) {
                     jobs.push(Box::new(move || {
                         let region = with_planes_ahead(part.clone(), all, octant);
                         if region == part {
