@@ -508,6 +508,9 @@ mod tests {
                 let p = Vec3::new(x, xs[(n * 7 + 1) % xs.len()], xs[(n * 13 + 2) % xs.len()]);
                 let cell = locate(&grid, Model::Cell, p);
                 let voxel = locate(&grid, Model::Voxel, p);
+                // The corner as whole floats, for walks in lanes: the same cell.
+                let floats = cell4(&grid, p.extend(0.0)).truncate();
+                assert_eq!(floats, Vec3::from_array(cell.lo.map(|c| c as f32)), "{p}");
                 for a in 0..3 {
                     let (lo, hi, f) = cell_axis(p[a], dims[a]);
                     // Equal as numbers: the definition's `max(-0.0, 0.0)` may keep either zero.

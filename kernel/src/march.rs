@@ -459,8 +459,8 @@ impl OwnedFaces {
     }
 
     /// A box's far faces (one per axis, as [`last_short_of`] reads them), nor past the
-    /// owned planes' faces. The box holds the cell the run starts in, which is owned, so
-    /// only the face on the ray's side ever moves.
+    /// owned planes' faces. The box holds the cell the run starts in, which is owned, so a
+    /// face clamped stays ahead of that cell.
     #[inline]
     fn clamp(&self, far: Vec4) -> Vec4 {
         far.max(self.floor).min(self.ceiling)
