@@ -379,7 +379,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                         skip: !no_skip,
                         leap: !no_leap,
                         cells: !no_cells,
-                        cell_leaps: !no_cells && !no_cell_leaps,
+                        cell_leaps: !no_cell_leaps,
                         rows: !no_row_leaps,
                     };
                     m.profile = match profile {

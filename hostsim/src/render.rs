@@ -271,38 +271,27 @@ pub fn preflight(volume: &Volume, view: &View, machine: &Machine) -> Result<(), 
 /// decide alike from the same inputs.
 pub fn node_skipping(volume: &Volume, view: &View, machine: &Machine, balanced: bool) -> SkipMode {
     let mode = machine.skipping;
-    let maps = crate::fabric::cell_leap_octants(view, mode).count_ones() as usize;
     if machine.fabric == Fabric::Direct {
         return mode;
     }
-    if maps == 0 {
-        return SkipMode {
-            cell_leaps: false,
-            ..mode
-        };
-    }
-    // A machine without a layout renders nothing (`preflight` says why); hold no maps.
-    let Ok(cfg) = machine.sim_config() else {
-        return SkipMode {
-            cell_leaps: false,
-            ..mode
-        };
-    };
-    let (grid, bytes, buffer) = (&volume.grid, volume.data.kind().bytes(), cfg.buffer());
-    let (least, with_maps) = (
-        budget::ViewNeeds::of(view),
-        budget::ViewNeeds::of(view).with_cell_maps(maps),
-    );
-    let fits = match balanced {
-        true => {
-            let cap = budget::max_owned_planes(machine.profile, grid, bytes, least, buffer);
-            budget::max_owned_planes(machine.profile, grid, bytes, with_maps, buffer) >= cap
+    let maps = crate::fabric::cell_leap_octants(view, mode).count_ones() as usize;
+    let fits = |buffer: usize| {
+        let (grid, bytes) = (&volume.grid, volume.data.kind().bytes());
+        let least = budget::ViewNeeds::of(view);
+        let with_maps = least.with_cell_maps(maps);
+        match balanced {
+            true => {
+                let cap = budget::max_owned_planes(machine.profile, grid, bytes, least, buffer);
+                budget::max_owned_planes(machine.profile, grid, bytes, with_maps, buffer) >= cap
+            }
+            false => budget::largest_node(grid, bytes, machine.cluster_size(), with_maps, buffer)
+                .is_some_and(|m| m.total() <= machine.profile.node_memory),
         }
-        false => budget::largest_node(grid, bytes, machine.cluster_size(), with_maps, buffer)
-            .is_some_and(|m| m.total() <= machine.profile.node_memory),
     };
+    // A machine without a layout renders nothing (`preflight` says why): it holds no maps.
+    let held = maps > 0 && machine.sim_config().is_ok_and(|cfg| fits(cfg.buffer()));
     SkipMode {
-        cell_leaps: mode.cell_leaps && fits,
+        cell_leaps: held,
         ..mode
     }
 }
