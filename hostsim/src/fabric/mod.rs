@@ -56,19 +56,19 @@ pub struct RunShape<'a> {
 }
 
 impl<'a> RunShape<'a> {
-    /// The shape of a run of `view` on `layout`, slabs `partition` of `grid`, samples of
-    /// `sample_bytes`, its nodes skipping as `skipping` says (which cell leap maps they hold).
+    /// The shape of a run of `view` configured by `cfg` (its layout, and how its nodes skip:
+    /// which cell leap maps they hold), slabs `partition` of `grid`, samples of
+    /// `sample_bytes`.
     pub fn new(
-        layout: Layout,
+        cfg: &sim::SimConfig,
         partition: &'a Partition,
         grid: &'a Grid,
         view: &View,
         sample_bytes: usize,
-        skipping: SkipMode,
     ) -> RunShape<'a> {
-        let cell_maps = cell_leap_octants(view, skipping).count_ones() as usize;
+        let cell_maps = cell_leap_octants(view, cfg.skipping).count_ones() as usize;
         RunShape {
-            layout,
+            layout: cfg.layout,
             partition,
             grid,
             needs: ViewNeeds::of(view).with_cell_maps(cell_maps),

@@ -511,7 +511,7 @@ pub fn host(
     world.barrier();
     let grid = volume.grid;
     let sample_bytes = volume.data.kind().bytes();
-    let shape = super::RunShape::new(layout, &partition, &grid, view, sample_bytes, cfg.skipping);
+    let shape = super::RunShape::new(cfg, &partition, &grid, view, sample_bytes);
     let nodes: Vec<NodeReport> = reports
         .into_iter()
         .enumerate()

@@ -810,14 +810,7 @@ fn run_typed<T: Sample + Sync>(
         }
     }
     let (image, stats) = host.finish().map_err(end_fail)?;
-    let shape = super::RunShape::new(
-        layout,
-        &partition,
-        &grid,
-        view,
-        size_of::<T>(),
-        cfg.skipping,
-    );
+    let shape = super::RunShape::new(cfg, &partition, &grid, view, size_of::<T>());
     // The host keeps the nodes' statistics by node id.
     let nodes = stats
         .into_iter()

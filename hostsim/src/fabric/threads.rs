@@ -342,14 +342,7 @@ fn run_typed<T: Sample + Send + Sync>(
         result
     });
     let (image, reports) = outcome?;
-    let shape = super::RunShape::new(
-        layout,
-        &partition,
-        &grid,
-        view,
-        size_of::<T>(),
-        cfg.skipping,
-    );
+    let shape = super::RunShape::new(cfg, &partition, &grid, view, size_of::<T>());
     let nodes: Vec<NodeReport> = reports
         .into_iter()
         .enumerate()
