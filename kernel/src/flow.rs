@@ -179,6 +179,45 @@ pub const fn r_imax(kind: RayKind, shadow_lights: u8) -> usize {
     }
 }
 
+/// Whether the nodes ahead of ring position `me` have room for what a step of a ray of `kind`
+/// may send them: `unacked[p][c]` is what this node has sent to position `p` in credit class
+/// `c` and not yet had acknowledged (one row per position of the ring). The ray itself goes
+/// ahead in its own class `own`, toward every position that way; a ray that may cast shadows
+/// sends up to `shadow_lights` shadow rays, which go either way. Results go home, which the
+/// caller checks. Each class needs its room below `i_max`, so that `n_i` never reaches it.
+pub fn room_ahead(
+    unacked: &[[u16; CREDITS]],
+    me: usize,
+    kind: RayKind,
+    own: Class,
+    shadow_lights: u8,
+    i_max: u16,
+) -> bool {
+    // Only the classes this step can send are looked at: one, or three for a ray casting
+    // shadows; a pass over every class and position was most of a ring's start checks.
+    let full = |class: Class, need: u16| {
+        let (Some(c), Some(up)) = (class.credit_index(), class.upward()) else {
+            return false;
+        };
+        let ahead = if up {
+            unacked.get(me + 1..)
+        } else {
+            unacked.get(..me)
+        };
+        ahead
+            .unwrap_or_default()
+            .iter()
+            .any(|row| row.get(c).is_some_and(|&n| n.saturating_add(need) >= i_max))
+    };
+    if full(own, 1) {
+        return false;
+    }
+    let shadows = u16::from(shadow_lights);
+    kind == RayKind::Shadow
+        || shadows == 0
+        || !(full(Class::ShadowUp, shadows) || full(Class::ShadowDown, shadows))
+}
+
 /// The smallest `i_max` with which any ray can start (`r_imax < i_max` from `n_i = 0`).
 pub const fn min_i_max(shadow_lights: u8) -> usize {
     r_imax(RayKind::Primary, shadow_lights) + 1
@@ -221,6 +260,77 @@ mod tests {
             }
         }
         assert_eq!(i_max_for(0, 4), 0);
+    }
+
+    /// What [`room_ahead`] decides, class by class over every credit class: the check as the
+    /// worker first wrote it.
+    fn room_ahead_by_every_class(
+        unacked: &[[u16; CREDITS]],
+        me: usize,
+        kind: RayKind,
+        own: Class,
+        shadow_lights: u8,
+        i_max: u16,
+    ) -> bool {
+        for (c, class) in CREDIT_CLASSES.iter().enumerate().skip(1) {
+            let need = match (kind, *class) {
+                (_, cl) if cl == own => 1,
+                (RayKind::Shadow, _) => continue,
+                (_, Class::ShadowUp | Class::ShadowDown) if shadow_lights > 0 => {
+                    u16::from(shadow_lights)
+                }
+                _ => continue,
+            };
+            let ahead = match class.upward() {
+                Some(true) => me + 1..unacked.len(),
+                _ => 0..me,
+            };
+            if ahead
+                .clone()
+                .any(|i| unacked[i][c].saturating_add(need) >= i_max)
+            {
+                return false;
+            }
+        }
+        true
+    }
+
+    #[test]
+    fn room_ahead_looks_at_what_a_step_sends_and_decides_as_every_class_does() {
+        let mut next = crate::testing::xorshift(0x5eed_f10e);
+        let (mut refused, mut allowed) = (0, 0);
+        for _ in 0..20_000 {
+            let size = 1 + next() as usize % 6;
+            let me = next() as usize % size;
+            let i_max = 2 + (next() % 6) as u16;
+            let shadow_lights = (next() % 4) as u8;
+            let kind =
+                [RayKind::Primary, RayKind::Transparency, RayKind::Shadow][next() as usize % 3];
+            let own = Class::of_ray(kind, if next() % 2 == 0 { 0.5 } else { -0.5 });
+            // Mostly empty rows, so that a single full class decides.
+            let mut unacked = [[0u16; CREDITS]; 6];
+            for n in unacked.iter_mut().flatten() {
+                if next() % 8 == 0 {
+                    *n = (next() % u32::from(i_max + 1)) as u16;
+                }
+            }
+            let table = &unacked[..size];
+            let expected = room_ahead_by_every_class(table, me, kind, own, shadow_lights, i_max);
+            assert_eq!(
+                room_ahead(table, me, kind, own, shadow_lights, i_max),
+                expected,
+                "{kind:?} {own:?} at {me} of {size}, {shadow_lights} lights, i_max {i_max}: {table:?}"
+            );
+            if expected {
+                allowed += 1;
+            } else {
+                refused += 1;
+            }
+        }
+        assert!(
+            refused > 2_000 && allowed > 2_000,
+            "{refused} refused, {allowed} allowed"
+        );
     }
 
     #[test]

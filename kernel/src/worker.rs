@@ -42,7 +42,7 @@
 //! back-pressure.
 
 use crate::counters::Counters;
-use crate::flow::{r_imax, Class, FlowControl, CREDITS, CREDIT_CLASSES};
+use crate::flow::{self, r_imax, Class, FlowControl, CREDITS};
 use crate::lighting::lighting;
 use crate::march::{march, Hit, RayKind, RayState, Stop};
 use crate::msg::{HitRecord, Msg, Outcome, PixelSet, Reply, Resolved, Travel, NO_HOME, NO_LIGHT};
@@ -510,8 +510,9 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
     /// continuation, and a record for an unadopted primary ray.
     fn can_start(&self, t: &Travel, from_pending: bool) -> bool {
         let kind = t.ray.kind;
+        let own = Class::of_ray(kind, t.ray.ray.dir.x);
         if kind != RayKind::Shadow {
-            let queue = if Class::of_ray(kind, t.ray.ray.dir.x) == Class::RayDown {
+            let queue = if own == Class::RayDown {
                 &self.pending_down
             } else {
                 &self.pending_up
@@ -532,8 +533,6 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
         }
         let r = r_imax(kind, self.shadow_lights) as u16;
         let i_max = self.flow.i_max;
-        let me = usize::from(self.place.position);
-        let size = usize::from(self.place.layout.size());
         // Results go home.
         if t.reply.home != NO_HOME && t.reply.home != self.node {
             let home = self.position_of(t.reply.home);
@@ -541,33 +540,16 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
                 return false;
             }
         }
-        if size == 1 {
-            // A ring of one has no position ahead either way: nothing below can refuse.
-            return true;
-        }
-        // Rays go ahead in their direction: the ray itself, and shadow rays either way.
-        let own = Class::of_ray(kind, t.ray.ray.dir.x);
-        for (c, class) in CREDIT_CLASSES.iter().enumerate().skip(1) {
-            let need = match (kind, *class) {
-                (_, cl) if cl == own => 1,
-                (RayKind::Shadow, _) => continue,
-                (_, Class::ShadowUp | Class::ShadowDown) if self.shadow_lights > 0 => {
-                    u16::from(self.shadow_lights)
-                }
-                _ => continue,
-            };
-            let ahead = match class.upward() {
-                Some(true) => me + 1..size,
-                _ => 0..me,
-            };
-            if ahead
-                .clone()
-                .any(|i| self.unacked[i][c].saturating_add(need) >= i_max)
-            {
-                return false;
-            }
-        }
-        true
+        let size = usize::from(self.place.layout.size());
+        let ring = self.unacked.get(..size).unwrap_or(&self.unacked);
+        flow::room_ahead(
+            ring,
+            usize::from(self.place.position),
+            kind,
+            own,
+            self.shadow_lights,
+            i_max,
+        )
     }
 
     /// Step the oldest startable continuation; whether one was.
