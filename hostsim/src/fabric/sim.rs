@@ -429,12 +429,16 @@ impl Port for SimPort<'_> {
     }
 
     fn try_recv(&mut self, class: Class) -> Option<(Dest, Msg)> {
-        let (from, msg) = self.mailbox.by_class[class.index()].pop_front()?;
-        self.received += 1;
-        if let Some(u) = self.net.used.get_mut(usize::from(self.from)) {
-            *u = u.saturating_sub(msg.kind().encoded_len());
+        // Handed on as it left the mailbox: taking it apart and putting it back together
+        // cost a copy of the whole message.
+        let read = self.mailbox.by_class[class.index()].pop_front();
+        if let Some((_, msg)) = &read {
+            self.received += 1;
+            if let Some(u) = self.net.used.get_mut(usize::from(self.from)) {
+                *u = u.saturating_sub(msg.kind().encoded_len());
+            }
         }
-        Some((from, msg))
+        read
     }
 
     fn pending(&self) -> usize {
