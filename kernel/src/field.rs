@@ -70,6 +70,13 @@ pub struct Corner {
 }
 
 impl Corner {
+    /// The cell-model corner as whole floats, [`cell4`] of the same point; `None` under the
+    /// voxel model.
+    #[inline]
+    pub fn cell(&self) -> Option<Vec4> {
+        self.cell.map(|(_, corner)| corner)
+    }
+
     /// [`Site::plane`].
     #[inline]
     pub fn plane(&self) -> u32 {
@@ -114,7 +121,7 @@ pub fn corner4(grid: &Grid, model: Model, q: Vec4) -> Corner {
             cell: None,
         },
         Model::Cell => {
-            let corner = v.min(last_cell).trunc();
+            let corner = cell_of(v, last_cell);
             Corner {
                 lo: whole_lanes(corner),
                 cell: Some((v, corner)),
@@ -130,7 +137,14 @@ pub fn corner4(grid: &Grid, model: Model, q: Vec4) -> Corner {
 #[inline(always)]
 pub fn cell4(grid: &Grid, q: Vec4) -> Vec4 {
     let (last_node, last_cell) = grid.last_indices();
-    clamped(q, last_node).min(last_cell).trunc()
+    cell_of(clamped(q, last_node), last_cell)
+}
+
+/// The cell-model corner of a point `v` clamped into the grid: its floor, kept off the last
+/// node (truncation is the floor there).
+#[inline(always)]
+fn cell_of(v: Vec4, last_cell: Vec4) -> Vec4 {
+    v.min(last_cell).trunc()
 }
 
 /// `q` clamped into `[0, last_node]`: `q > 0` is false for NaN and -0.0, which land on +0.0.
@@ -510,6 +524,8 @@ mod tests {
                 let voxel = locate(&grid, Model::Voxel, p);
                 // The corner as whole floats, for walks in lanes: the same cell.
                 let floats = cell4(&grid, p.extend(0.0)).truncate();
+                let found = corner4(&grid, Model::Cell, p.extend(0.0)).cell();
+                assert_eq!(found.map(Vec4::truncate), Some(floats), "{p}");
                 assert_eq!(floats, Vec3::from_array(cell.lo.map(|c| c as f32)), "{p}");
                 for a in 0..3 {
                     let (lo, hi, f) = cell_axis(p[a], dims[a]);

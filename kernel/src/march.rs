@@ -181,7 +181,8 @@ pub fn march<T: Sample>(
                 if distance > 0 {
                     // Provably nothing in this cell or in the cube of cells ahead of it.
                     let exits = exits.get_or_insert_with(|| Exits::new(ray));
-                    let cell = field::cell4(grid, p4);
+                    // The corner found it already (cell leaps serve the cell model only).
+                    let cell = corner.cell().unwrap_or_else(|| field::cell4(grid, p4));
                     let last = cell_leap(ray, slab, leaps, cell, distance, exits);
                     skip_to(view, ray, last, counters);
                     continue;
