@@ -2,9 +2,12 @@
 //! greatest value of its nodes, so every value the field takes inside the block (nearest or
 //! trilinear) lies in that range.
 //!
-//! A node builds its blocks from its own stored planes into storage it provides. A block that
-//! needs a plane the node does not store is marked unknown (an infinite range) and is never
-//! skipped. The tracer skips a sample only when the block says it provably contributes
+//! A node builds its blocks from its own stored planes into storage it provides. A block at
+//! the slab's end, only part of whose planes the node stores, takes the range of the nodes it
+//! stores: every value the field takes at a sample the node owns lies in it, since an owned
+//! sample reads stored nodes only (the ghost planes cover its cell), and the node asks its
+//! blocks about no other sample. A block none of whose planes the node stores is marked
+//! unknown (an infinite range) and is never skipped. The tracer skips a sample only when the block says it provably contributes
 //! nothing, and skipping never changes an image; which samples a node skips is therefore free
 //! to differ from node to node. Blocks may carry one view's chessboard distances ahead, one
 //! map per octant of ray directions ([`crate::leaps`]), so that a jump crosses every empty
@@ -242,8 +245,12 @@ impl<'a> Blocks<'a> {
         // straight passes along the rows that the compiler vectorises, and then each block
         // takes those of its own Y nodes. Gathering block by block instead, five values of a
         // row at a time, took 2.7 times the instructions.
+        let stored = slab.stored();
         for (k, line) in out.chunks_exact_mut(count(ny) as usize).enumerate() {
+            // A block at the slab's end takes the range of the nodes it stores: every sample
+            // the slab owns reads stored nodes only, and no other sample asks its blocks.
             let xs = nodes(x0 + (k / bz) as u32, nx);
+            let xs = xs.start.max(stored.start)..xs.end.min(stored.end);
             let zs = nodes((k % bz) as u32, nz);
             for (c, blocks) in line.chunks_mut(GATHER / BLOCK as usize).enumerate() {
                 // Nodes y0..y1: these blocks' own, and the plane they share with the next.
@@ -251,8 +258,8 @@ impl<'a> Blocks<'a> {
                 let y1 = (y0 + GATHER + 1).min(ny as usize);
                 let mut lo = [f32::INFINITY; GATHER + 1];
                 let mut hi = [f32::NEG_INFINITY; GATHER + 1];
-                // A row the slab does not store makes the blocks unknown.
-                let mut complete = true;
+                // A block without a stored plane is unknown.
+                let mut complete = !xs.is_empty();
                 for x in xs.clone() {
                     for z in zs.clone() {
                         let Some(values) = slab.row(x, z).and_then(|row| row.get(y0..y1)) else {
@@ -508,31 +515,54 @@ mod tests {
     use crate::grid::Grid;
 
     #[test]
-    fn every_field_value_lies_in_its_block() {
+    fn every_field_value_a_slab_owns_lies_in_its_block() {
         let grid = Grid::new([9, 7, 6], Vec3::ONE).unwrap();
         let data: [u8; 9 * 7 * 6] = core::array::from_fn(|i| (i * 37 % 251) as u8);
-        let slab = Slab::whole(grid, &data).unwrap();
-        let mut storage = [Range::UNKNOWN; 2 * 2 * 2];
-        Blocks::build(&slab, &mut storage).unwrap();
-        let blocks = Blocks::new(&slab, &storage).unwrap();
+        let plane = grid.plane_len();
         let mut c = Counters::default();
-        for i in 0..400 {
-            let p = Vec3::new(
-                (i % 17) as f32 * 0.5,
-                (i % 13) as f32 * 0.47,
-                (i % 11) as f32 * 0.46,
-            );
-            for model in [Model::Cell, Model::Voxel] {
-                let v = field::value(&slab, model, p, &mut c);
-                let r = blocks.at(&field::locate(&grid, model, p));
-                assert!(r.min <= v && v <= r.max, "{p} {model:?}: {v} outside {r:?}");
+        let mut checked = 0;
+        // The whole volume, and slabs whose end blocks the slab stores only in part: those
+        // blocks hold the range of their stored nodes, which every owned sample reads.
+        for (owned, ghost) in [
+            (0..9, 0),
+            (0..5, 1),
+            (5..9, 1),
+            (2..6, 1),
+            (1..3, 2),
+            (6..7, 1),
+        ] {
+            let stored = crate::slab::stored_planes(&grid, owned.clone(), ghost);
+            let part = &data[stored.start as usize * plane..stored.end as usize * plane];
+            let slab = Slab::new(grid, owned, ghost, part).unwrap();
+            let mut storage = [Range::UNKNOWN; 3 * 2 * 2];
+            let (_, _, n) = extent(&slab);
+            Blocks::build(&slab, &mut storage[..n]).unwrap();
+            let blocks = Blocks::new(&slab, &storage[..n]).unwrap();
+            for i in 0..400 {
+                let p = Vec3::new(
+                    (i % 17) as f32 * 0.5,
+                    (i % 13) as f32 * 0.47,
+                    (i % 11) as f32 * 0.46,
+                );
+                for model in [Model::Cell, Model::Voxel] {
+                    let site = field::locate(&grid, model, p);
+                    if !slab.owns(site.plane()) {
+                        continue;
+                    }
+                    let v = field::value(&slab, model, p, &mut c);
+                    let r = blocks.at(&site);
+                    assert!(r.min <= v && v <= r.max, "{p} {model:?}: {v} outside {r:?}");
+                    checked += 1;
+                }
             }
         }
+        assert_eq!(c.slab_misses, 0);
+        assert!(checked > 2000, "{checked} samples checked");
     }
 
     /// A block's range by definition: the least and greatest of its nodes (the corners of
-    /// its cells, `4b ..= 4b + 4` on each axis, cut at the grid's last node), or unknown when
-    /// the slab does not store them all.
+    /// its cells, `4b ..= 4b + 4` on each axis, cut at the grid's last node) that the slab
+    /// stores, or unknown when it stores none of them.
     fn defined<T: Sample>(slab: &Slab<'_, T>, block: [u32; 3]) -> Range {
         let dims = slab.grid().dims();
         let span = |a: usize| block[a] * BLOCK..=(block[a] * BLOCK + BLOCK).min(dims[a] - 1);
@@ -540,22 +570,23 @@ mod tests {
             min: f32::INFINITY,
             max: f32::NEG_INFINITY,
         };
-        for x in span(0) {
+        let mut any = false;
+        for x in span(0).filter(|x| slab.stored().contains(x)) {
             for y in span(1) {
                 for z in span(2) {
-                    let Some(v) = slab.get(x, y, z) else {
-                        return Range::UNKNOWN;
-                    };
-                    r.min = r.min.min(v.to_f32());
-                    r.max = r.max.max(v.to_f32());
+                    let v = slab.get(x, y, z).unwrap().to_f32();
+                    (r.min, r.max, any) = (r.min.min(v), r.max.max(v), true);
                 }
             }
         }
-        r
+        match any {
+            true => r,
+            false => Range::UNKNOWN,
+        }
     }
 
     /// Every block of `slab` as [`Blocks::build`] makes it equals the definition; returns
-    /// how many are known and unknown.
+    /// how many of them the slab stores whole and in part.
     fn check<T: Sample>(slab: &Slab<'_, T>) -> [usize; 2] {
         let mut storage = [Range::UNKNOWN; 256];
         let (x0, x1, n) = extent(slab);
@@ -584,7 +615,10 @@ mod tests {
                 for cz in 0..bz {
                     let want = defined(slab, [bx, cy, cz]);
                     assert_eq!(blocks.range((bx, cy, cz)), want, "block {bx} {cy} {cz}");
-                    seen[usize::from(want == Range::UNKNOWN)] += 1;
+                    assert_ne!(want, Range::UNKNOWN, "every column holds a stored plane");
+                    let planes = bx * BLOCK..=(bx * BLOCK + BLOCK).min(slab.grid().dims()[0] - 1);
+                    let whole = planes.clone().all(|x| slab.stored().contains(&x));
+                    seen[usize::from(!whole)] += 1;
                 }
             }
         }
@@ -610,7 +644,8 @@ mod tests {
             let mut add = |[k, u]: [usize; 2]| seen = [seen[0] + k, seen[1] + u];
             add(check(&Slab::whole(grid, &bytes[..n]).unwrap()));
             add(check(&Slab::whole(grid, &floats[..n]).unwrap()));
-            // Partial slabs: ghost planes on either side, so blocks at their edges are unknown.
+            // Partial slabs: ghost planes on either side, so blocks at their ends are stored
+            // in part.
             let [nx, ..] = dims;
             for (owned, ghost) in [(1..nx / 2, 1), (nx / 2..nx, 0), (0..nx.div_ceil(3), 2)] {
                 if owned.is_empty() {
@@ -628,14 +663,16 @@ mod tests {
             }
         }
         // Both kinds were compared, in numbers.
-        assert!(seen[0] > 500 && seen[1] > 50, "known, unknown: {seen:?}");
+        assert!(seen[0] > 500 && seen[1] > 50, "whole, in part: {seen:?}");
     }
 
     #[test]
-    fn blocks_beyond_the_stored_planes_are_unknown() {
+    fn a_block_at_the_slabs_end_holds_the_range_of_its_stored_planes() {
         let grid = Grid::new([13, 2, 2], Vec3::ONE).unwrap();
-        let data = [5u8; 4 * 4];
-        // Owns planes 4..6 with one ghost plane: stores 3..7, so block 1 (planes 4..=8) is unknown.
+        // Plane x holds 10·x: a block's range tells which of its planes it read.
+        let data: [u8; 4 * 4] = core::array::from_fn(|i| (10 * (3 + i / 4)) as u8);
+        // Owns planes 4..6 with one ghost plane: stores 3..7. Block 0 (planes 0..=4) stores
+        // 3 and 4, block 1 (planes 4..=8) 4 to 6, and block 2 lies past the slab.
         let slab = Slab::new(grid, 4..6, 1, &data).unwrap();
         let (x0, x1, n) = extent(&slab);
         assert_eq!((x0, x1), (0, 2));
@@ -643,10 +680,22 @@ mod tests {
         assert_eq!(n, 2);
         Blocks::build(&slab, &mut storage).unwrap();
         let blocks = Blocks::new(&slab, &storage).unwrap();
+        let at = |x: f32| blocks.at(&field::locate(&grid, Model::Cell, Vec3::new(x, 0.0, 0.0)));
         assert_eq!(
-            blocks.at(&field::locate(&grid, Model::Cell, Vec3::new(5.0, 0.0, 0.0))),
-            Range::UNKNOWN
+            at(3.0),
+            Range {
+                min: 30.0,
+                max: 40.0
+            }
         );
+        assert_eq!(
+            at(5.0),
+            Range {
+                min: 40.0,
+                max: 60.0
+            }
+        );
+        assert_eq!(at(9.0), Range::UNKNOWN);
         assert!(Blocks::build(&slab, &mut [Range::UNKNOWN; 3]).is_err());
     }
 

@@ -5,10 +5,11 @@
 //! Invariants: a cleared bit is a proof, the same proof a block gives: every value of the
 //! trilinear field inside the cell lies between the least and greatest of the cell's eight
 //! nodes, and the view calls that range empty ([`View::empty`]). Where that cannot be shown
-//! the bit is set: every cell of a block whose range is unknown, and of a block a row of
-//! which the slab does not store. A block the view skips as a whole has no bit set (the
-//! marcher never asks). Masks serve the cell model only; voxel-model samples read a single
-//! node, and skipping one would save nothing. Like a leap map, a mask belongs to one view.
+//! the bit is set: every cell of a block whose range is unknown, and every cell with a corner
+//! on a plane the slab does not store (in a block at the slab's ends). A block the view skips
+//! as a whole has no bit set (the marcher never asks). Masks serve the cell model only;
+//! voxel-model samples read a single node, and skipping one would save nothing. Like a leap
+//! map, a mask belongs to one view.
 //! Building them takes about 18 KiB of stack (a block's nodes and their ranges, and the
 //! remembered verdicts) and no other memory than the masks.
 
@@ -188,8 +189,9 @@ impl<'v> Verdicts<'v> {
     }
 }
 
-/// The cells of block `b` that the view cannot skip; `None` when a row of its nodes is not
-/// stored.
+/// The cells of block `b` that the view cannot skip, every cell with a corner on a plane the
+/// slab does not store among them (a block at the slab's end); `None` when a row of its nodes
+/// on a stored plane is not there.
 fn block_mask<T: Sample>(
     slab: &Slab<'_, T>,
     verdicts: &mut Verdicts<'_>,
@@ -204,7 +206,20 @@ fn block_mask<T: Sample>(
     // The block's nodes once (at most 5³), an axis of fewer nodes padded with its last, so
     // that a cell's far corner along an axis of one node is its near one, as in `locate`.
     let mut nodes = [[[0.0f32; NODES]; NODES]; NODES];
+    // The cells with a corner on a plane not stored: their bits are set whatever their nodes
+    // (left at zero) say.
+    let stored = slab.stored();
+    let mut unstored: CellMask = 0;
     for (x, plane) in nodes.iter_mut().enumerate() {
+        let at = first[0] + x.min(len[0] - 1) as u32;
+        if !stored.contains(&at) {
+            // The cells on either side of this plane of nodes, every Y and Z.
+            for cell in [x.checked_sub(1), Some(x)].into_iter().flatten() {
+                let cell = cell.min(EDGE - 1) as u32;
+                unstored |= box_bits([cell, 0, 0], [cell, BLOCK - 1, BLOCK - 1]);
+            }
+            continue;
+        }
         for (z, line) in plane.iter_mut().enumerate() {
             let (x, z) = (x.min(len[0] - 1) as u32, z.min(len[2] - 1) as u32);
             let row = slab.row(first[0] + x, first[2] + z)?;
@@ -238,7 +253,7 @@ fn block_mask<T: Sample>(
             }
         }
     }
-    Some(mask)
+    Some(mask | unstored)
 }
 
 /// The nodes of a block, each replaced (over the first `EDGE` along x and z) by `pick` of it

@@ -86,6 +86,25 @@ fn check(text: &str, file: &str) {
                     job.name,
                     v.name
                 );
+                // A slab skips every sample one node skips: the blocks at its ends, stored in
+                // part, hold the range of what they store. With cell masks, a cell-model
+                // cluster evaluates exactly one node's samples; a partial block's range can
+                // only be narrower than the whole block's.
+                let one = match mode {
+                    SkipMode::ALL => &all,
+                    SkipMode::BLOCKS => &blocks,
+                    _ => &on,
+                };
+                let (ours, theirs) = (run.counters().samples, one.counters.samples);
+                match mode.cells && v.view.spec().model == Model::Cell {
+                    true => assert_eq!(ours, theirs, "{}/{} on {size} nodes", job.name, v.name),
+                    false => assert!(
+                        ours <= theirs,
+                        "{}/{} on {size} nodes ({mode:?}): {ours} samples, one node {theirs}",
+                        job.name,
+                        v.name
+                    ),
+                }
             }
             // Row leaps change which primary rays are set up, never a pixel or a count.
             let no_rows = SkipMode {
