@@ -467,6 +467,7 @@ pub fn table(rows: &[Row], runs: usize) -> String {
          rays ride along)"
     );
     let _ = writeln!(out, "{}", build_line());
+    let _ = writeln!(out, "{}", machine_line());
     out.push_str(&targets(rows));
     out
 }
@@ -490,6 +491,67 @@ fn build_line() -> String {
     } else {
         format!("built with {}", extensions.join(", "))
     }
+}
+
+/// Which machine ran the bench: its CPU and the caches its first core sees, as Linux reports
+/// them. Figures from different machines do not compare, and this project's machine is not
+/// always the same one from one day to the next.
+fn machine_line() -> String {
+    let cpuinfo = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+    let read = |index: usize, what: &str| {
+        std::fs::read_to_string(format!(
+            "/sys/devices/system/cpu/cpu0/cache/index{index}/{what}"
+        ))
+        .map(|s| s.trim().to_string())
+    };
+    let caches: Vec<(String, String, String)> = (0..)
+        .map_while(|i| {
+            Some((
+                read(i, "level").ok()?,
+                read(i, "type").ok()?,
+                read(i, "size").ok()?,
+            ))
+        })
+        .collect();
+    let cpus = std::thread::available_parallelism().map_or(0, usize::from);
+    describe_machine(cpu_model(&cpuinfo), cpus, &caches)
+}
+
+/// The first `model name` of a `/proc/cpuinfo`.
+fn cpu_model(cpuinfo: &str) -> Option<&str> {
+    cpuinfo
+        .lines()
+        .find_map(|line| line.strip_prefix("model name")?.split_once(':'))
+        .map(|(_, name)| name.trim())
+}
+
+/// [`machine_line`] from what it read: the CPU's model, the logical CPUs this process may
+/// use, and the first core's caches as `(level, type, size)` from sysfs.
+fn describe_machine(
+    model: Option<&str>,
+    cpus: usize,
+    caches: &[(String, String, String)],
+) -> String {
+    let caches: Vec<String> = caches
+        .iter()
+        .map(|(level, kind, size)| {
+            let kind = match kind.as_str() {
+                "Data" => "d",
+                "Instruction" => "i",
+                _ => "",
+            };
+            format!("L{level}{kind} {size}")
+        })
+        .collect();
+    let caches = match caches.is_empty() {
+        true => "caches not reported".to_string(),
+        false => format!("caches of its first core: {}", caches.join(", ")),
+    };
+    let plural = if cpus == 1 { "" } else { "s" };
+    format!(
+        "ran on: {}, {cpus} logical CPU{plural}; {caches}",
+        model.unwrap_or("a CPU /proc/cpuinfo does not name")
+    )
 }
 
 /// Each target of the issue "Speed", with this run's figure and whether it is met. A target
@@ -601,6 +663,30 @@ pub fn targets(rows: &[Row]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_machine_line_names_the_cpu_and_its_caches() {
+        let cpuinfo = "processor\t: 0\nvendor_id\t: AuthenticAMD\nmodel name\t: AMD EPYC 7B13\n\
+                       processor\t: 1\nmodel name\t: AMD EPYC 7B13\n";
+        assert_eq!(cpu_model(cpuinfo), Some("AMD EPYC 7B13"));
+        assert_eq!(cpu_model("processor\t: 0\n"), None);
+        let cache = |l: &str, t: &str, s: &str| (l.to_string(), t.to_string(), s.to_string());
+        let caches = [
+            cache("1", "Data", "48K"),
+            cache("1", "Instruction", "32K"),
+            cache("2", "Unified", "1024K"),
+            cache("3", "Unified", "32768K"),
+        ];
+        assert_eq!(
+            describe_machine(cpu_model(cpuinfo), 2, &caches),
+            "ran on: AMD EPYC 7B13, 2 logical CPUs; caches of its first core: L1d 48K, \
+             L1i 32K, L2 1024K, L3 32768K"
+        );
+        assert_eq!(
+            describe_machine(None, 1, &[]),
+            "ran on: a CPU /proc/cpuinfo does not name, 1 logical CPU; caches not reported"
+        );
+    }
 
     fn row(dataset: &str, size: Size, view: &str, config: &str, ms: u64) -> Row {
         Row {
