@@ -3,6 +3,7 @@
 //! empty block around, and with single empty cells skipped too, while skipping really skips,
 //! leaping really leaps and cell masks really mask; and passing over the pixels of a row that
 //! a node certainly does not start, or that certainly miss, changes no pixel or count either.
+//! A cluster, however it is cut into slabs, skips every sample one node skips.
 
 use proptest::prelude::*;
 use voxcube::dataset::{Volume, VolumeData};
@@ -365,7 +366,8 @@ proptest! {
     /// spacing, cameras inside and outside and along an axis, steps from 1/64 to 2 cell edges
     /// (long runs through empty cells), both models, surfaces and compositing. And a leap
     /// skips exactly the samples one-block jumps skip, with cell masks, and cell leaps exactly
-    /// the samples the masks skip.
+    /// the samples the masks skip. On a cluster cut at random planes, the same image and one
+    /// node's evaluated samples.
     #[test]
     fn skipping_changes_no_pixel_on_random_hard_cases(
         dims in prop::array::uniform3(1u32..14),
@@ -378,6 +380,7 @@ proptest! {
         dt in prop_oneof![Just(1.0f32 / 64.0), 1.0f32 / 64.0..2.0],
         iso in 20.0f32..240.0,
         composite in any::<bool>(),
+        cut_bits in any::<u16>(),
     ) {
         let volume = blobs(dims, Vec3::from_array(spacing), seed);
         let target = Vec3::from_array(dims.map(|n| n as f32 / 2.0)) * Vec3::from_array(spacing);
@@ -416,6 +419,26 @@ proptest! {
         prop_assert_eq!(&counters[0], &counters[1]);
         prop_assert_eq!(&counters[2], &counters[3]);
         prop_assert_eq!(&counters[3], &counters[4]);
+        // On a cluster cut anywhere (plane x starts a slab where bit x of `cut_bits` is set),
+        // the same image, and the slabs skip every sample one node skips: on the cell model
+        // exactly one node's samples are evaluated, on the voxel model at most those (a block
+        // at a slab's end holds the range of the planes the slab stores, which can be
+        // narrower than the whole block's).
+        let mut cuts = vec![0u32];
+        cuts.extend((1..dims[0]).filter(|x| cut_bits & (1 << x) != 0));
+        cuts.push(dims[0]);
+        let cfg = SimConfig {
+            layout: voxcube_kernel::topology::Layout::new(1, cuts.len() as u32 - 1).expect("layout"),
+            cuts: Some(cuts.clone()),
+            ..SimConfig::cluster(1, seed).expect("layout")
+        };
+        let run = sim::run(&volume, &view, &cfg).map_err(|e| TestCaseError::fail(e.to_string()))?;
+        prop_assert!(run.pixels == off.pixels, "cuts {:?}: the image differs", cuts);
+        let (ours, theirs) = (run.counters().samples, counters[4].samples);
+        match voxel {
+            false => prop_assert_eq!(ours, theirs, "cuts {:?}", cuts),
+            true => prop_assert!(ours <= theirs, "cuts {:?}: {} samples, one node {}", cuts, ours, theirs),
+        }
     }
 }
 
