@@ -5,9 +5,10 @@
 //! A node builds its blocks from its own stored planes into storage it provides. A block at
 //! the slab's end, only part of whose planes the node stores, takes the range of the nodes it
 //! stores: every value the field takes at a sample the node owns lies in it, since an owned
-//! sample reads stored nodes only (the ghost planes cover its cell), and the node asks its
-//! blocks about no other sample. A block none of whose planes the node stores is marked
-//! unknown (an infinite range) and is never skipped. The tracer skips a sample only when the block says it provably contributes
+//! sample reads stored nodes only (with at least one ghost plane, as every view's slabs have,
+//! its cell's far corner is stored), and the node asks its blocks about no other sample. A
+//! block none of whose planes the node stores is marked unknown (an infinite range) and is
+//! never skipped. The tracer skips a sample only when the block says it provably contributes
 //! nothing, and skipping never changes an image; which samples a node skips is therefore free
 //! to differ from node to node. Blocks may carry one view's chessboard distances ahead, one
 //! map per octant of ray directions ([`crate::leaps`]), so that a jump crosses every empty
