@@ -245,7 +245,9 @@ impl<'a> Blocks<'a> {
         // least and greatest value at each Y node are gathered over its rows first, in
         // straight passes along the rows that the compiler vectorises, and then each block
         // takes those of its own Y nodes. Gathering block by block instead, five values of a
-        // row at a time, took 2.7 times the instructions.
+        // row at a time, took 2.7 times the instructions. The passes compare samples as
+        // stored, many to a vector register for bytes, and convert only each block's two
+        // extremes: `to_f32` keeps the samples' order.
         let stored = slab.stored();
         for (k, line) in out.chunks_exact_mut(count(ny) as usize).enumerate() {
             // A block at the slab's end takes the range of the nodes it stores: every sample
@@ -257,8 +259,11 @@ impl<'a> Blocks<'a> {
                 // Nodes y0..y1: these blocks' own, and the plane they share with the next.
                 let y0 = c * GATHER;
                 let y1 = (y0 + GATHER + 1).min(ny as usize);
-                let mut lo = [f32::INFINITY; GATHER + 1];
-                let mut hi = [f32::NEG_INFINITY; GATHER + 1];
+                // The first row's values start both, so no sample type needs extremes of
+                // its own; `None` until a row is read.
+                let mut lo = [T::default(); GATHER + 1];
+                let mut hi = [T::default(); GATHER + 1];
+                let mut read = None;
                 // A block without a stored plane is unknown.
                 let mut complete = !xs.is_empty();
                 for x in xs.clone() {
@@ -267,20 +272,29 @@ impl<'a> Blocks<'a> {
                             complete = false;
                             continue;
                         };
-                        for ((l, h), v) in lo.iter_mut().zip(&mut hi).zip(values) {
-                            let v = v.to_f32();
-                            *l = l.min(v);
-                            *h = h.max(v);
+                        if read.replace(values.len()).is_none() {
+                            lo[..values.len()].copy_from_slice(values);
+                            hi[..values.len()].copy_from_slice(values);
+                            continue;
+                        }
+                        for ((l, h), &v) in lo.iter_mut().zip(&mut hi).zip(values) {
+                            *l = l.lesser(v);
+                            *h = h.greater(v);
                         }
                     }
                 }
+                let len = read.unwrap_or(0);
                 for (by, r) in (c * GATHER / BLOCK as usize..).zip(blocks.iter_mut()) {
                     let ys = nodes(by as u32, ny);
                     let ys = ys.start as usize - y0..ys.end as usize - y0;
-                    *r = match (complete, lo.get(ys.clone()), hi.get(ys)) {
+                    let within = ys.end <= len;
+                    *r = match (complete && within, lo.get(ys.clone()), hi.get(ys)) {
                         (true, Some(lo), Some(hi)) => Range {
-                            min: lo.iter().copied().fold(f32::INFINITY, f32::min),
-                            max: hi.iter().copied().fold(f32::NEG_INFINITY, f32::max),
+                            min: lo.iter().map(|v| v.to_f32()).fold(f32::INFINITY, f32::min),
+                            max: hi
+                                .iter()
+                                .map(|v| v.to_f32())
+                                .fold(f32::NEG_INFINITY, f32::max),
                         },
                         _ => Range::UNKNOWN,
                     };

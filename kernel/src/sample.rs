@@ -36,12 +36,19 @@ pub trait Sample: Copy + Default + 'static {
     fn write_le(self, out: &mut [u8]);
     /// The sample from little-endian bytes; `None` unless `bytes` is exactly its size.
     fn read_le(bytes: &[u8]) -> Option<Self>;
+    /// The lesser of two samples by value: the one whose [`Sample::to_f32`] is the lesser
+    /// (that conversion keeps the order), so a least value can be found before converting.
+    fn lesser(self, other: Self) -> Self;
+    /// The greater of two samples by value, as [`Sample::lesser`].
+    fn greater(self, other: Self) -> Self;
 }
 
-/// The three sample types differ only in their kind: every conversion is the standard
-/// library's own (`f32::from` is exact for `u8` and `u16`, the identity for `f32`).
+/// The three sample types differ only in their kind and their order: every conversion is
+/// the standard library's own (`f32::from` is exact for `u8` and `u16`, the identity for
+/// `f32`), and so is every comparison (`Ord` for the integers, `f32::min` and `f32::max`,
+/// which the tracer uses on converted values too).
 macro_rules! sample {
-    ($t:ty, $kind:ident) => {
+    ($t:ty, $kind:ident, $lesser:path, $greater:path) => {
         impl Sample for $t {
             const KIND: SampleKind = SampleKind::$kind;
             #[inline]
@@ -57,13 +64,21 @@ macro_rules! sample {
             fn read_le(bytes: &[u8]) -> Option<Self> {
                 Some(Self::from_le_bytes(bytes.try_into().ok()?))
             }
+            #[inline]
+            fn lesser(self, other: Self) -> Self {
+                $lesser(self, other)
+            }
+            #[inline]
+            fn greater(self, other: Self) -> Self {
+                $greater(self, other)
+            }
         }
     };
 }
 
-sample!(u8, U8);
-sample!(u16, U16);
-sample!(f32, F32);
+sample!(u8, U8, core::cmp::min, core::cmp::max);
+sample!(u16, U16, core::cmp::min, core::cmp::max);
+sample!(f32, F32, f32::min, f32::max);
 
 #[cfg(test)]
 mod tests {
@@ -85,5 +100,24 @@ mod tests {
         assert_eq!(u16::read_le(&three), None);
         assert_eq!(u8::read_le(&[]), None);
         assert_eq!((200u8.to_f32(), 65535u16.to_f32()), (200.0, 65535.0));
+    }
+
+    #[test]
+    fn the_lesser_and_greater_sample_are_those_of_the_converted_values() {
+        fn agree<T: Sample>(a: T, b: T) {
+            let (x, y) = (a.to_f32(), b.to_f32());
+            assert_eq!(a.lesser(b).to_f32().to_bits(), x.min(y).to_bits());
+            assert_eq!(a.greater(b).to_f32().to_bits(), x.max(y).to_bits());
+        }
+        let mut next = crate::testing::xorshift(0x5a3_91e5);
+        for _ in 0..10_000 {
+            let (a, b) = (next(), next());
+            agree(a as u8, b as u8);
+            agree(a as u16, b as u16);
+            agree(
+                (a % 2001) as f32 * 0.5 - 500.0,
+                (b % 2001) as f32 * 0.5 - 500.0,
+            );
+        }
     }
 }
