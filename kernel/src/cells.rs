@@ -205,9 +205,11 @@ fn block_mask<T: Sample>(
     });
     // The block's nodes once (at most 5³), an axis of fewer nodes padded with its last, so
     // that a cell's far corner along an axis of one node is its near one, as in `locate`.
-    let mut nodes = [[[0.0f32; NODES]; NODES]; NODES];
+    // Kept as stored: their order is their values' (`Sample::lesser`), so each cell's
+    // extremes are found before converting, and only those are converted.
+    let mut nodes = [[[T::default(); NODES]; NODES]; NODES];
     // The cells with a corner on a plane not stored: their bits are set whatever their nodes
-    // (left at zero) say.
+    // (left at the default) say.
     let stored = slab.stored();
     let mut unstored: CellMask = 0;
     for (x, plane) in nodes.iter_mut().enumerate() {
@@ -226,24 +228,24 @@ fn block_mask<T: Sample>(
             let start = first[1] as usize;
             let values = row.get(start..start + len[1])?;
             for (y, node) in line.iter_mut().enumerate() {
-                *node = values.get(y.min(len[1] - 1)).map_or(0.0, |v| v.to_f32());
+                *node = values.get(y.min(len[1] - 1)).copied().unwrap_or_default();
             }
         }
     }
     // Each cell's greatest corner, and its least where the verdict reads it, in three passes
     // over pairs of neighbours (along x, z, then y) instead of fourteen comparisons a cell.
-    let hi = corner_extremes(&nodes, f32::max);
-    let lo = (!verdicts.by_greatest).then(|| corner_extremes(&nodes, f32::min));
+    let hi = corner_extremes(&nodes, T::greater);
+    let lo = (!verdicts.by_greatest).then(|| corner_extremes(&nodes, T::lesser));
     let cells = len.map(|n| n.saturating_sub(1).max(1));
     let mut mask = 0;
     for x in 0..cells[0] {
         for z in 0..cells[2] {
             for y in 0..cells[1] {
-                let max = hi[x][z][y].max(hi[x][z][y + 1]);
+                let max = hi[x][z][y].greater(hi[x][z][y + 1]).to_f32();
                 let empty = match &lo {
                     None => verdicts.view.below_surfaces(max),
                     Some(lo) => verdicts.empty(Range {
-                        min: lo[x][z][y].min(lo[x][z][y + 1]),
+                        min: lo[x][z][y].lesser(lo[x][z][y + 1]).to_f32(),
                         max,
                     }),
                 };
@@ -259,10 +261,10 @@ fn block_mask<T: Sample>(
 /// The nodes of a block, each replaced (over the first `EDGE` along x and z) by `pick` of it
 /// and its neighbours one over along x and then z: what is left for the y pass of a cell.
 #[inline(always)]
-fn corner_extremes(
-    nodes: &[[[f32; NODES]; NODES]; NODES],
-    pick: fn(f32, f32) -> f32,
-) -> [[[f32; NODES]; NODES]; NODES] {
+fn corner_extremes<T: Sample>(
+    nodes: &[[[T; NODES]; NODES]; NODES],
+    pick: fn(T, T) -> T,
+) -> [[[T; NODES]; NODES]; NODES] {
     let mut out = *nodes;
     for x in 0..EDGE {
         for z in 0..NODES {
