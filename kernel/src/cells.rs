@@ -310,8 +310,10 @@ mod tests {
         View::new(spec, grid).unwrap()
     }
 
-    /// Surfaces at `isos`, and compositing whose opacity is zero up to `clear`.
-    fn views(grid: &Grid, isos: &[f32], clear: f32) -> [View; 2] {
+    /// Surfaces at `isos`; compositing whose opacity is zero up to `clear`; and compositing
+    /// of a band, zero again from 60 above `clear` on, so that a cell's least corner decides
+    /// too.
+    fn views(grid: &Grid, isos: &[f32], clear: f32) -> [View; 3] {
         let mut surfaces = heapless::Vec::new();
         for &iso in isos {
             let _ = surfaces.push(IsoSurface {
@@ -326,9 +328,16 @@ mod tests {
             opacity,
         };
         let tf = TransferFunction::new(&[point(clear, 0.0), point(clear + 40.0, 0.5)]).unwrap();
+        let band = TransferFunction::new(&[
+            point(clear, 0.0),
+            point(clear + 30.0, 0.5),
+            point(clear + 60.0, 0.0),
+        ])
+        .unwrap();
         [
             view(grid, Mode::Surfaces(surfaces)),
             view(grid, Mode::Composite(tf)),
+            view(grid, Mode::Composite(band)),
         ]
     }
 
@@ -514,7 +523,7 @@ mod tests {
         Blocks::build(&slab, &mut ranges).unwrap();
         let blocks = Blocks::new(&slab, &ranges).unwrap();
         assert_eq!(blocks.cells((0, 0, 0)), ALL);
-        let [surfaces, _] = views(&grid, &[100.0], 50.0);
+        let [surfaces, ..] = views(&grid, &[100.0], 50.0);
         let mut masks = [ALL; 1];
         build(&slab, &blocks, &surfaces, &mut masks).unwrap();
         // The block lies below the surface as a whole: no cell of it is asked about.
