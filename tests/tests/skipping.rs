@@ -364,7 +364,8 @@ proptest! {
 
     /// Skipping changes no pixel on hard cases too: random blobby volumes with anisotropic
     /// spacing, cameras inside and outside and along an axis, steps from 1/64 to 2 cell edges
-    /// (long runs through empty cells), both models, surfaces and compositing. And a leap
+    /// (long runs through empty cells), both models, surfaces and compositing (of a band
+    /// too, zero again above it). And a leap
     /// skips exactly the samples one-block jumps skip, with cell masks, and cell leaps exactly
     /// the samples the masks skip. On a cluster cut at random planes, the same image and one
     /// node's evaluated samples.
@@ -380,6 +381,7 @@ proptest! {
         dt in prop_oneof![Just(1.0f32 / 64.0), 1.0f32 / 64.0..2.0],
         iso in 20.0f32..240.0,
         composite in any::<bool>(),
+        band in any::<bool>(),
         cut_bits in any::<u16>(),
     ) {
         let volume = blobs(dims, Vec3::from_array(spacing), seed);
@@ -399,7 +401,12 @@ proptest! {
         };
         let mode = if composite {
             let point = |value: f32, opacity: f32| ControlPoint { value, color: Vec3::splat(0.8), opacity };
-            Mode::Composite(TransferFunction::new(&[point(iso - 15.0, 0.0), point(iso, 0.4)]).expect("sorted"))
+            // A band, zero again above it, where a cell's least corner proves it empty too.
+            let mut points = vec![point(iso - 15.0, 0.0), point(iso, 0.4)];
+            if band {
+                points.push(point(iso + 15.0, 0.0));
+            }
+            Mode::Composite(TransferFunction::new(&points).expect("sorted"))
         } else {
             voxcube_tests::surfaces(&[(iso, 0.5), (iso + 10.0, 0.0)])
         };
