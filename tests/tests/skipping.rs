@@ -365,10 +365,9 @@ proptest! {
     /// Skipping changes no pixel on hard cases too: random blobby volumes with anisotropic
     /// spacing, cameras inside and outside and along an axis, steps from 1/64 to 2 cell edges
     /// (long runs through empty cells), both models, surfaces and compositing (of a band
-    /// too, zero again above it). And a leap
-    /// skips exactly the samples one-block jumps skip, with cell masks, and cell leaps exactly
-    /// the samples the masks skip. On a cluster cut at random planes, the same image and one
-    /// node's evaluated samples.
+    /// too, zero again above it). And a leap skips exactly the samples one-block jumps skip,
+    /// with cell masks, and cell leaps exactly the samples the masks skip. On a cluster cut
+    /// at random planes, the same image and one node's evaluated samples.
     #[test]
     fn skipping_changes_no_pixel_on_random_hard_cases(
         dims in prop::array::uniform3(1u32..14),
