@@ -260,10 +260,9 @@ impl<'a> Blocks<'a> {
                 let y0 = c * GATHER;
                 let y1 = (y0 + GATHER + 1).min(ny as usize);
                 // The first row's values start both, so no sample type needs extremes of
-                // its own; `None` until a row is read.
-                let mut lo = [T::default(); GATHER + 1];
-                let mut hi = [T::default(); GATHER + 1];
-                let mut read = None;
+                // its own.
+                let (mut lo, mut hi) = ([T::default(); GATHER + 1], [T::default(); GATHER + 1]);
+                let mut first = true;
                 // A block without a stored plane is unknown.
                 let mut complete = !xs.is_empty();
                 for x in xs.clone() {
@@ -272,23 +271,22 @@ impl<'a> Blocks<'a> {
                             complete = false;
                             continue;
                         };
-                        if read.replace(values.len()).is_none() {
-                            lo[..values.len()].copy_from_slice(values);
-                            hi[..values.len()].copy_from_slice(values);
-                            continue;
-                        }
                         for ((l, h), &v) in lo.iter_mut().zip(&mut hi).zip(values) {
-                            *l = l.lesser(v);
-                            *h = h.greater(v);
+                            (*l, *h) = match first {
+                                true => (v, v),
+                                false => (l.lesser(v), h.greater(v)),
+                            };
                         }
+                        first = false;
                     }
                 }
-                let len = read.unwrap_or(0);
+                // Only nodes y0..y1 were read.
+                let read = ..y1 - y0;
+                let (lo, hi) = (lo.get(read).unwrap_or(&[]), hi.get(read).unwrap_or(&[]));
                 for (by, r) in (c * GATHER / BLOCK as usize..).zip(blocks.iter_mut()) {
                     let ys = nodes(by as u32, ny);
                     let ys = ys.start as usize - y0..ys.end as usize - y0;
-                    let within = ys.end <= len;
-                    *r = match (complete && within, lo.get(ys.clone()), hi.get(ys)) {
+                    *r = match (complete, lo.get(ys.clone()), hi.get(ys)) {
                         (true, Some(lo), Some(hi)) => Range {
                             min: lo.iter().map(|v| v.to_f32()).fold(f32::INFINITY, f32::min),
                             max: hi
