@@ -130,6 +130,9 @@ pub struct Blocks<'a> {
     cell_maps: &'a [u8],
     cell_octants: u8,
     cell_leaps: Option<&'a [u8]>,
+    /// One view's depth bounds ([`crate::depths`]), a bound per pixel, when its primary rays
+    /// may pass over the samples before them.
+    depths: Option<&'a [f32]>,
     x0: u32,
     x1: u32,
     ny: u32,
@@ -213,6 +216,7 @@ impl<'a> Blocks<'a> {
             cell_maps: &[],
             cell_octants: 0,
             cell_leaps: None,
+            depths: None,
             x0,
             x1,
             ny: count(ny),
@@ -454,6 +458,21 @@ impl<'a> Blocks<'a> {
     #[inline]
     pub fn cell_leaps(&self) -> Option<crate::cell_leaps::CellLeaps<'a>> {
         crate::cell_leaps::CellLeaps::new(self, self.cell_leaps?).ok()
+    }
+
+    /// The same blocks, with the depth bounds in `depths` ([`crate::depths::build`] from these
+    /// blocks' masks for the view being traced, like a leap map).
+    pub fn with_depths(self, depths: &'a [f32]) -> Blocks<'a> {
+        Blocks {
+            depths: Some(depths),
+            ..self
+        }
+    }
+
+    /// The depth bounds, when the blocks carry them.
+    #[inline]
+    pub fn depths(&self) -> Option<crate::depths::Depths<'a>> {
+        self.depths.map(crate::depths::Depths::new)
     }
 
     /// The octant whose rays these blocks serve.

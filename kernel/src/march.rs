@@ -165,6 +165,12 @@ pub fn march<T: Sample>(
         _ => None,
     };
     let mut exits: Option<Exits> = None;
+    // A primary ray passes at once over the samples before its pixel's depth bound: they lie
+    // in no cell the masks keep, so the turns below would skip each of them.
+    let mut depths = match &blocks {
+        Some(blocks) if by_cell && ray.kind == RayKind::Primary => blocks.depths(),
+        _ => None,
+    };
     loop {
         if ray.k > ray.lattice.last {
             return Stop::Exit;
@@ -174,6 +180,14 @@ pub fn march<T: Sample>(
         let plane = corner.plane();
         if !slab.owns(plane) {
             return Stop::Leave { plane };
+        }
+        if let Some(bound) = depths.take().map(|d| d.bound(ray.pixel)) {
+            if t < bound && view.may_skip(ray) {
+                let exits = exits.get_or_insert_with(|| Exits::new(ray));
+                let last = before_bound(ray, slab, bound, exits);
+                skip_to(view, ray, last, counters);
+                continue;
+            }
         }
         if let Some(leaps) = &cell_leaps {
             if view.may_skip(ray) {
@@ -536,6 +550,41 @@ fn cell_leap<T: Sample>(
             d => (k, cell, distance) = (next, landing, d),
         }
     }
+}
+
+/// The last sample from `ray.k` on (owned, at a parameter below `bound`) that is below
+/// `bound` and in `slab`'s owned planes ([`last_short_of`]; every plane when the slab owns
+/// them all). Its parameter is found from `bound`, then checked with the samples' own
+/// arithmetic, which is monotone in the index.
+#[inline]
+fn before_bound<T: Sample>(ray: &RayState, slab: &Slab<'_, T>, bound: f32, exits: &Exits) -> u32 {
+    let (k, lattice) = (ray.k, &ray.lattice);
+    let left = lattice.last - k.min(lattice.last);
+    let owned = slab.owned();
+    let left = match owned.start == 0 && owned.end >= slab.grid().dims()[0] {
+        true => left,
+        false => {
+            // The owned planes' faces along X; no face along the other axes.
+            let far = OwnedFaces::of(slab).clamp(Vec4::select(
+                exits.rising,
+                Vec4::splat(f32::MAX),
+                Vec4::splat(f32::MIN),
+            ));
+            last_short_of(ray, k, slab.grid(), far, exits) - k
+        }
+    };
+    let estimate = ((bound - lattice.t(k)) / lattice.dt).max(0.0);
+    let mut n = match estimate.is_finite() {
+        true => (estimate as u32).min(left),
+        false => left,
+    };
+    // The estimate errs by a step or two where it is finite: step back, then halve.
+    let mut misses = 0;
+    while n > 0 && !(lattice.t(k + n) < bound) {
+        n = if misses < 3 { n - 1 } else { n / 2 };
+        misses += 1;
+    }
+    k + n
 }
 
 /// The last sample of the leaps starting at `ray.k`, in `block`, whose leap map says every

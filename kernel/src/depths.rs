@@ -1,0 +1,601 @@
+//! Depth bounds: for every pixel of a parallel projection, a ray parameter before which its
+//! primary ray meets no cell of a slab that the view cannot skip, so that the ray passes over
+//! every sample before it in one step instead of leaping through empty cells turn by turn
+//! (on the paper's view most of those turns came before a ray's first evaluated sample).
+//!
+//! The bound of a pixel is the least, over the cells whose mask bit is set ([`crate::cells`]:
+//! the obstacles), of where the pixel's ray can first reach the cell widened by [`WIDEN`]
+//! on every side, over the pixels whose ray can pass through that widened cell. Both are
+//! linear in the point for a parallel projection: with the image's per-pixel steps `U`, `V`
+//! and the rays' direction `D` (index space, as the rays hold them), a point `q` lies on the
+//! ray of image coordinates `(a, b)` at parameter `t` exactly when `q = O + a·U + b·V + t·D`,
+//! so `(a, b, t)` is one 3×3 inverse applied to `q − O`, and its range over a box is found
+//! from the box's corners per axis. A cell is left out when each cell in front of it (one
+//! cell back along each axis the rays move along) is an obstacle too: a line entering the
+//! widened cell does so through a face toward the eye, and that face lies in the widened
+//! cell in front, which the line reaches no later; following such cells forward ends at a
+//! cell that is kept, so no pixel's bound rises.
+//!
+//! Invariants: a sample before its pixel's bound lies in no obstacle, so skipping it is what
+//! the marcher would do turn by turn with the same masks: [`crate::march`] skips through the
+//! bound only while [`crate::view::View::may_skip`] holds and only over owned planes, and the
+//! image and every count are those of a render without bounds. The rays the kernel computes
+//! differ from the exact lines `O + a·U + b·V + t·D` by rounding, and a sample's position
+//! from its exact point on its line likewise; [`build`] refuses a view whose coordinates
+//! could make either reach [`WIDEN`] / 4 (magnitudes over [`MAX_REACH`] index units), so a
+//! sample whose computed cell is an obstacle lies on its pixel's exact line inside that
+//! obstacle widened. A bound is rounded down to `f32`; a pixel no obstacle covers holds
+//! infinity. Perspective views get no bounds.
+
+use crate::blocks::{Blocks, BLOCK};
+use crate::camera::Projection;
+use crate::cells::{CellMask, ALL};
+use crate::view::View;
+use glam::Vec3;
+
+/// How far each obstacle is widened on every side, in cells: the room left for rounding.
+pub const WIDEN: f64 = 1.0 / 16.0;
+
+/// The largest coordinate magnitude, in index units, for which the rounding of a ray's
+/// origin, direction and samples stays under [`WIDEN`] / 4: each is a few `f32` operations
+/// on numbers this large, each erring by at most 2⁻²⁴ of them, and 2¹⁴ · 2⁻²⁰ = 2⁻⁶.
+pub const MAX_REACH: f64 = 16384.0;
+
+/// Why [`build`] made no bounds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DepthsError {
+    /// The view is a perspective one: its rays are not parallel.
+    Perspective,
+    /// The blocks carry no cell masks to bound.
+    NoMasks,
+    /// Storage of `given` bounds for an image of `needed` pixels.
+    Storage {
+        /// Pixels of the image.
+        needed: usize,
+        /// Bounds given.
+        given: usize,
+    },
+    /// The view's coordinates reach too far for the rounding allowance ([`MAX_REACH`]), or
+    /// its geometry is degenerate.
+    Reach,
+}
+
+impl core::fmt::Display for DepthsError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            DepthsError::Perspective => write!(f, "a perspective view has no depth bounds"),
+            DepthsError::NoMasks => write!(
+                f,
+                "depth bounds are built from cell masks, and there are none"
+            ),
+            DepthsError::Storage { needed, given } => {
+                write!(f, "depth bounds for {needed} pixels, storage for {given}")
+            }
+            DepthsError::Reach => write!(
+                f,
+                "the view's coordinates exceed {MAX_REACH} index units, or its rays are degenerate"
+            ),
+        }
+    }
+}
+
+impl core::error::Error for DepthsError {}
+
+/// One view's depth bounds over a slab, for reading: a bound per pixel, row-major.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Depths<'a> {
+    map: &'a [f32],
+}
+
+impl<'a> Depths<'a> {
+    /// The bounds [`build`] wrote into `map`.
+    pub fn new(map: &'a [f32]) -> Depths<'a> {
+        Depths { map }
+    }
+
+    /// Pixel `pixel`'s bound: no sample of its primary ray at a parameter below it lies in an
+    /// obstacle. Minus infinity (nothing to pass over) for a pixel outside the map.
+    #[inline]
+    pub fn bound(&self, pixel: u32) -> f32 {
+        self.map
+            .get(pixel as usize)
+            .copied()
+            .unwrap_or(f32::NEG_INFINITY)
+    }
+}
+
+/// The linear map from index space to a view's image coordinates and ray parameter.
+#[derive(Clone, Copy, Debug)]
+struct Frame {
+    /// Rows of the inverse of `[U V D]`: a point's image `a`, image `b` and parameter `t`,
+    /// each from `q − origin`.
+    rows: [[f64; 3]; 3],
+    origin: [f64; 3],
+    /// Image size, pixels.
+    width: u32,
+    height: u32,
+    /// The axes the rays move along, and each one's sign.
+    moving: [bool; 3],
+    rising: [bool; 3],
+}
+
+impl Frame {
+    /// The frame of `view`'s parallel rays: `O`, `U` and `V` from its camera, `D` as its
+    /// rays hold it.
+    fn of(view: &View, box_hi: Vec3) -> Result<Frame, DepthsError> {
+        let spec = view.spec();
+        let camera = spec.camera;
+        let Projection::Orthographic { width: world_w } = camera.projection() else {
+            return Err(DepthsError::Perspective);
+        };
+        let (w, h) = (spec.width.max(1), spec.height.max(1));
+        let world_h = f64::from(world_w) * f64::from(h) / f64::from(w);
+        let inv = view.inv_spacing();
+        let idx = |v: Vec3| [0, 1, 2].map(|a| f64::from(v[a]) * f64::from(inv[a]));
+        let (right, up) = camera.image_axes();
+        let (r, u, e) = (idx(right), idx(up), idx(camera.eye()));
+        let (pw, ph) = (f64::from(world_w) / f64::from(w), world_h / f64::from(h));
+        // Pixel (a, b)'s ray starts at eye + right·((a + ½)·pw − W/2) + up·(H/2 − (b + ½)·ph).
+        let step_u = r.map(|c| c * pw);
+        let step_v = u.map(|c| -c * ph);
+        let origin = [0, 1, 2].map(|a| {
+            e[a] + r[a] * (0.5 * pw - 0.5 * f64::from(world_w)) + u[a] * (0.5 * world_h - 0.5 * ph)
+        });
+        let dir = view.primary_line(0).dir;
+        let d = [0, 1, 2].map(|a| f64::from(dir[a]));
+        let rows = invert([step_u, step_v, d]).ok_or(DepthsError::Reach)?;
+        // The greatest magnitude the rays' arithmetic meets: origins across the image, and
+        // the direction times the largest parameter a sample in the dataset's box can have.
+        let t_far = corners(box_hi)
+            .map(|q| dot(rows[2], sub(q, origin)))
+            .into_iter()
+            .fold(0.0f64, f64::max);
+        let reach = [0, 1, 2]
+            .map(|a| {
+                e[a].abs()
+                    + r[a].abs() * f64::from(world_w)
+                    + u[a].abs() * world_h
+                    + d[a].abs() * t_far
+            })
+            .into_iter()
+            .fold(0.0f64, f64::max);
+        if !(reach <= MAX_REACH) {
+            return Err(DepthsError::Reach);
+        }
+        Ok(Frame {
+            rows,
+            origin,
+            width: w,
+            height: h,
+            moving: d.map(|c| c != 0.0),
+            rising: d.map(|c| c > 0.0),
+        })
+    }
+
+    /// The pixel indices along one image axis whose coordinates lie in `[least, most]`
+    /// (widened by a millionth of a pixel for the rounding of this arithmetic), within
+    /// `0..n`.
+    fn pixels(least: f64, most: f64, n: u32) -> core::ops::Range<u32> {
+        let slack = 1e-6;
+        let first = libm::ceil(least - slack).max(0.0);
+        let last = libm::floor(most + slack).min(f64::from(n) - 1.0);
+        if !(first <= last) {
+            return 0..0;
+        }
+        first as u32..last as u32 + 1
+    }
+}
+
+/// Fill `out` (a bound per pixel of `view`, row-major) with the depth bounds of the cells
+/// `blocks`' masks keep for `view` (see the module's text).
+pub fn build(blocks: &Blocks<'_>, view: &View, out: &mut [f32]) -> Result<(), DepthsError> {
+    blocks.masks().ok_or(DepthsError::NoMasks)?;
+    let pixels = view.pixel_count() as usize;
+    if out.len() != pixels {
+        return Err(DepthsError::Storage {
+            needed: pixels,
+            given: out.len(),
+        });
+    }
+    let (cols, ny, nz) = blocks.shape();
+    let x0 = blocks.first_column() * BLOCK;
+    let extent = [cols * BLOCK, ny * BLOCK, nz * BLOCK];
+    let box_hi = Vec3::new((x0 + extent[0]) as f32, extent[1] as f32, extent[2] as f32);
+    let frame = Frame::of(view, box_hi)?;
+    out.fill(f32::INFINITY);
+    // Each image coordinate and the parameter are linear in a cell's low corner `c`: over the
+    // widened cell, `row·(c − O)` plus the least (or greatest) of `row·(−WIDEN)` and
+    // `row·(1 + WIDEN)` per axis.
+    let reach = |row: usize| {
+        let r = frame.rows[row];
+        let (mut least, mut most) = (0.0, 0.0);
+        for (&ra, &oa) in r.iter().zip(&frame.origin) {
+            let (x, y) = (ra * -WIDEN, ra * (1.0 + WIDEN));
+            least += x.min(y) - ra * oa;
+            most += x.max(y) - ra * oa;
+        }
+        (least, most)
+    };
+    let (a_reach, b_reach, t_reach) = (reach(0), reach(1), reach(2).0);
+    let w = frame.width as usize;
+    let (bx0, bx1) = (blocks.first_column(), blocks.first_column() + cols);
+    // The masks of the block in front along each axis (none past the blocks: no obstacle).
+    let front = |block: (u32, u32, u32), axis: usize| -> CellMask {
+        let (mut b, rising) = ([block.0, block.1, block.2], frame.rising[axis]);
+        let bounds = [(bx0, bx1), (0, ny), (0, nz)][axis];
+        match rising {
+            true if b[axis] > bounds.0 => b[axis] -= 1,
+            false if b[axis] + 1 < bounds.1 => b[axis] += 1,
+            _ => return 0,
+        }
+        blocks.cells((b[0], b[1], b[2]))
+    };
+    for bx in bx0..bx1 {
+        for bz in 0..nz {
+            for by in 0..ny {
+                let block = (bx, by, bz);
+                let mask = blocks.cells(block);
+                if mask == 0 {
+                    continue;
+                }
+                // The cells whose front neighbour is an obstacle, along every moving axis.
+                let mut hidden = ALL;
+                for axis in (0..3).filter(|&a| frame.moving[a]) {
+                    hidden &= in_front(mask, front(block, axis), axis, frame.rising[axis]);
+                }
+                let mut visible = mask & !hidden;
+                while visible != 0 {
+                    let i = visible.trailing_zeros();
+                    visible &= visible - 1;
+                    let c = [
+                        f64::from(bx * BLOCK + i % BLOCK),
+                        f64::from(by * BLOCK + i / BLOCK % BLOCK),
+                        f64::from(bz * BLOCK + i / (BLOCK * BLOCK)),
+                    ];
+                    let at = |row: usize| dot(frame.rows[row], c);
+                    let (a, b) = (at(0), at(1));
+                    let t = round_down(at(2) + t_reach);
+                    let columns = Frame::pixels(a + a_reach.0, a + a_reach.1, frame.width);
+                    for y in Frame::pixels(b + b_reach.0, b + b_reach.1, frame.height) {
+                        let row = y as usize * w;
+                        let span = row + columns.start as usize..row + columns.end as usize;
+                        if let Some(slots) = out.get_mut(span) {
+                            for slot in slots {
+                                *slot = slot.min(t);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The cells of a block (mask `mask`) whose neighbour one cell back along `axis` (down when
+/// the rays rise along it, up when they fall) is an obstacle, given the mask `beyond` of the
+/// block that neighbour lies in at the block's face.
+fn in_front(mask: CellMask, beyond: CellMask, axis: usize, rising: bool) -> CellMask {
+    // Bit `x + 4y + 16z`: one cell along `axis` is `stride` bits; `face` holds the cells at
+    // offset 0 along it, `far` those at offset 3.
+    let stride = [1, 4, 16][axis];
+    let face = [0x1111_1111_1111_1111u64, 0x000F_000F_000F_000F, 0xFFFF][axis];
+    let far = face << (3 * stride);
+    match rising {
+        // The neighbour below: inside the block one stride down; at offset 0, the block
+        // below's cell at offset 3.
+        true => ((mask << stride) & !face) | ((beyond & far) >> (3 * stride)),
+        false => ((mask >> stride) & !far) | ((beyond & face) << (3 * stride)),
+    }
+}
+
+/// The greatest `f32` not above `x` (the crate's MSRV predates `f32::next_down`).
+fn round_down(x: f64) -> f32 {
+    let f = x as f32;
+    if f64::from(f) <= x {
+        return f;
+    }
+    // `f` rounded up: the next `f32` toward minus infinity, one unit in the last place.
+    if f > 0.0 {
+        f32::from_bits(f.to_bits() - 1)
+    } else if f == 0.0 {
+        -f32::from_bits(1)
+    } else {
+        f32::from_bits(f.to_bits() + 1)
+    }
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+/// The corners of the box `[0, hi]`.
+fn corners(hi: Vec3) -> [[f64; 3]; 8] {
+    core::array::from_fn(|i| {
+        [0, 1, 2].map(|a| match i >> a & 1 {
+            0 => 0.0,
+            _ => f64::from(hi[a]),
+        })
+    })
+}
+
+/// The rows of the inverse of the matrix whose columns are `cols`, or `None` when it is
+/// singular or not finite.
+fn invert(cols: [[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
+    let [u, v, d] = cols;
+    let cross = |a: [f64; 3], b: [f64; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    // The inverse's rows are the cross products of the other two columns over the
+    // determinant.
+    let (vd, du, uv) = (cross(v, d), cross(d, u), cross(u, v));
+    let det = dot(u, vd);
+    if !(det.is_finite() && det != 0.0) {
+        return None;
+    }
+    Some([vd, du, uv].map(|r| r.map(|c| c / det)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::blocks::Range;
+    use crate::camera::Camera;
+    use crate::field;
+    use crate::grid::{Grid, Model};
+    use crate::slab::Slab;
+    use crate::surface::IsoSurface;
+    use crate::view::{Mode, ViewSpec};
+
+    /// The cells of a block whose neighbour one cell back along an axis is an obstacle, one
+    /// cell at a time.
+    #[test]
+    fn cells_in_front_are_found_across_the_block_face() {
+        let mut next = crate::testing::xorshift(0x0dd_f00d);
+        let bits = |n: &mut dyn FnMut() -> u32| u64::from(n()) << 32 | u64::from(n());
+        for _ in 0..2000 {
+            let (mask, beyond) = (bits(&mut next), bits(&mut next));
+            for axis in 0..3 {
+                for rising in [true, false] {
+                    let found = in_front(mask, beyond, axis, rising);
+                    for i in 0..64u32 {
+                        let mut at = [i % 4, i / 4 % 4, i / 16];
+                        let stride = [1u32, 4, 16][axis];
+                        // Inside the block unless the cell is on the face the rays enter by.
+                        let inside = at[axis] != if rising { 0 } else { 3 };
+                        let neighbour = match (inside, rising) {
+                            (true, true) => mask >> (i - stride) & 1,
+                            (true, false) => mask >> (i + stride) & 1,
+                            (false, true) => {
+                                at[axis] = 3;
+                                beyond >> (at[0] + 4 * at[1] + 16 * at[2]) & 1
+                            }
+                            (false, false) => {
+                                at[axis] = 0;
+                                beyond >> (at[0] + 4 * at[1] + 16 * at[2]) & 1
+                            }
+                        };
+                        assert_eq!(
+                            found >> i & 1,
+                            neighbour,
+                            "axis {axis} rising {rising} cell {i}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    /// For each pixel, the samples of its primary ray below its bound that lie in the blocks'
+    /// columns, as `(in an obstacle, not)`, each sample placed as the marcher places it.
+    fn below_bounds(blocks: &Blocks<'_>, view: &View, bounds: &[f32], grid: &Grid) -> (u32, u32) {
+        let (mut bad, mut good) = (0, 0);
+        let columns =
+            blocks.first_column() * BLOCK..(blocks.first_column() + blocks.shape().0) * BLOCK;
+        for pixel in 0..view.pixel_count() as u32 {
+            let Some(ray) = view.primary_ray(pixel) else {
+                continue;
+            };
+            for k in 0..=ray.lattice.last {
+                let t = ray.lattice.t(k);
+                if !(t < bounds[pixel as usize]) {
+                    break;
+                }
+                let lo = field::corner4(grid, Model::Cell, ray.ray.at4(t)).lo;
+                if !columns.contains(&lo[0]) {
+                    continue;
+                }
+                match blocks.cells(blocks.block_of(lo)) & crate::cells::bit(lo) {
+                    0 => good += 1,
+                    _ => bad += 1,
+                }
+            }
+        }
+        (bad, good)
+    }
+
+    /// No sample of a pixel's ray below its bound lies in a cell whose mask bit is set: random
+    /// masks from empty to nearly full, anisotropic grids, whole volumes and slabs' columns,
+    /// parallel views from every side, along an axis (rays parallel to faces), from outside
+    /// and from inside the volume, steps from 1/64 to 2. And the bounds pass over samples:
+    /// the check is not vacuous. A bound raised by one step is caught (the negative control).
+    #[test]
+    fn no_sample_below_a_bound_lies_in_a_cell_that_shows() {
+        let mut next = crate::testing::xorshift(0x5eed_d3b7);
+        let (mut passed, mut raised_caught) = (0u32, 0u32);
+        let data = [0u8; 16 * 16 * 16];
+        for round in 0..400 {
+            let dims = [2 + next() % 15, 2 + next() % 15, 2 + next() % 15];
+            let spacing = [0, 1, 2].map(|_| [1.0, 0.5, 2.0, 0.3][(next() % 4) as usize]);
+            let grid = Grid::new(dims, Vec3::from_array(spacing)).unwrap();
+            let n = grid.plane_len() * dims[0] as usize;
+            // The whole volume, or a slab of a few planes (its blocks' columns).
+            let slab = match round % 2 {
+                0 => Slab::whole(grid, &data[..n]).unwrap(),
+                _ => {
+                    let start = next() % dims[0];
+                    let owned = start..(start + 1 + next() % 5).min(dims[0]);
+                    let stored = crate::slab::stored_planes(&grid, owned.clone(), 1);
+                    let len = (stored.end - stored.start) as usize * grid.plane_len();
+                    Slab::new(grid, owned, 1, &data[..len]).unwrap()
+                }
+            };
+            let ranges = [Range::UNKNOWN; 4 * 4 * 4];
+            let (_, _, len) = crate::blocks::extent(&slab);
+            let blocks = Blocks::new(&slab, &ranges[..len]).unwrap();
+            let density = next() % 64;
+            let mut masks = [0u64; 4 * 4 * 4];
+            for m in masks.iter_mut().take(len) {
+                for bit in 0..64 {
+                    if next() % 64 < density / 4 {
+                        *m |= 1 << bit;
+                    }
+                }
+            }
+            let blocks = blocks.with_cells(&masks[..len]).unwrap();
+            let centre = Vec3::from_array(dims.map(|d| d as f32 / 2.0)) * Vec3::from_array(spacing);
+            let mut eye = Vec3::new(
+                (next() % 80) as f32 - 40.0,
+                (next() % 80) as f32 - 40.0,
+                (next() % 80) as f32 - 40.0,
+            );
+            if round % 4 == 0 {
+                eye = centre;
+                eye[(next() % 3) as usize] += [30.0, -30.0][(next() % 2) as usize];
+            }
+            if round % 7 == 0 {
+                eye = centre * 0.9;
+            }
+            let up = match (centre - eye).normalize_or_zero().cross(Vec3::Y).length() > 1e-3 {
+                true => Vec3::Y,
+                false => Vec3::Z,
+            };
+            let Ok(camera) = Camera::look_at(
+                eye,
+                centre,
+                up,
+                Projection::Orthographic {
+                    width: 4.0 + (next() % 30) as f32,
+                },
+            ) else {
+                continue;
+            };
+            let mut surfaces = heapless::Vec::new();
+            let _ = surfaces.push(IsoSurface {
+                iso: 100.0,
+                color: Vec3::ONE,
+                transparency: 0.0,
+            });
+            let view = View::new(
+                ViewSpec {
+                    width: 3 + next() % 20,
+                    height: 3 + next() % 20,
+                    dt: [1.0 / 64.0, 0.2, 0.5, 1.0, 2.0][(next() % 5) as usize],
+                    ..crate::testing::spec(camera, Mode::Surfaces(surfaces))
+                },
+                &grid,
+            )
+            .unwrap();
+            let mut bounds = [0.0f32; 22 * 22];
+            let pixels = view.pixel_count() as usize;
+            build(&blocks, &view, &mut bounds[..pixels]).unwrap();
+            let (bad, good) = below_bounds(&blocks, &view, &bounds[..pixels], &grid);
+            assert_eq!(
+                bad, 0,
+                "round {round}: {bad} samples below a bound in a cell that shows"
+            );
+            passed += good;
+            // The negative control: a step more, and some sample in a cell that shows is
+            // passed over (where any lies behind a bound at all).
+            let raised = bounds.map(|b| b + view.spec().dt * 1.01);
+            raised_caught +=
+                u32::from(below_bounds(&blocks, &view, &raised[..pixels], &grid).0 > 0);
+        }
+        assert!(passed > 10_000, "only {passed} samples passed over");
+        assert!(
+            raised_caught > 100,
+            "raised bounds caught in only {raised_caught} rounds"
+        );
+    }
+
+    #[test]
+    fn bounds_round_down_to_f32() {
+        for x in [
+            0.1f64, -0.1, 1e-45, -1e-45, 3.0, -3.0, 1e39, -1e39, 0.0, 16777217.0,
+        ] {
+            let f = round_down(x);
+            assert!(f64::from(f) <= x, "{x}: {f}");
+            let up = match f {
+                f if f >= 0.0 => f32::from_bits(f.to_bits() + 1),
+                f => f32::from_bits(f.to_bits() - 1),
+            };
+            assert!(
+                f64::from(up) > x || f == f32::MAX,
+                "{x}: {f} is not the greatest"
+            );
+        }
+    }
+
+    #[test]
+    fn views_without_parallel_near_rays_get_no_bounds() {
+        let grid = Grid::new([9, 9, 9], Vec3::ONE).unwrap();
+        let data = [0u8; 729];
+        let slab = Slab::whole(grid, &data).unwrap();
+        let ranges = [Range::UNKNOWN; 8];
+        let masks = [u64::MAX; 8];
+        let blocks = Blocks::new(&slab, &ranges).unwrap();
+        let with_masks = blocks.with_cells(&masks).unwrap();
+        let view = |eye: Vec3, projection| {
+            let camera = Camera::look_at(eye, Vec3::splat(4.0), Vec3::Y, projection).unwrap();
+            let mut surfaces = heapless::Vec::new();
+            let _ = surfaces.push(IsoSurface {
+                iso: 100.0,
+                color: Vec3::ONE,
+                transparency: 0.0,
+            });
+            View::new(
+                crate::testing::spec(camera, Mode::Surfaces(surfaces)),
+                &grid,
+            )
+            .unwrap()
+        };
+        let parallel = view(
+            Vec3::new(2.0, 2.0, 20.0),
+            Projection::Orthographic { width: 6.0 },
+        );
+        let mut out = [0.0f32; 16];
+        assert_eq!(
+            build(&blocks, &parallel, &mut out),
+            Err(DepthsError::NoMasks)
+        );
+        assert_eq!(
+            build(&with_masks, &parallel, &mut out[..15]),
+            Err(DepthsError::Storage {
+                needed: 16,
+                given: 15
+            })
+        );
+        assert_eq!(build(&with_masks, &parallel, &mut out), Ok(()));
+        let persp = view(
+            Vec3::new(2.0, 2.0, 20.0),
+            Projection::Perspective { fov_y: 0.5 },
+        );
+        assert_eq!(
+            build(&with_masks, &persp, &mut out),
+            Err(DepthsError::Perspective)
+        );
+        let far = view(
+            Vec3::new(2.0, 2.0, 1e5),
+            Projection::Orthographic { width: 6.0 },
+        );
+        assert_eq!(build(&with_masks, &far, &mut out), Err(DepthsError::Reach));
+    }
+}
