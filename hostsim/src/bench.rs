@@ -196,10 +196,11 @@ pub fn machines(cores: u32, size: Size) -> Vec<(String, Machine, u32)> {
         ),
     ];
     if size == Size::PAPER {
-        // What leaping over empty blocks, skipping single empty cells and leaping from cell
-        // to cell gain: the same render, one block per jump (and no cell leaps), without
-        // cell masks, and without cell leaps. Not candidates for the targets (their names
-        // start with neither "direct" nor "threads").
+        // What leaping over empty blocks, skipping single empty cells, leaping from cell to
+        // cell and depth bounds gain: the same render, one block per jump (and no cell
+        // leaps), without cell masks, without cell leaps, and without depth bounds. Not
+        // candidates for the targets (their names start with neither "direct" nor
+        // "threads").
         for (at, name, skipping) in [
             (
                 1,
@@ -216,6 +217,14 @@ pub fn machines(cores: u32, size: Size) -> Vec<(String, Machine, u32)> {
                 "no cell leaps",
                 SkipMode {
                     cell_leaps: false,
+                    ..SkipMode::ALL
+                },
+            ),
+            (
+                4,
+                "no depths",
+                SkipMode {
+                    depths: false,
                     ..SkipMode::ALL
                 },
             ),

@@ -65,14 +65,15 @@ pub fn worker_bytes() -> usize {
 
 /// Bytes of the min/max blocks a slab storing planes `stored` of `grid` keeps, with the leap
 /// maps of `needs` (a byte per block each, [`voxcube_kernel::leaps`]), its view's cell mask
-/// ([`voxcube_kernel::cells`]) and its cell leap maps (a byte per cell each,
-/// [`voxcube_kernel::cell_leaps`]).
+/// ([`voxcube_kernel::cells`]), its cell leap maps (a byte per cell each,
+/// [`voxcube_kernel::cell_leaps`]) and its depth bounds ([`voxcube_kernel::depths`]).
 pub fn block_bytes(grid: &Grid, stored: std::ops::Range<u32>, needs: ViewNeeds) -> usize {
     voxcube_kernel::blocks::extent_for(grid, stored).2
         * (size_of::<voxcube_kernel::blocks::Range>()
             + needs.maps * size_of::<u8>()
             + size_of::<voxcube_kernel::cells::CellMask>()
             + needs.cell_maps * voxcube_kernel::cell_leaps::PER_BLOCK)
+        + needs.depths
 }
 
 /// What a view asks of every node's memory besides its planes.
@@ -86,6 +87,9 @@ pub struct ViewNeeds {
     /// Cell leap maps: none is needed, a node holds them where they fit
     /// ([`crate::render::node_skipping`]).
     pub cell_maps: usize,
+    /// Bytes of depth bounds: none are needed, a node holds them where they fit
+    /// ([`crate::render::node_skipping`]).
+    pub depths: usize,
 }
 
 impl ViewNeeds {
@@ -95,12 +99,18 @@ impl ViewNeeds {
             ghost: view.ghost_planes(),
             maps: voxcube_kernel::leaps::octants(view).count_ones() as usize,
             cell_maps: 0,
+            depths: 0,
         }
     }
 
     /// The same, with `cell_maps` cell leap maps.
     pub fn with_cell_maps(self, cell_maps: usize) -> ViewNeeds {
         ViewNeeds { cell_maps, ..self }
+    }
+
+    /// The same, with depth bounds of `depths` bytes.
+    pub fn with_depths(self, depths: usize) -> ViewNeeds {
+        ViewNeeds { depths, ..self }
     }
 }
 
@@ -267,6 +277,7 @@ mod tests {
             ghost,
             maps: 1,
             cell_maps: 0,
+            depths: 0,
         };
         let cap = max_owned_planes(Profile::ncube2(), &grid, 1, needs, buffer);
         assert!(cap > 0 && cap < 208, "{cap}");
@@ -291,6 +302,7 @@ mod tests {
             ghost: 3,
             maps,
             cell_maps,
+            depths: 0,
         };
         assert_eq!(block_bytes(&grid, 0..10, needs(1, 0)), blocks * 17);
         assert_eq!(
@@ -317,6 +329,7 @@ mod tests {
                     ghost: 3,
                     maps: 1,
                     cell_maps: 0,
+                    depths: 0,
                 },
                 &buffer,
             )

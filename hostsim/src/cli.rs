@@ -90,6 +90,11 @@ pub enum Command {
         /// option: it changes no pixel, only the time).
         #[arg(long)]
         no_row_leaps: bool,
+        /// Leap through the empty cells before a primary ray's first cell that may show,
+        /// not passing over them at once by its pixel's depth bound (a debug option: it
+        /// changes no pixel, only the time).
+        #[arg(long)]
+        no_depths: bool,
         /// Balance every view's slabs first, as the paper does: one cluster traces a probe
         /// of about 32x32 primary rays, timed by the --machine profile, and the slab sizes
         /// follow the workers' times. The nodes start on uniform slabs and shift planes to
@@ -358,6 +363,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             no_cells,
             no_cell_leaps,
             no_row_leaps,
+            no_depths,
             balance,
         } => {
             let (scene, name) = match &scene {
@@ -381,6 +387,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                         cells: !no_cells,
                         cell_leaps: !no_cell_leaps,
                         rows: !no_row_leaps,
+                        depths: !no_depths,
                     };
                     m.profile = match profile {
                         ProfileArg::Ncube2 => Profile::ncube2(),

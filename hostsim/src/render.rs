@@ -264,9 +264,10 @@ pub fn preflight(volume: &Volume, view: &View, machine: &Machine) -> Result<(), 
 
 /// How `machine`'s nodes skip empty space in `view`: `machine.skipping`, without cell leap
 /// maps where the view takes none ([`crate::fabric::cell_leap_octants`]) or a node could not
-/// hold them beside everything [`preflight`] counts. They are an
-/// acceleration, not a need: a machine that fits without them renders without them, the
-/// same pixels. Slabs `balanced` by the host may grow up to the cap balancing keeps them
+/// hold them beside everything [`preflight`] counts, and without depth bounds where the view
+/// has none ([`depth_bytes`]) or a node could not hold them beside all that and its maps.
+/// They are accelerations, not needs: a machine that fits without them renders without them,
+/// the same pixels. Slabs `balanced` by the host may grow up to the cap balancing keeps them
 /// under ([`budget::max_owned_planes`]), so then that slab must fit. Every node and the host
 /// decide alike from the same inputs.
 pub fn node_skipping(volume: &Volume, view: &View, machine: &Machine, balanced: bool) -> SkipMode {
@@ -275,24 +276,49 @@ pub fn node_skipping(volume: &Volume, view: &View, machine: &Machine, balanced: 
         return mode;
     }
     let maps = crate::fabric::cell_leap_octants(view, mode).count_ones() as usize;
-    let fits = |buffer: usize| {
+    let fits = |needs: budget::ViewNeeds, buffer: usize| {
         let (grid, bytes) = (&volume.grid, volume.data.kind().bytes());
         let least = budget::ViewNeeds::of(view);
-        let with_maps = least.with_cell_maps(maps);
         match balanced {
             true => {
                 let cap = budget::max_owned_planes(machine.profile, grid, bytes, least, buffer);
-                budget::max_owned_planes(machine.profile, grid, bytes, with_maps, buffer) >= cap
+                budget::max_owned_planes(machine.profile, grid, bytes, needs, buffer) >= cap
             }
-            false => budget::largest_node(grid, bytes, machine.cluster_size(), with_maps, buffer)
+            false => budget::largest_node(grid, bytes, machine.cluster_size(), needs, buffer)
                 .is_some_and(|m| m.total() <= machine.profile.node_memory),
         }
     };
-    // A machine without a layout renders nothing (`preflight` says why): it holds no maps.
-    let held = maps > 0 && machine.sim_config().is_ok_and(|cfg| fits(cfg.buffer()));
+    // A machine without a layout renders nothing (`preflight` says why): it holds neither.
+    let Ok(cfg) = machine.sim_config() else {
+        return SkipMode {
+            cell_leaps: false,
+            depths: false,
+            ..mode
+        };
+    };
+    let least = budget::ViewNeeds::of(view);
+    let held = maps > 0 && fits(least.with_cell_maps(maps), cfg.buffer());
+    let with_maps = least.with_cell_maps(if held { maps } else { 0 });
+    let depths = depth_bytes(view, mode);
+    let depths_held = depths > 0 && fits(with_maps.with_depths(depths), cfg.buffer());
     SkipMode {
         cell_leaps: held,
+        depths: depths_held,
         ..mode
+    }
+}
+
+/// Bytes of the depth bounds a node skipping as `mode` says holds for `view`: a bound per
+/// pixel where the view has them (cell masks, a parallel projection), else none.
+pub fn depth_bytes(view: &View, mode: SkipMode) -> usize {
+    let by_cell = view.spec().model == voxcube_kernel::grid::Model::Cell;
+    let parallel = matches!(
+        view.spec().camera.projection(),
+        voxcube_kernel::camera::Projection::Orthographic { .. }
+    );
+    match mode.skip && mode.cells && mode.depths && by_cell && parallel {
+        true => view.pixel_count() as usize * size_of::<f32>(),
+        false => 0,
     }
 }
 

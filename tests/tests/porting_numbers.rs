@@ -36,6 +36,7 @@ fn porting_md_slab_figure_holds() {
         ghost: 3,
         maps: 1,
         cell_maps: 0,
+        depths: 0,
     };
     let slab = voxcube::budget::largest_node(&grid, 1, 16, needs, 0)
         .expect("fits")

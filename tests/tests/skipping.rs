@@ -120,6 +120,20 @@ fn check(text: &str, file: &str) {
                 v.name
             );
             assert_eq!(direct.counters, all.counters, "{}/{}", job.name, v.name);
+            // Depth bounds pass a primary ray over samples the masks clear, as the turns
+            // would: no pixel or count changes.
+            let no_depths = SkipMode {
+                depths: false,
+                ..SkipMode::ALL
+            };
+            let turns = render_skipping(&job.volume, &v.view, no_depths).expect("renders");
+            assert!(
+                turns.pixels == all.pixels,
+                "{}/{}: depth bounds",
+                job.name,
+                v.name
+            );
+            assert_eq!(turns.counters, all.counters, "{}/{}", job.name, v.name);
             for size in [2u32, 8] {
                 let runs = [SkipMode::ALL, no_rows].map(|mode| {
                     let cfg = SimConfig {
@@ -416,7 +430,9 @@ proptest! {
         let cells_only = SkipMode { leap: false, cell_leaps: false, ..SkipMode::ALL };
         let no_cell_leaps = SkipMode { cell_leaps: false, ..SkipMode::ALL };
         let mut counters = Vec::new();
-        for mode in [SkipMode::BLOCKS, SkipMode::LEAPS, cells_only, no_cell_leaps, SkipMode::ALL] {
+        let no_depths = SkipMode { depths: false, ..SkipMode::ALL };
+        let cells_no_depths = SkipMode { depths: false, ..cells_only };
+        for mode in [SkipMode::BLOCKS, SkipMode::LEAPS, cells_only, no_cell_leaps, SkipMode::ALL, no_depths, cells_no_depths] {
             let r = render_skipping(&volume, &view, mode).expect("renders");
             prop_assert!(r.pixels == off.pixels, "{mode:?} changed the image");
             prop_assert_eq!(r.counters.slab_misses, 0);
@@ -425,6 +441,9 @@ proptest! {
         prop_assert_eq!(&counters[0], &counters[1]);
         prop_assert_eq!(&counters[2], &counters[3]);
         prop_assert_eq!(&counters[3], &counters[4]);
+        // Depth bounds change no count, with cell leaps or with scans and jumps.
+        prop_assert_eq!(&counters[4], &counters[5]);
+        prop_assert_eq!(&counters[2], &counters[6]);
         // On a cluster cut anywhere (plane x starts a slab where bit x of `cut_bits` is set),
         // the same image, and the slabs skip every sample one node skips: on the cell model
         // exactly one node's samples are evaluated, on the voxel model at most those (a block
@@ -700,6 +719,51 @@ fn nodes_hold_cell_leap_maps_only_where_they_fit() {
     let spread = blob_view(inside, &small);
     assert_eq!(cell_leap_octants(&spread, SkipMode::ALL), 0);
     assert!(!node_skipping(&small, &spread, &machine, false).cell_leaps);
+}
+
+/// Depth bounds are an acceleration too: a node holds them, a bound a pixel, only where its
+/// memory has room beside everything else it holds; a perspective view has none.
+#[test]
+fn nodes_hold_depth_bounds_only_where_they_fit() {
+    use voxcube::render::{depth_bytes, node_skipping, preflight, Fabric, Machine};
+    let small = blobs([40, 40, 40], Vec3::ONE, 7);
+    let cam = voxcube_tests::ortho(
+        Vec3::new(100.0, 16.0, 20.0),
+        Vec3::splat(20.0),
+        Vec3::Y,
+        60.0,
+    );
+    let surface = || voxcube_tests::surfaces(&[(150.0, 0.0)]);
+    let sized = |cam, w: u32, h: u32| {
+        voxcube_tests::view(
+            voxcube_tests::spec(cam, w, h, Model::Cell, 0.5, surface()),
+            &small,
+        )
+    };
+    let machine = Machine::new(Fabric::Sim, 1, 1, 1);
+    let (fits, huge) = (sized(cam, 40, 30), sized(cam, 1200, 1000));
+    assert_eq!(depth_bytes(&fits, SkipMode::ALL), 40 * 30 * 4);
+    assert!(node_skipping(&small, &fits, &machine, false).depths);
+    assert!(node_skipping(&small, &fits, &machine, true).depths);
+    // 4.8 MB of bounds: more than an nCUBE 2 node's 4 MiB.
+    preflight(&small, &huge, &machine).expect("fits without depth bounds");
+    assert!(!node_skipping(&small, &huge, &machine, false).depths);
+    assert!(node_skipping(&small, &huge, &machine, false).cell_leaps);
+    let direct = Machine::new(Fabric::Direct, 1, 1, 1);
+    assert!(node_skipping(&small, &huge, &direct, false).depths);
+    let eye = Vec3::new(100.0, 16.0, 20.0);
+    let persp = sized(
+        voxcube_tests::perspective(eye, Vec3::splat(20.0), Vec3::Y, 40.0),
+        40,
+        30,
+    );
+    assert_eq!(depth_bytes(&persp, SkipMode::ALL), 0);
+    assert!(!node_skipping(&small, &persp, &machine, false).depths);
+    let no_cells = SkipMode {
+        cells: false,
+        ..SkipMode::ALL
+    };
+    assert_eq!(depth_bytes(&fits, no_cells), 0);
 }
 
 /// A cell leap map built in parts of planes, each with [`MAX_DISTANCE`] planes more ahead of

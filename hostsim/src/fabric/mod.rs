@@ -71,7 +71,9 @@ impl<'a> RunShape<'a> {
             layout: cfg.layout,
             partition,
             grid,
-            needs: ViewNeeds::of(view).with_cell_maps(cell_maps),
+            needs: ViewNeeds::of(view)
+                .with_cell_maps(cell_maps)
+                .with_depths(crate::render::depth_bytes(view, cfg.skipping)),
             sample_bytes,
         }
     }
@@ -289,6 +291,9 @@ pub struct SkipMode {
     /// certainly miss, without setting up their rays (parallel projections only;
     /// `voxcube_kernel::starts`).
     pub rows: bool,
+    /// Pass a primary ray at once over the samples before its pixel's depth bound (only
+    /// with cell masks, parallel projections; `voxcube_kernel::depths`).
+    pub depths: bool,
 }
 
 impl SkipMode {
@@ -299,6 +304,7 @@ impl SkipMode {
         cells: false,
         cell_leaps: false,
         rows: false,
+        depths: false,
     };
     /// Empty samples skipped by whole blocks, each jump ending at its block's faces.
     pub const BLOCKS: SkipMode = SkipMode {
@@ -307,6 +313,7 @@ impl SkipMode {
         cells: false,
         cell_leaps: false,
         rows: true,
+        depths: false,
     };
     /// Empty samples skipped by whole blocks, each jump leaping over every empty block around.
     pub const LEAPS: SkipMode = SkipMode {
@@ -315,6 +322,7 @@ impl SkipMode {
         cells: false,
         cell_leaps: false,
         rows: true,
+        depths: false,
     };
     /// Leaps, and single empty cells skipped too (the default).
     pub const ALL: SkipMode = SkipMode {
@@ -323,6 +331,7 @@ impl SkipMode {
         cells: true,
         cell_leaps: true,
         rows: true,
+        depths: true,
     };
 
     /// `view` as this mode renders it: without its row leaps when `rows` is off.
@@ -365,6 +374,8 @@ pub struct Skipping {
     /// One cell leap map per octant in `cell_octants`, in octant order.
     cell_leaps: Vec<u8>,
     cell_octants: u8,
+    /// The view's depth bounds over the slab, a bound per pixel.
+    depths: Vec<f32>,
 }
 
 /// `all` cut into consecutive pieces of `sizes` (the last piece short if they overrun).
@@ -532,6 +543,16 @@ impl Skipping {
         } else {
             cell_octants
         };
+        // Depth bounds from the masks, where the view's rays are parallel and near enough. A
+        // job of their own beside the cell leap maps' parts gained nothing on two cores.
+        let mut depths = Vec::new();
+        if let Some(with_masks) = with_masks.filter(|_| crate::render::depth_bytes(view, mode) > 0)
+        {
+            depths = vec![0.0; view.pixel_count() as usize];
+            if voxcube_kernel::depths::build(&with_masks, view, &mut depths).is_err() {
+                depths = Vec::new();
+            }
+        }
         Skipping {
             ranges,
             leaps,
@@ -539,6 +560,7 @@ impl Skipping {
             cells,
             cell_leaps,
             cell_octants,
+            depths,
         }
     }
 
@@ -564,6 +586,10 @@ impl Skipping {
         let blocks = match blocks.with_cell_leaps(&self.cell_leaps, self.cell_octants) {
             Ok(leaping) if self.cell_octants != 0 => leaping,
             _ => blocks,
+        };
+        let blocks = match self.depths.is_empty() {
+            true => blocks,
+            false => blocks.with_depths(&self.depths),
         };
         slab.with_blocks(blocks)
     }
