@@ -262,11 +262,11 @@ pub fn preflight(volume: &Volume, view: &View, machine: &Machine) -> Result<(), 
     Ok(())
 }
 
-/// How `machine`'s nodes skip empty space in `view`: `machine.skipping`, without cell leap
-/// maps where the view takes none ([`crate::fabric::cell_leap_octants`]) or a node could not
-/// hold them beside everything [`preflight`] counts, and without depth bounds where the view
-/// has none ([`depth_bytes`]) or a node could not hold them beside all that and its maps.
-/// They are accelerations, not needs: a machine that fits without them renders without them,
+/// How `machine`'s nodes skip empty space in `view`: `machine.skipping`, without depth
+/// bounds where the view has none ([`depth_bytes`]) or a node could not hold them beside
+/// everything [`preflight`] counts, and without cell leap maps where the view takes none
+/// given its bounds ([`crate::fabric::cell_leap_octants`]) or a node could not hold them
+/// beside all that. They are accelerations, not needs: a machine that fits without them renders without them,
 /// the same pixels. Slabs `balanced` by the host may grow up to the cap balancing keeps them
 /// under ([`budget::max_owned_planes`]), so then that slab must fit. Every node and the host
 /// decide alike from the same inputs.
@@ -275,7 +275,6 @@ pub fn node_skipping(volume: &Volume, view: &View, machine: &Machine, balanced: 
     if machine.fabric == Fabric::Direct {
         return mode;
     }
-    let maps = crate::fabric::cell_leap_octants(view, mode).count_ones() as usize;
     let fits = |needs: budget::ViewNeeds, buffer: usize| {
         let (grid, bytes) = (&volume.grid, volume.data.kind().bytes());
         let least = budget::ViewNeeds::of(view);
@@ -296,14 +295,17 @@ pub fn node_skipping(volume: &Volume, view: &View, machine: &Machine, balanced: 
             ..mode
         };
     };
+    // Depth bounds first: whether a view takes cell leap maps depends on whether it has them.
     let least = budget::ViewNeeds::of(view);
-    let held = maps > 0 && fits(least.with_cell_maps(maps), cfg.buffer());
-    let with_maps = least.with_cell_maps(if held { maps } else { 0 });
-    let depths = depth_bytes(view, mode);
-    let depths_held = depths > 0 && fits(with_maps.with_depths(depths), cfg.buffer());
+    let bounds = depth_bytes(view, mode);
+    let depths = bounds > 0 && fits(least.with_depths(bounds), cfg.buffer());
+    let with_depths = least.with_depths(if depths { bounds } else { 0 });
+    let maps = crate::fabric::cell_leap_octants(view, SkipMode { depths, ..mode });
+    let maps = maps.count_ones() as usize;
+    let held = maps > 0 && fits(with_depths.with_cell_maps(maps), cfg.buffer());
     SkipMode {
         cell_leaps: held,
-        depths: depths_held,
+        depths,
         ..mode
     }
 }

@@ -518,7 +518,12 @@ fn skipping_built_on_threads_is_the_same_storage() {
                 slabs.push(Slab::new(grid, owned, 1, stored).expect("slab"));
             }
             for slab in &slabs {
-                for skipping in [SkipMode::ALL, SkipMode::LEAPS, SkipMode::BLOCKS] {
+                // Without depth bounds this small image's view takes cell leap maps.
+                let no_depths = SkipMode {
+                    depths: false,
+                    ..SkipMode::ALL
+                };
+                for skipping in [SkipMode::ALL, no_depths, SkipMode::LEAPS, SkipMode::BLOCKS] {
                     let one = Skipping::build(slab, &view, skipping);
                     assert_ne!(one, Skipping::default(), "{dims:?}: blocks are built");
                     for threads in [2, 3, 8] {
@@ -534,7 +539,7 @@ fn skipping_built_on_threads_is_the_same_storage() {
             }
         }
     }
-    assert_eq!(compared, 5 * 3 * 3 * 3 * 3);
+    assert_eq!(compared, 5 * 3 * 3 * 4 * 3);
 }
 
 /// `volume`'s whole slab (of blobs, bytes) and its blocks' ranges.
@@ -646,15 +651,25 @@ fn every_node_skips_by_the_same_storage_however_the_build_is_threaded() {
     let view = blob_view(cam, &volume);
     let grid = volume.grid;
     let mut compared = 0;
-    for (clusters, size) in [(1u32, 8u32), (2, 2), (1, 1)] {
+    // With depth bounds, and without them (then with cell leap maps).
+    let modes = [
+        SkipMode::ALL,
+        SkipMode {
+            depths: false,
+            ..SkipMode::ALL
+        },
+    ];
+    for ((clusters, size), mode) in [(1u32, 8u32), (2, 2), (1, 1)]
+        .into_iter()
+        .flat_map(|shape| modes.map(|mode| (shape, mode)))
+    {
         let layout = Layout::new(clusters, size).expect("layout");
         let partition = Partition::uniform(grid.dims()[0], size as usize).expect("partition");
         let ghost = view.ghost_planes();
-        let storage =
-            |threads: usize| {
-                NodeStorage::new(&grid, layout, &partition, ghost, data.as_slice(), None)
-                    .with_skipping(&view, SkipMode::ALL, threads)
-            };
+        let storage = |threads: usize| {
+            NodeStorage::new(&grid, layout, &partition, ghost, data.as_slice(), None)
+                .with_skipping(&view, mode, threads)
+        };
         let one = storage(1);
         for threads in [2, 3, 16] {
             let many = storage(threads);
@@ -672,7 +687,13 @@ fn every_node_skips_by_the_same_storage_however_the_build_is_threaded() {
             }
         }
     }
-    assert_eq!(compared, 3 * (8 + 4 + 1));
+    assert_eq!(compared, 2 * 3 * (8 + 4 + 1));
+}
+
+/// Whether a cell holds fewer of `view`'s samples than cell leap maps need beside depth bounds.
+fn samples_below(view: &View) -> bool {
+    voxcube::fabric::samples_per_cell(view)
+        .is_some_and(|n| n < voxcube::fabric::MAP_SAMPLES_PER_CELL)
 }
 
 /// Cell leap maps are an acceleration, not a need: a node holds them only where its memory has
@@ -690,7 +711,14 @@ fn nodes_hold_cell_leap_maps_only_where_they_fit() {
             n * 1.5,
         )
     };
-    let machine = Machine::new(Fabric::Sim, 1, 1, 1);
+    // This small image's rays are few per cell: with depth bounds it takes no maps (below).
+    let machine = Machine {
+        skipping: SkipMode {
+            depths: false,
+            ..SkipMode::ALL
+        },
+        ..Machine::new(Fabric::Sim, 1, 1, 1)
+    };
     let small = blobs([40, 40, 40], Vec3::ONE, 7);
     let view = blob_view(cam(40.0), &small);
     assert!(node_skipping(&small, &view, &machine, false).cell_leaps);
@@ -704,7 +732,7 @@ fn nodes_hold_cell_leap_maps_only_where_they_fit() {
     let off = Machine {
         skipping: SkipMode {
             cell_leaps: false,
-            ..SkipMode::ALL
+            ..machine.skipping
         },
         ..machine
     };
@@ -713,7 +741,24 @@ fn nodes_hold_cell_leap_maps_only_where_they_fit() {
     assert!(node_skipping(&big, &view, &direct, false).cell_leaps);
     // Primary rays of one octant, and of several: the latter hold no maps, anywhere.
     let parallel = blob_view(cam(40.0), &small);
-    assert_eq!(cell_leap_octants(&parallel, SkipMode::ALL).count_ones(), 1);
+    assert_eq!(
+        cell_leap_octants(&parallel, machine.skipping).count_ones(),
+        1
+    );
+    // With depth bounds, maps only where a cell holds enough of the rays' samples: not at
+    // 40×30 pixels over 60 units (0.9 samples a cell) nor at 160×120 (14.2), at 240×180 (32).
+    let few = voxcube::fabric::samples_per_cell(&parallel).expect("parallel");
+    assert!((few - 1.0 / (1.5 * 1.5 * 0.5)).abs() < 1e-9, "{few}");
+    assert_eq!(cell_leap_octants(&parallel, SkipMode::ALL), 0);
+    let sized = |w: u32, h: u32| {
+        let surface = voxcube_tests::surfaces(&[(150.0, 0.0)]);
+        let spec = voxcube_tests::spec(cam(40.0), w, h, Model::Cell, 0.5, surface);
+        voxcube_tests::view(spec, &small)
+    };
+    let (under, over) = (sized(160, 120), sized(240, 180));
+    assert!(samples_below(&under) && !samples_below(&over));
+    assert_eq!(cell_leap_octants(&under, SkipMode::ALL), 0);
+    assert_eq!(cell_leap_octants(&over, SkipMode::ALL).count_ones(), 1);
     let eye = Vec3::splat(20.0);
     let inside = voxcube_tests::perspective(eye, eye + Vec3::new(1.0, 0.3, 0.2), Vec3::Y, 100.0);
     let spread = blob_view(inside, &small);
