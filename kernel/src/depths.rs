@@ -177,12 +177,20 @@ impl Frame {
     /// `0..n`.
     fn pixels(least: f64, most: f64, n: u32) -> core::ops::Range<u32> {
         let slack = 1e-6;
-        let first = libm::ceil(least - slack).max(0.0);
-        let last = libm::floor(most + slack).min(f64::from(n) - 1.0);
-        if !(first <= last) {
-            return 0..0;
+        // Kept within [-1, n] first, where truncating to an integer is exact; a NaN (which a
+        // frame `Frame::of` accepts cannot give) widens to the whole axis, as `max` and `min`
+        // return the other operand. Truncation, then a step where it went the wrong way:
+        // `libm`'s ceil and floor took a fifth of the build.
+        let n_f = f64::from(n);
+        let lo = (least - slack).max(-1.0).min(n_f);
+        let hi = (most + slack).min(n_f).max(-1.0);
+        let (l, h) = (lo as i64, hi as i64);
+        let first = (l + i64::from((l as f64) < lo)).max(0);
+        let last = (h - i64::from((h as f64) > hi)).min(i64::from(n) - 1);
+        match first <= last {
+            true => first as u32..last as u32 + 1,
+            false => 0..0,
         }
-        first as u32..last as u32 + 1
     }
 }
 
@@ -524,6 +532,48 @@ mod tests {
             raised_caught > 100,
             "raised bounds caught in only {raised_caught} rounds"
         );
+    }
+
+    #[test]
+    fn pixel_ranges_are_the_whole_indices_within_the_span() {
+        let reference = |least: f64, most: f64, n: u32| {
+            let first = libm::ceil(least - 1e-6).max(0.0);
+            let last = libm::floor(most + 1e-6).min(f64::from(n) - 1.0);
+            match first <= last {
+                true => first as u32..last as u32 + 1,
+                false => 0..0,
+            }
+        };
+        let values = [
+            -1e9,
+            -3.5,
+            -1.0,
+            -0.5,
+            -1e-7,
+            0.0,
+            1e-7,
+            0.3,
+            1.0,
+            2.0,
+            2.5,
+            9.0,
+            9.999_999_5,
+            10.0,
+            11.5,
+            1e9,
+        ];
+        for &least in &values {
+            for &most in &values {
+                for n in [1, 10, 12] {
+                    assert_eq!(
+                        Frame::pixels(least, most, n),
+                        reference(least, most, n),
+                        "{least} {most} {n}"
+                    );
+                }
+            }
+        }
+        assert_eq!(Frame::pixels(f64::NAN, f64::NAN, 7), 0..7);
     }
 
     #[test]

@@ -33,8 +33,9 @@ impl Lattice {
         {
             return None;
         }
-        let steps = libm::floorf((t_exit - t_entry) / dt);
-        // Saturating conversion, capped so `k as f32` is exact.
+        // Not negative (the span is not empty), so the saturating conversion's truncation is
+        // the floor; capped so `k as f32` is exact. (`libm::floorf` before it is a call.)
+        let steps = (t_exit - t_entry) / dt;
         let last = (steps.max(0.0) as u32).min(MAX_SAMPLES);
         Some(Lattice {
             t_entry,
