@@ -4,9 +4,10 @@
 //! (on the paper's view most of those turns came before a ray's first evaluated sample).
 //!
 //! The bound of a pixel is the least, over the cells whose mask bit is set ([`crate::cells`]:
-//! the obstacles), of where the pixel's ray can first reach the cell widened by [`WIDEN`]
-//! on every side, over the pixels whose ray can pass through that widened cell. Both are
-//! linear in the point for a parallel projection: with the image's per-pixel steps `U`, `V`
+//! the obstacles) that its ray may pass through once widened by [`WIDEN`] on every side, of
+//! the least parameter at which any of the view's rays meets that widened cell. Which rays
+//! pass through a cell, and at which parameters, are linear in the point for a parallel
+//! projection: with the image's per-pixel steps `U`, `V`
 //! and the rays' direction `D` (index space, as the rays hold them), a point `q` lies on the
 //! ray of image coordinates `(a, b)` at parameter `t` exactly when `q = O + a·U + b·V + t·D`,
 //! so `(a, b, t)` is one 3×3 inverse applied to `q − O`, and its range over a box is found
@@ -177,8 +178,8 @@ impl Frame {
     /// `0..n`.
     fn pixels(least: f64, most: f64, n: u32) -> core::ops::Range<u32> {
         let slack = 1e-6;
-        // Kept within [-1, n] first, where truncating to an integer is exact; a NaN (which a
-        // frame `Frame::of` accepts cannot give) widens to the whole axis, as `max` and `min`
+        // Kept within [-1, n] first, where truncating to an integer is exact; a NaN (which no
+        // frame `Frame::of` accepts can give) widens to the whole axis, as `max` and `min`
         // return the other operand. Truncation, then a step where it went the wrong way:
         // `libm`'s ceil and floor took a fifth of the build.
         let n_f = f64::from(n);
@@ -214,7 +215,7 @@ pub fn build(blocks: &Blocks<'_>, view: &View, out: &mut [f32]) -> Result<(), De
     // Each image coordinate and the parameter are linear in a cell's low corner `c`: over the
     // widened cell, `row·(c − O)` plus the least (or greatest) of `row·(−WIDEN)` and
     // `row·(1 + WIDEN)` per axis.
-    let reach = |row: usize| {
+    let over_cell = |row: usize| {
         let r = frame.rows[row];
         let (mut least, mut most) = (0.0, 0.0);
         for (&ra, &oa) in r.iter().zip(&frame.origin) {
@@ -224,7 +225,7 @@ pub fn build(blocks: &Blocks<'_>, view: &View, out: &mut [f32]) -> Result<(), De
         }
         (least, most)
     };
-    let (a_reach, b_reach, t_reach) = (reach(0), reach(1), reach(2).0);
+    let (a_span, b_span, t_least) = (over_cell(0), over_cell(1), over_cell(2).0);
     let w = frame.width as usize;
     let (bx0, bx1) = (blocks.first_column(), blocks.first_column() + cols);
     // The masks of the block in front along each axis (none past the blocks: no obstacle).
@@ -262,9 +263,9 @@ pub fn build(blocks: &Blocks<'_>, view: &View, out: &mut [f32]) -> Result<(), De
                     ];
                     let at = |row: usize| dot(frame.rows[row], c);
                     let (a, b) = (at(0), at(1));
-                    let t = round_down(at(2) + t_reach);
-                    let columns = Frame::pixels(a + a_reach.0, a + a_reach.1, frame.width);
-                    for y in Frame::pixels(b + b_reach.0, b + b_reach.1, frame.height) {
+                    let t = round_down(at(2) + t_least);
+                    let columns = Frame::pixels(a + a_span.0, a + a_span.1, frame.width);
+                    for y in Frame::pixels(b + b_span.0, b + b_span.1, frame.height) {
                         let row = y as usize * w;
                         let span = row + columns.start as usize..row + columns.end as usize;
                         if let Some(slots) = out.get_mut(span) {

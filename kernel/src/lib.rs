@@ -11,9 +11,9 @@
 //! - data: [`sample`], [`grid`], [`slab`], [`field`] (nearest and trilinear reads, gradients);
 //! - empty-space skipping: [`blocks`] (min/max blocks), [`leaps`] (a view's chessboard
 //!   distances between them, ahead of each octant of ray directions), [`cells`] (a view's
-//!   empty cells inside them), [`cell_leaps`] (distances between those cells), [`depths`] (each pixel's
-//!   ray parameter before its first cell that shows), [`scan`] (a
-//!   ray's next samples against those cells);
+//!   empty cells inside them), [`cell_leaps`] (distances between those cells), [`depths`]
+//!   (each pixel's ray parameter before its first cell that shows), [`scan`] (a ray's next
+//!   samples against those cells);
 //! - geometry: [`ray`] (box clipping), [`lattice`], [`camera`];
 //! - appearance: [`transfer`], [`surface`], [`shade`], [`lighting`], [`view`] (one view's parameters and the
 //!   effects it calls for);

@@ -394,9 +394,9 @@ pub fn samples_per_cell(view: &View) -> Option<f64> {
 }
 
 /// A node's storage for skipping empty space in one view: its min/max blocks, their
-/// chessboard distances ahead (a map per octant the view's rays take), their cell masks and
-/// the distances between cells (a map per octant of the primary rays), each empty when that
-/// acceleration is off.
+/// chessboard distances ahead (a map per octant the view's rays take), their cell masks, the
+/// distances between cells (a map per octant of the primary rays) and the pixels' depth
+/// bounds, each empty when that acceleration is off.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Skipping {
     ranges: Vec<voxcube_kernel::blocks::Range>,
