@@ -297,7 +297,7 @@ pub fn node_skipping(volume: &Volume, view: &View, machine: &Machine, balanced: 
     };
     // Depth bounds first: whether a view takes cell leap maps depends on whether it has them.
     let least = budget::ViewNeeds::of(view);
-    let bounds = depth_bytes(view, mode);
+    let bounds = depth_bytes(view, mode, cfg.layout.clusters());
     let depths = bounds > 0 && fits(least.with_depths(bounds), cfg.buffer());
     let with_depths = least.with_depths(if depths { bounds } else { 0 });
     let maps = crate::fabric::cell_leap_octants(view, SkipMode { depths, ..mode });
@@ -310,17 +310,28 @@ pub fn node_skipping(volume: &Volume, view: &View, machine: &Machine, balanced: 
     }
 }
 
-/// Bytes of the depth bounds a node skipping as `mode` says holds for `view`: a bound per
-/// pixel where the view has them (cell masks, a parallel projection), else none.
-pub fn depth_bytes(view: &View, mode: SkipMode) -> usize {
+/// Whether a node skipping as `mode` says takes depth bounds for `view`: with cell masks, in
+/// the cell model, for a parallel projection.
+pub fn has_depths(view: &View, mode: SkipMode) -> bool {
     let by_cell = view.spec().model == voxcube_kernel::grid::Model::Cell;
     let parallel = matches!(
         view.spec().camera.projection(),
         voxcube_kernel::camera::Projection::Orthographic { .. }
     );
-    match mode.skip && mode.cells && mode.depths && by_cell && parallel {
-        true => view.pixel_count() as usize * size_of::<f32>(),
-        false => 0,
+    mode.skip && mode.cells && mode.depths && by_cell && parallel
+}
+
+/// Bytes of the depth bounds a node of a machine of `clusters` clusters holds for `view`,
+/// skipping as `mode` says: a bound per pixel of its cluster's rows (the first cluster's,
+/// which has the most), or none ([`has_depths`]).
+pub fn depth_bytes(view: &View, mode: SkipMode, clusters: u16) -> usize {
+    let rows = voxcube_kernel::depths::Rows::of_cluster(0, clusters);
+    match (has_depths(view, mode), rows) {
+        (true, Some(rows)) => {
+            let (width, height) = (view.spec().width, view.spec().height);
+            rows.count(height) as usize * width as usize * size_of::<f32>()
+        }
+        _ => 0,
     }
 }
 

@@ -130,9 +130,9 @@ pub struct Blocks<'a> {
     cell_maps: &'a [u8],
     cell_octants: u8,
     cell_leaps: Option<&'a [u8]>,
-    /// One view's depth bounds ([`crate::depths`]), a bound per pixel, when its primary rays
-    /// may pass over the samples before them.
-    depths: Option<&'a [f32]>,
+    /// One view's depth bounds ([`crate::depths`]), a bound per pixel of the rows held, when
+    /// its primary rays may pass over the samples before them.
+    depths: Option<crate::depths::Depths<'a>>,
     x0: u32,
     x1: u32,
     ny: u32,
@@ -460,9 +460,9 @@ impl<'a> Blocks<'a> {
         crate::cell_leaps::CellLeaps::new(self, self.cell_leaps?).ok()
     }
 
-    /// The same blocks, with the depth bounds in `depths` ([`crate::depths::build`] from these
+    /// The same blocks, with the depth bounds `depths` ([`crate::depths::build`] from these
     /// blocks' masks for the view being traced, like a leap map).
-    pub fn with_depths(self, depths: &'a [f32]) -> Blocks<'a> {
+    pub fn with_depths(self, depths: crate::depths::Depths<'a>) -> Blocks<'a> {
         Blocks {
             depths: Some(depths),
             ..self
@@ -472,7 +472,7 @@ impl<'a> Blocks<'a> {
     /// The depth bounds, when the blocks carry them.
     #[inline]
     pub fn depths(&self) -> Option<crate::depths::Depths<'a>> {
-        self.depths.map(crate::depths::Depths::new)
+        self.depths
     }
 
     /// The octant whose rays these blocks serve.

@@ -82,26 +82,82 @@ impl core::fmt::Display for DepthsError {
 
 impl core::error::Error for DepthsError {}
 
-/// One view's depth bounds over a slab, for reading: a bound per pixel, row-major.
+/// The image rows whose bounds a node holds: `first`, `first + step`, … below the image's
+/// height, as a cluster's rows are dealt ([`crate::topology::Layout::row`]): a node needs
+/// the bounds of its cluster's pixels only.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Rows {
+    first: u32,
+    step: u32,
+}
+
+impl Default for Rows {
+    fn default() -> Rows {
+        Rows::ALL
+    }
+}
+
+impl Rows {
+    /// Every row.
+    pub const ALL: Rows = Rows { first: 0, step: 1 };
+
+    /// The rows of cluster `cluster` of `clusters` (`None` for no clusters).
+    pub fn of_cluster(cluster: u16, clusters: u16) -> Option<Rows> {
+        (clusters > 0).then_some(Rows {
+            first: u32::from(cluster),
+            step: u32::from(clusters),
+        })
+    }
+
+    /// How many of them an image of `height` rows has.
+    pub fn count(&self, height: u32) -> u32 {
+        match self.first < height {
+            true => (height - 1 - self.first) / self.step + 1,
+            false => 0,
+        }
+    }
+
+    /// The place of image row `row` among them, if it is one of them.
+    #[inline]
+    fn index(&self, row: u32) -> Option<u32> {
+        let offset = row.checked_sub(self.first)?;
+        (offset % self.step == 0).then_some(offset / self.step)
+    }
+
+    /// The places among them of those in the image rows `span`.
+    fn within(&self, span: core::ops::Range<u32>) -> core::ops::Range<u32> {
+        let place = |row: u32| row.saturating_sub(self.first).div_ceil(self.step);
+        let (start, end) = (place(span.start), place(span.end));
+        start..end.max(start)
+    }
+}
+
+/// One view's depth bounds over a slab, for reading: a bound per pixel of the rows it holds,
+/// row-major.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Depths<'a> {
     map: &'a [f32],
+    width: u32,
+    rows: Rows,
 }
 
 impl<'a> Depths<'a> {
-    /// The bounds [`build`] wrote into `map`.
-    pub fn new(map: &'a [f32]) -> Depths<'a> {
-        Depths { map }
+    /// The bounds [`build`] wrote into `map` for the rows `rows` of an image `width` pixels
+    /// wide.
+    pub fn new(map: &'a [f32], width: u32, rows: Rows) -> Depths<'a> {
+        Depths { map, width, rows }
     }
 
     /// Pixel `pixel`'s bound: no sample of its primary ray at a parameter below it lies in an
-    /// obstacle. Minus infinity (nothing to pass over) for a pixel outside the map.
+    /// obstacle. Minus infinity (nothing to pass over) for a pixel outside the rows held.
     #[inline]
     pub fn bound(&self, pixel: u32) -> f32 {
-        self.map
-            .get(pixel as usize)
-            .copied()
-            .unwrap_or(f32::NEG_INFINITY)
+        let width = self.width.max(1);
+        let Some(row) = self.rows.index(pixel / width) else {
+            return f32::NEG_INFINITY;
+        };
+        let at = row as usize * width as usize + (pixel % width) as usize;
+        self.map.get(at).copied().unwrap_or(f32::NEG_INFINITY)
     }
 }
 
@@ -195,11 +251,17 @@ impl Frame {
     }
 }
 
-/// Fill `out` (a bound per pixel of `view`, row-major) with the depth bounds of the cells
-/// `blocks`' masks keep for `view` (see the module's text).
-pub fn build(blocks: &Blocks<'_>, view: &View, out: &mut [f32]) -> Result<(), DepthsError> {
+/// Fill `out` (a bound per pixel of `view`'s rows `rows`, row-major) with the depth bounds of
+/// the cells `blocks`' masks keep for `view` (see the module's text). The bounds of a row do
+/// not depend on which other rows are built.
+pub fn build(
+    blocks: &Blocks<'_>,
+    view: &View,
+    rows: Rows,
+    out: &mut [f32],
+) -> Result<(), DepthsError> {
     blocks.masks().ok_or(DepthsError::NoMasks)?;
-    let pixels = view.pixel_count() as usize;
+    let pixels = rows.count(view.spec().height) as usize * view.spec().width as usize;
     if out.len() != pixels {
         return Err(DepthsError::Storage {
             needed: pixels,
@@ -265,8 +327,9 @@ pub fn build(blocks: &Blocks<'_>, view: &View, out: &mut [f32]) -> Result<(), De
                     let (a, b) = (at(0), at(1));
                     let t = round_down(at(2) + t_least);
                     let columns = Frame::pixels(a + a_span.0, a + a_span.1, frame.width);
-                    for y in Frame::pixels(b + b_span.0, b + b_span.1, frame.height) {
-                        let row = y as usize * w;
+                    let ys = Frame::pixels(b + b_span.0, b + b_span.1, frame.height);
+                    for place in rows.within(ys) {
+                        let row = place as usize * w;
                         let span = row + columns.start as usize..row + columns.end as usize;
                         if let Some(slots) = out.get_mut(span) {
                             for slot in slots {
@@ -515,7 +578,24 @@ mod tests {
             .unwrap();
             let mut bounds = [0.0f32; 22 * 22];
             let pixels = view.pixel_count() as usize;
-            build(&blocks, &view, &mut bounds[..pixels]).unwrap();
+            build(&blocks, &view, Rows::ALL, &mut bounds[..pixels]).unwrap();
+            // A cluster's rows alone: the same bounds there, read by pixel.
+            let (width, height) = (view.spec().width, view.spec().height);
+            let clusters = 1 + (next() % 4) as u16;
+            for cluster in 0..clusters {
+                let rows = Rows::of_cluster(cluster, clusters).unwrap();
+                let held = (rows.count(height) * width) as usize;
+                let mut part = [0.0f32; 22 * 22];
+                build(&blocks, &view, rows, &mut part[..held]).unwrap();
+                let read = Depths::new(&part[..held], width, rows);
+                for pixel in 0..pixels as u32 {
+                    let (row, theirs) = (pixel / width, read.bound(pixel));
+                    match row % u32::from(clusters) == u32::from(cluster) {
+                        true => assert_eq!(theirs, bounds[pixel as usize], "round {round}"),
+                        false => assert_eq!(theirs, f32::NEG_INFINITY, "round {round}"),
+                    }
+                }
+            }
             let (bad, good) = below_bounds(&blocks, &view, &bounds[..pixels], &grid);
             assert_eq!(
                 bad, 0,
@@ -624,29 +704,32 @@ mod tests {
         );
         let mut out = [0.0f32; 16];
         assert_eq!(
-            build(&blocks, &parallel, &mut out),
+            build(&blocks, &parallel, Rows::ALL, &mut out),
             Err(DepthsError::NoMasks)
         );
         assert_eq!(
-            build(&with_masks, &parallel, &mut out[..15]),
+            build(&with_masks, &parallel, Rows::ALL, &mut out[..15]),
             Err(DepthsError::Storage {
                 needed: 16,
                 given: 15
             })
         );
-        assert_eq!(build(&with_masks, &parallel, &mut out), Ok(()));
+        assert_eq!(build(&with_masks, &parallel, Rows::ALL, &mut out), Ok(()));
         let persp = view(
             Vec3::new(2.0, 2.0, 20.0),
             Projection::Perspective { fov_y: 0.5 },
         );
         assert_eq!(
-            build(&with_masks, &persp, &mut out),
+            build(&with_masks, &persp, Rows::ALL, &mut out),
             Err(DepthsError::Perspective)
         );
         let far = view(
             Vec3::new(2.0, 2.0, 1e5),
             Projection::Orthographic { width: 6.0 },
         );
-        assert_eq!(build(&with_masks, &far, &mut out), Err(DepthsError::Reach));
+        assert_eq!(
+            build(&with_masks, &far, Rows::ALL, &mut out),
+            Err(DepthsError::Reach)
+        );
     }
 }

@@ -765,8 +765,9 @@ fn nodes_hold_cell_leap_maps_only_where_they_fit() {
     assert!(!node_skipping(&small, &spread, &machine, false).cell_leaps);
 }
 
-/// Depth bounds are an acceleration too: a node holds them, a bound a pixel, only where its
-/// memory has room beside everything else it holds; a perspective view has none.
+/// Depth bounds are an acceleration too: a node holds them, a bound a pixel of its cluster's
+/// rows, only where its memory has room beside everything else it holds; a perspective view
+/// has none.
 #[test]
 fn nodes_hold_depth_bounds_only_where_they_fit() {
     use voxcube::render::{depth_bytes, node_skipping, preflight, Fabric, Machine};
@@ -786,13 +787,18 @@ fn nodes_hold_depth_bounds_only_where_they_fit() {
     };
     let machine = Machine::new(Fabric::Sim, 1, 1, 1);
     let (fits, huge) = (sized(cam, 40, 30), sized(cam, 1200, 1000));
-    assert_eq!(depth_bytes(&fits, SkipMode::ALL), 40 * 30 * 4);
+    assert_eq!(depth_bytes(&fits, SkipMode::ALL, 1), 40 * 30 * 4);
+    assert_eq!(depth_bytes(&fits, SkipMode::ALL, 4), 40 * 8 * 4);
     assert!(node_skipping(&small, &fits, &machine, false).depths);
     assert!(node_skipping(&small, &fits, &machine, true).depths);
     // 4.8 MB of bounds: more than an nCUBE 2 node's 4 MiB.
     preflight(&small, &huge, &machine).expect("fits without depth bounds");
     assert!(!node_skipping(&small, &huge, &machine, false).depths);
     assert!(node_skipping(&small, &huge, &machine, false).cell_leaps);
+    // In four clusters a node holds a quarter of the rows: 1.2 MB.
+    let four = Machine::new(Fabric::Sim, 4, 4, 1);
+    preflight(&small, &huge, &four).expect("fits");
+    assert!(node_skipping(&small, &huge, &four, false).depths);
     let direct = Machine::new(Fabric::Direct, 1, 1, 1);
     assert!(node_skipping(&small, &huge, &direct, false).depths);
     let eye = Vec3::new(100.0, 16.0, 20.0);
@@ -801,13 +807,13 @@ fn nodes_hold_depth_bounds_only_where_they_fit() {
         40,
         30,
     );
-    assert_eq!(depth_bytes(&persp, SkipMode::ALL), 0);
+    assert_eq!(depth_bytes(&persp, SkipMode::ALL, 1), 0);
     assert!(!node_skipping(&small, &persp, &machine, false).depths);
     let no_cells = SkipMode {
         cells: false,
         ..SkipMode::ALL
     };
-    assert_eq!(depth_bytes(&fits, no_cells), 0);
+    assert_eq!(depth_bytes(&fits, no_cells, 1), 0);
 }
 
 /// A cell leap map built in parts of planes, each with [`MAX_DISTANCE`] planes more ahead of

@@ -71,9 +71,9 @@ impl<'a> RunShape<'a> {
             layout: cfg.layout,
             partition,
             grid,
-            needs: ViewNeeds::of(view)
-                .with_cell_maps(cell_maps)
-                .with_depths(crate::render::depth_bytes(view, cfg.skipping)),
+            needs: ViewNeeds::of(view).with_cell_maps(cell_maps).with_depths(
+                crate::render::depth_bytes(view, cfg.skipping, cfg.layout.clusters()),
+            ),
             sample_bytes,
         }
     }
@@ -362,7 +362,7 @@ pub fn cell_leap_octants(view: &View, mode: SkipMode) -> u8 {
     let primary = voxcube_kernel::leaps::primary_octants(view);
     let surfaces = matches!(view.spec().mode, voxcube_kernel::view::Mode::Surfaces(_));
     let sparse = surfaces
-        && crate::render::depth_bytes(view, mode) > 0
+        && crate::render::has_depths(view, mode)
         && samples_per_cell(view).is_some_and(|n| n < MAP_SAMPLES_PER_CELL);
     match mode.skip && mode.cells && mode.cell_leaps && by_cell && primary.count_ones() == 1 {
         true if !sparse => primary,
@@ -407,8 +407,11 @@ pub struct Skipping {
     /// One cell leap map per octant in `cell_octants`, in octant order.
     cell_leaps: Vec<u8>,
     cell_octants: u8,
-    /// The view's depth bounds over the slab, a bound per pixel.
+    /// The view's depth bounds over the slab, a bound per pixel of the rows `depth_rows` of
+    /// an image `depth_width` wide.
     depths: Vec<f32>,
+    depth_rows: voxcube_kernel::depths::Rows,
+    depth_width: u32,
 }
 
 /// `all` cut into consecutive pieces of `sizes` (the last piece short if they overrun).
@@ -452,16 +455,39 @@ impl Skipping {
         Skipping::build_on(slab, view, mode, 1)
     }
 
+    /// [`Skipping::build`] with depth bounds for the image rows `rows` only: a node's, whose
+    /// cluster traces those (`depths::Rows::of_cluster`).
+    pub fn build_for<T: voxcube_kernel::sample::Sample + Sync>(
+        slab: &voxcube_kernel::slab::Slab<'_, T>,
+        view: &View,
+        mode: SkipMode,
+        rows: voxcube_kernel::depths::Rows,
+    ) -> Skipping {
+        Skipping::build_rows_on(slab, view, mode, 1, rows)
+    }
+
     /// [`Skipping::build`] on up to `threads` OS threads: the blocks and the masks split by
     /// block columns, each octant's distances (one pass over every block) beside the masks.
     /// The same bits: a column's blocks and masks depend on its own nodes only. A machine's
     /// start-up is on every frame's clock, and the masks of a composited SOD view alone took a
-    /// tenth of a one-node frame.
+    /// tenth of a one-node frame. The depth bounds cover every row: the in-process fabrics
+    /// share a ring position's storage among its clusters, whose nodes read their own rows.
     pub fn build_on<T: voxcube_kernel::sample::Sample + Sync>(
         slab: &voxcube_kernel::slab::Slab<'_, T>,
         view: &View,
         mode: SkipMode,
         threads: usize,
+    ) -> Skipping {
+        let all = voxcube_kernel::depths::Rows::ALL;
+        Skipping::build_rows_on(slab, view, mode, threads, all)
+    }
+
+    fn build_rows_on<T: voxcube_kernel::sample::Sample + Sync>(
+        slab: &voxcube_kernel::slab::Slab<'_, T>,
+        view: &View,
+        mode: SkipMode,
+        threads: usize,
+        rows: voxcube_kernel::depths::Rows,
     ) -> Skipping {
         use voxcube_kernel::blocks::{column_len, extent, Blocks, Range};
         if !mode.skip {
@@ -579,10 +605,10 @@ impl Skipping {
         // Depth bounds from the masks, where the view's rays are parallel and near enough. A
         // job of their own beside the cell leap maps' parts gained nothing on two cores.
         let mut depths = Vec::new();
-        if let Some(with_masks) = with_masks.filter(|_| crate::render::depth_bytes(view, mode) > 0)
-        {
-            depths = vec![0.0; view.pixel_count() as usize];
-            if voxcube_kernel::depths::build(&with_masks, view, &mut depths).is_err() {
+        if let Some(with_masks) = with_masks.filter(|_| crate::render::has_depths(view, mode)) {
+            let (width, height) = (view.spec().width, view.spec().height);
+            depths = vec![0.0; rows.count(height) as usize * width as usize];
+            if voxcube_kernel::depths::build(&with_masks, view, rows, &mut depths).is_err() {
                 depths = Vec::new();
             }
         }
@@ -594,6 +620,8 @@ impl Skipping {
             cell_leaps,
             cell_octants,
             depths,
+            depth_rows: rows,
+            depth_width: view.spec().width,
         }
     }
 
@@ -622,7 +650,11 @@ impl Skipping {
         };
         let blocks = match self.depths.is_empty() {
             true => blocks,
-            false => blocks.with_depths(&self.depths),
+            false => blocks.with_depths(voxcube_kernel::depths::Depths::new(
+                &self.depths,
+                self.depth_width,
+                self.depth_rows,
+            )),
         };
         slab.with_blocks(blocks)
     }
