@@ -32,7 +32,7 @@ use crate::blocks::{Blocks, BLOCK};
 use crate::camera::Projection;
 use crate::cells::{CellMask, ALL};
 use crate::view::View;
-use glam::Vec3;
+use glam::{BVec3, DMat3, DVec3, Vec3};
 
 /// How far each obstacle is widened on every side, in cells: the room left for rounding.
 pub const WIDEN: f64 = 1.0 / 16.0;
@@ -166,8 +166,8 @@ impl<'a> Depths<'a> {
 struct Frame {
     /// Rows of the inverse of `[U V D]`: a point's image `a`, image `b` and parameter `t`,
     /// each from `q − origin`.
-    rows: [[f64; 3]; 3],
-    origin: [f64; 3],
+    rows: [DVec3; 3],
+    origin: DVec3,
     /// Image size, pixels.
     width: u32,
     height: u32,
@@ -186,36 +186,41 @@ impl Frame {
             return Err(DepthsError::Perspective);
         };
         let (w, h) = (spec.width.max(1), spec.height.max(1));
-        let world_h = f64::from(world_w) * f64::from(h) / f64::from(w);
-        let inv = view.inv_spacing();
-        let idx = |v: Vec3| [0, 1, 2].map(|a| f64::from(v[a]) * f64::from(inv[a]));
+        let world_w = f64::from(world_w);
+        let world_h = world_w * f64::from(h) / f64::from(w);
+        let inv = view.inv_spacing().as_dvec3();
         let (right, up) = camera.image_axes();
-        let (r, u, e) = (idx(right), idx(up), idx(camera.eye()));
-        let (pw, ph) = (f64::from(world_w) / f64::from(w), world_h / f64::from(h));
+        let (r, u, e) = (
+            right.as_dvec3() * inv,
+            up.as_dvec3() * inv,
+            camera.eye().as_dvec3() * inv,
+        );
+        let (pw, ph) = (world_w / f64::from(w), world_h / f64::from(h));
         // Pixel (a, b)'s ray starts at eye + right·((a + ½)·pw − W/2) + up·(H/2 − (b + ½)·ph).
-        let step_u = r.map(|c| c * pw);
-        let step_v = u.map(|c| -c * ph);
-        let origin = [0, 1, 2].map(|a| {
-            e[a] + r[a] * (0.5 * pw - 0.5 * f64::from(world_w)) + u[a] * (0.5 * world_h - 0.5 * ph)
-        });
-        let dir = view.primary_line(0).dir;
-        let d = [0, 1, 2].map(|a| f64::from(dir[a]));
-        let rows = invert([step_u, step_v, d]).ok_or(DepthsError::Reach)?;
+        let (step_u, step_v) = (r * pw, u * -ph);
+        let origin = e + r * (0.5 * pw - 0.5 * world_w) + u * (0.5 * world_h - 0.5 * ph);
+        let d = view.primary_line(0).dir.as_dvec3();
+        let columns = DMat3::from_cols(step_u, step_v, d);
+        let det = columns.determinant();
+        if !(det.is_finite() && det != 0.0) {
+            return Err(DepthsError::Reach);
+        }
+        let inverse = columns.inverse();
+        let rows = [0, 1, 2].map(|i| inverse.row(i));
         // The greatest magnitude the rays' arithmetic meets: origins across the image, and
         // the direction times the largest parameter a sample in the dataset's box can have.
-        let t_far = corners(box_hi)
-            .map(|q| dot(rows[2], sub(q, origin)))
-            .into_iter()
-            .fold(0.0f64, f64::max);
-        let reach = [0, 1, 2]
-            .map(|a| {
-                e[a].abs()
-                    + r[a].abs() * f64::from(world_w)
-                    + u[a].abs() * world_h
-                    + d[a].abs() * t_far
+        let t_far = (0..8)
+            .map(|i| {
+                let corner = DVec3::select(
+                    BVec3::new(i & 1 != 0, i & 2 != 0, i & 4 != 0),
+                    box_hi.as_dvec3(),
+                    DVec3::ZERO,
+                );
+                rows[2].dot(corner - origin)
             })
-            .into_iter()
             .fold(0.0f64, f64::max);
+        let reach =
+            (e.abs() + r.abs() * world_w + u.abs() * world_h + d.abs() * t_far).max_element();
         if !(reach <= MAX_REACH) {
             return Err(DepthsError::Reach);
         }
@@ -224,8 +229,8 @@ impl Frame {
             origin,
             width: w,
             height: h,
-            moving: d.map(|c| c != 0.0),
-            rising: d.map(|c| c > 0.0),
+            moving: d.cmpne(DVec3::ZERO).into(),
+            rising: d.cmpgt(DVec3::ZERO).into(),
         })
     }
 
@@ -279,13 +284,12 @@ pub fn build(
     // `row·(1 + WIDEN)` per axis.
     let over_cell = |row: usize| {
         let r = frame.rows[row];
-        let (mut least, mut most) = (0.0, 0.0);
-        for (&ra, &oa) in r.iter().zip(&frame.origin) {
-            let (x, y) = (ra * -WIDEN, ra * (1.0 + WIDEN));
-            least += x.min(y) - ra * oa;
-            most += x.max(y) - ra * oa;
-        }
-        (least, most)
+        let (near, far) = (r * -WIDEN, r * (1.0 + WIDEN));
+        let at_origin = r.dot(frame.origin);
+        (
+            near.min(far).element_sum() - at_origin,
+            near.max(far).element_sum() - at_origin,
+        )
     };
     let (a_span, b_span, t_least) = (over_cell(0), over_cell(1), over_cell(2).0);
     let w = frame.width as usize;
@@ -318,12 +322,12 @@ pub fn build(
                 while visible != 0 {
                     let i = visible.trailing_zeros();
                     visible &= visible - 1;
-                    let c = [
+                    let c = DVec3::new(
                         f64::from(bx * BLOCK + i % BLOCK),
                         f64::from(by * BLOCK + i / BLOCK % BLOCK),
                         f64::from(bz * BLOCK + i / (BLOCK * BLOCK)),
-                    ];
-                    let at = |row: usize| dot(frame.rows[row], c);
+                    );
+                    let at = |row: usize| frame.rows[row].dot(c);
                     let (a, b) = (at(0), at(1));
                     let t = round_down(at(2) + t_least);
                     let columns = Frame::pixels(a + a_span.0, a + a_span.1, frame.width);
@@ -375,45 +379,6 @@ fn round_down(x: f64) -> f32 {
     } else {
         f32::from_bits(f.to_bits() + 1)
     }
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-/// The corners of the box `[0, hi]`.
-fn corners(hi: Vec3) -> [[f64; 3]; 8] {
-    core::array::from_fn(|i| {
-        [0, 1, 2].map(|a| match i >> a & 1 {
-            0 => 0.0,
-            _ => f64::from(hi[a]),
-        })
-    })
-}
-
-/// The rows of the inverse of the matrix whose columns are `cols`, or `None` when it is
-/// singular or not finite.
-fn invert(cols: [[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
-    let [u, v, d] = cols;
-    let cross = |a: [f64; 3], b: [f64; 3]| {
-        [
-            a[1] * b[2] - a[2] * b[1],
-            a[2] * b[0] - a[0] * b[2],
-            a[0] * b[1] - a[1] * b[0],
-        ]
-    };
-    // The inverse's rows are the cross products of the other two columns over the
-    // determinant.
-    let (vd, du, uv) = (cross(v, d), cross(d, u), cross(u, v));
-    let det = dot(u, vd);
-    if !(det.is_finite() && det != 0.0) {
-        return None;
-    }
-    Some([vd, du, uv].map(|r| r.map(|c| c / det)))
 }
 
 #[cfg(test)]
