@@ -325,7 +325,7 @@ pub fn has_depths(view: &View, mode: SkipMode) -> bool {
 /// skipping as `mode` says: a bound per pixel of its cluster's rows (the first cluster's,
 /// which has the most), or none ([`has_depths`]).
 pub fn depth_bytes(view: &View, mode: SkipMode, clusters: u16) -> usize {
-    let rows = voxcube_kernel::depths::Rows::of_cluster(0, clusters);
+    let rows = voxcube_kernel::topology::Rows::of_cluster(0, clusters);
     match (has_depths(view, mode), rows) {
         (true, Some(rows)) => {
             let (width, height) = (view.spec().width, view.spec().height);

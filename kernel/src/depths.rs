@@ -31,6 +31,7 @@
 use crate::blocks::{Blocks, BLOCK};
 use crate::camera::Projection;
 use crate::cells::{CellMask, ALL};
+use crate::topology::Rows;
 use crate::view::View;
 use glam::{BVec3, DMat3, DVec3, Vec3};
 
@@ -81,56 +82,6 @@ impl core::fmt::Display for DepthsError {
 }
 
 impl core::error::Error for DepthsError {}
-
-/// The image rows whose bounds a node holds: `first`, `first + step`, … below the image's
-/// height, as a cluster's rows are dealt ([`crate::topology::Layout::row`]): a node needs
-/// the bounds of its cluster's pixels only.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Rows {
-    first: u32,
-    step: u32,
-}
-
-impl Default for Rows {
-    fn default() -> Rows {
-        Rows::ALL
-    }
-}
-
-impl Rows {
-    /// Every row.
-    pub const ALL: Rows = Rows { first: 0, step: 1 };
-
-    /// The rows of cluster `cluster` of `clusters` (`None` for no clusters).
-    pub fn of_cluster(cluster: u16, clusters: u16) -> Option<Rows> {
-        (clusters > 0).then_some(Rows {
-            first: u32::from(cluster),
-            step: u32::from(clusters),
-        })
-    }
-
-    /// How many of them an image of `height` rows has.
-    pub fn count(&self, height: u32) -> u32 {
-        match self.first < height {
-            true => (height - 1 - self.first) / self.step + 1,
-            false => 0,
-        }
-    }
-
-    /// The place of image row `row` among them, if it is one of them.
-    #[inline]
-    fn index(&self, row: u32) -> Option<u32> {
-        let offset = row.checked_sub(self.first)?;
-        (offset % self.step == 0).then_some(offset / self.step)
-    }
-
-    /// The places among them of those in the image rows `span`.
-    fn within(&self, span: core::ops::Range<u32>) -> core::ops::Range<u32> {
-        let place = |row: u32| row.saturating_sub(self.first).div_ceil(self.step);
-        let (start, end) = (place(span.start), place(span.end));
-        start..end.max(start)
-    }
-}
 
 /// One view's depth bounds over a slab, for reading: a bound per pixel of the rows it holds,
 /// row-major.

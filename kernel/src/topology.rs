@@ -106,19 +106,78 @@ impl Layout {
         (node / self.size, position)
     }
 
+    /// The image rows `cluster` renders: the clusters take rows in turn.
+    pub fn cluster_rows(&self, cluster: u16) -> Rows {
+        Rows {
+            first: u32::from(cluster),
+            step: u32::from(self.clusters.max(1)),
+        }
+    }
+
     /// Rows of a `height`-row image that `cluster` renders.
     pub fn rows(&self, cluster: u16, height: u32) -> u32 {
-        let (c, m) = (u32::from(cluster), u32::from(self.clusters));
-        if c >= height {
-            0
-        } else {
-            (height - 1 - c) / m + 1
-        }
+        self.cluster_rows(cluster).count(height)
     }
 
     /// The image row of `cluster`'s `i`-th row.
     pub fn row(&self, cluster: u16, i: u32) -> u32 {
-        u32::from(cluster) + i * u32::from(self.clusters)
+        self.cluster_rows(cluster).row(i)
+    }
+}
+
+/// The image rows one cluster renders ([`Layout::cluster_rows`]): `first`, `first + step`, …
+/// below the image's height, `step` the number of clusters. A node's depth bounds
+/// ([`crate::depths`]) cover its cluster's rows only.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Rows {
+    first: u32,
+    step: u32,
+}
+
+impl Default for Rows {
+    fn default() -> Rows {
+        Rows::ALL
+    }
+}
+
+impl Rows {
+    /// Every row: the one cluster's of a machine of one.
+    pub const ALL: Rows = Rows { first: 0, step: 1 };
+
+    /// The rows of cluster `cluster` of `clusters` (`None` for no clusters), as
+    /// [`Layout::cluster_rows`] deals them.
+    pub fn of_cluster(cluster: u16, clusters: u16) -> Option<Rows> {
+        (clusters > 0).then_some(Rows {
+            first: u32::from(cluster),
+            step: u32::from(clusters),
+        })
+    }
+
+    /// How many of them an image of `height` rows has.
+    pub fn count(&self, height: u32) -> u32 {
+        match self.first < height {
+            true => (height - 1 - self.first) / self.step + 1,
+            false => 0,
+        }
+    }
+
+    /// The image row of the `i`-th of them.
+    pub fn row(&self, i: u32) -> u32 {
+        self.first + i * self.step
+    }
+
+    /// The place of image row `row` among them, if it is one of them.
+    #[inline]
+    pub fn index(&self, row: u32) -> Option<u32> {
+        let offset = row.checked_sub(self.first)?;
+        (offset % self.step == 0).then_some(offset / self.step)
+    }
+
+    /// The places among them of those in the image rows `span`.
+    pub fn within(&self, span: core::ops::Range<u32>) -> core::ops::Range<u32> {
+        let place = |row: u32| row.saturating_sub(self.first).div_ceil(self.step);
+        let (start, end) = (place(span.start), place(span.end));
+        start..end.max(start)
     }
 }
 

@@ -410,7 +410,7 @@ pub struct Skipping {
     /// The view's depth bounds over the slab, a bound per pixel of the rows `depth_rows` of
     /// an image `depth_width` wide.
     depths: Vec<f32>,
-    depth_rows: voxcube_kernel::depths::Rows,
+    depth_rows: voxcube_kernel::topology::Rows,
     depth_width: u32,
 }
 
@@ -456,12 +456,12 @@ impl Skipping {
     }
 
     /// [`Skipping::build`] with depth bounds for the image rows `rows` only: a node's, whose
-    /// cluster traces those (`depths::Rows::of_cluster`).
+    /// cluster traces those (`topology::Layout::cluster_rows`).
     pub fn build_for<T: voxcube_kernel::sample::Sample + Sync>(
         slab: &voxcube_kernel::slab::Slab<'_, T>,
         view: &View,
         mode: SkipMode,
-        rows: voxcube_kernel::depths::Rows,
+        rows: voxcube_kernel::topology::Rows,
     ) -> Skipping {
         Skipping::build_rows_on(slab, view, mode, 1, rows)
     }
@@ -478,7 +478,7 @@ impl Skipping {
         mode: SkipMode,
         threads: usize,
     ) -> Skipping {
-        let all = voxcube_kernel::depths::Rows::ALL;
+        let all = voxcube_kernel::topology::Rows::ALL;
         Skipping::build_rows_on(slab, view, mode, threads, all)
     }
 
@@ -487,7 +487,7 @@ impl Skipping {
         view: &View,
         mode: SkipMode,
         threads: usize,
-        rows: voxcube_kernel::depths::Rows,
+        rows: voxcube_kernel::topology::Rows,
     ) -> Skipping {
         use voxcube_kernel::blocks::{column_len, extent, Blocks, Range};
         if !mode.skip {

@@ -326,8 +326,7 @@ fn serve_typed<T: Sample + Sync>(
         },
     )?;
     // Depth bounds for this node's cluster's rows only, as its budget counts them.
-    let rows = voxcube_kernel::depths::Rows::of_cluster(layout.place(node).0, layout.clusters())
-        .unwrap_or(voxcube_kernel::depths::Rows::ALL);
+    let rows = layout.cluster_rows(layout.place(node).0);
     let skipping = super::Skipping::build_for(&slab, view, cfg.skipping, rows);
     let slab = skipping.apply(slab);
     let mut worker = super::sim::node_worker(view, slab, &partition, cfg, node, flow)?;
