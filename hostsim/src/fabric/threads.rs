@@ -2,10 +2,11 @@
 //! out to a pool of threads (one per core by default), and each thread polls its nodes in
 //! turn. Each node's receive buffer has the simulator's byte capacity: a send reserves its
 //! bytes with a compare-and-swap and is refused when they do not fit, so flow control bounds
-//! it exactly as in the simulator. The host runs on the calling thread. It collects pixels and
-//! tokens, asks for statistics once every token is in, and ends when it has them and every
-//! pixel. A run whose host hears nothing for [`STALL`] is reported as stalled, not left
-//! hanging.
+//! it exactly as in the simulator. The host runs on the calling thread, between the rounds of
+//! the nodes that thread polls itself, so that a run takes no more threads than cores. It
+//! collects pixels and tokens, asks for statistics once every token is in, and ends when it
+//! has them and every pixel. A run whose host hears nothing for [`STALL`] is reported as
+//! stalled, not left hanging.
 //!
 //! With balanced cuts the nodes first shift planes from their uniform slabs to their new ones
 //! by slab-plane messages over the same buffers ([`shift`]), in rounds that every thread
@@ -40,9 +41,6 @@ pub const STALL: Duration = Duration::from_secs(20);
 
 /// Polls of one node in a row while it is busy, before the thread turns to its next node.
 const BURST: u32 = 16;
-
-/// How often the host looks for messages when it has none.
-const HOST_POLL: Duration = Duration::from_micros(100);
 
 #[derive(Default)]
 struct Inbox {
@@ -255,93 +253,72 @@ fn run_typed<T: Sample + Send + Sync>(
         workers.push(sim::node_worker(view, slab, &partition, cfg, node, flow)?);
     }
     let buffers: Vec<Buffer> = (0..nodes).map(|_| Buffer::new()).collect();
-    let pixels = view.pixel_count() as usize;
     let done = AtomicBool::new(false);
     let (host_tx, host_rx) = mpsc::channel::<Msg>();
-    // Deal the nodes out to the threads.
+    // Deal the nodes out to the threads; the calling thread takes the first share.
     let mut shares: Vec<Vec<Box<SimWorker<'_, T>>>> = (0..threads).map(|_| Vec::new()).collect();
     for (i, w) in workers.into_iter().enumerate() {
         shares[i % threads].push(w);
     }
+    let mut shares = shares
+        .into_iter()
+        .map(|share| Crew::new(share, &buffers, capacity, &host_tx));
+    let mut own = shares.next().unwrap_or_else(Crew::empty);
+    let others: Vec<_> = shares.collect();
     let mut busy = vec![Duration::ZERO; nodes];
-    let outcome = std::thread::scope(|scope| {
-        let mut handles = Vec::new();
-        for share in shares {
-            let (buffers, done, host) = (&buffers, &done, host_tx.clone());
-            handles.push(scope.spawn(move || {
-                let mut ports: Vec<ThreadPort<'_>> = share
-                    .iter()
-                    .map(|w| ThreadPort {
-                        node: w.node(),
-                        buffers,
-                        capacity,
-                        host: host.clone(),
-                        local: Default::default(),
-                    })
-                    .collect();
-                let mut share = share;
-                let mut busy_time = vec![Duration::ZERO; share.len()];
-                let mut idle_rounds = 0u32;
-                while !done.load(Ordering::Acquire) {
-                    let mut busy = false;
-                    // A node is polled while it has work, up to BURST times, and the clock is
-                    // read once per burst: a poll is one to four rays, and reading the clock
-                    // around each took 4% of a frame. Each burst's time runs from the previous
-                    // read.
-                    let mut t = Instant::now();
-                    for ((w, port), spent) in share.iter_mut().zip(&mut ports).zip(&mut busy_time) {
-                        let mut polls = 0;
-                        while polls < BURST && w.poll(port) == Progress::Busy {
-                            polls += 1;
-                        }
-                        let now = Instant::now();
-                        if polls > 0 {
-                            busy = true;
-                            *spent += now - t;
-                        }
-                        t = now;
-                    }
-                    if busy {
-                        idle_rounds = 0;
-                    } else {
-                        idle_rounds += 1;
-                        if idle_rounds < 64 {
-                            std::thread::yield_now();
-                        } else {
-                            std::thread::sleep(Duration::from_micros(50));
-                        }
-                    }
-                }
-                share
-                    .iter()
-                    .map(|w| w.node())
-                    .zip(busy_time)
-                    .collect::<Vec<_>>()
-            }));
-        }
-        drop(host_tx);
-        let result = host(
-            &host_rx,
-            &buffers,
-            capacity,
-            pixels,
+    let mut host = HostLoop::new(
+        &host_rx,
+        Host::new(
+            view.pixel_count() as usize,
             view.spec().width,
-            nodes,
             usize::from(layout.clusters()),
-            progress,
-        );
+            nodes,
+        ),
+        progress,
+    );
+    let outcome = std::thread::scope(|scope| {
+        let done = &done;
+        let handles: Vec<_> = others
+            .into_iter()
+            .map(|mut crew| {
+                scope.spawn(move || {
+                    while !done.load(Ordering::Acquire) {
+                        let progressed = crew.round();
+                        crew.rest(progressed);
+                    }
+                    crew.times()
+                })
+            })
+            .collect();
+        // The host runs between the rounds of the calling thread's own nodes, not on a
+        // thread of its own: two worker threads and a host that slept and woke every 100 µs
+        // shared two cores, and each wake-up took its core from a worker. The first worker
+        // thread was then busy about 1.8 ms longer than the second in a 14 ms SOD surfaces
+        // frame, and 20–30 ms longer in a 165 ms composited one (measured).
+        let result = loop {
+            let progressed = own.round();
+            match host.poll(&buffers, capacity) {
+                Ok(_) if host.done() => break Ok(()),
+                Ok(heard) => own.rest(progressed || heard),
+                Err(e) => break Err(e),
+            }
+        };
         done.store(true, Ordering::Release);
-        for h in handles {
-            // A worker thread that panicked has no times to give; the host's result stands.
-            for (node, spent) in h.join().unwrap_or_default() {
-                if let Some(b) = busy.get_mut(usize::from(node)) {
-                    *b = spent;
-                }
+        let own_times = own.times();
+        // A worker thread that panicked has no times to give; the host's result stands.
+        let times = handles
+            .into_iter()
+            .flat_map(|h| h.join().unwrap_or_default())
+            .chain(own_times);
+        for (node, spent) in times {
+            if let Some(b) = busy.get_mut(usize::from(node)) {
+                *b = spent;
             }
         }
         result
     });
-    let (image, reports) = outcome?;
+    outcome?;
+    let (image, reports) = host.finish()?;
     let shape = super::RunShape::new(cfg, &partition, &grid, view, size_of::<T>());
     let nodes: Vec<NodeReport> = reports
         .into_iter()
@@ -553,60 +530,164 @@ fn shift_round<T: Sample>(
     Ok((sent, bytes, held))
 }
 
-type HostResult = Result<(Vec<[u8; 4]>, Vec<NodeStats>), SimError>;
+/// A thread's nodes and their ports, polled in turn, and each node's busy time.
+struct Crew<'s, 'v, T: Sample> {
+    workers: Vec<Box<SimWorker<'v, T>>>,
+    ports: Vec<ThreadPort<'s>>,
+    busy: Vec<Duration>,
+    idle_rounds: u32,
+}
 
-/// The host: pixels and tokens in, then statistics; returns the image and the reports.
-#[allow(clippy::too_many_arguments, reason = "one call site: the run's shape")]
-fn host(
-    rx: &mpsc::Receiver<Msg>,
-    buffers: &[Buffer],
-    capacity: usize,
-    pixels: usize,
-    width: u32,
-    nodes: usize,
-    clusters: usize,
-    progress: &dyn Fn(u64),
-) -> HostResult {
-    let failed = |what: String| SimError::Invariant {
+impl<'s, 'v, T: Sample> Crew<'s, 'v, T> {
+    fn new(
+        workers: Vec<Box<SimWorker<'v, T>>>,
+        buffers: &'s [Buffer],
+        capacity: usize,
+        host: &mpsc::Sender<Msg>,
+    ) -> Crew<'s, 'v, T> {
+        let ports = workers
+            .iter()
+            .map(|w| ThreadPort {
+                node: w.node(),
+                buffers,
+                capacity,
+                host: host.clone(),
+                local: Default::default(),
+            })
+            .collect();
+        let busy = vec![Duration::ZERO; workers.len()];
+        Crew {
+            workers,
+            ports,
+            busy,
+            idle_rounds: 0,
+        }
+    }
+
+    /// A crew of no nodes, for a calling thread dealt none.
+    fn empty() -> Crew<'s, 'v, T> {
+        Crew {
+            workers: Vec::new(),
+            ports: Vec::new(),
+            busy: Vec::new(),
+            idle_rounds: 0,
+        }
+    }
+
+    /// Each node polled while it has work, up to [`BURST`] times; whether any had work.
+    fn round(&mut self) -> bool {
+        let mut progressed = false;
+        // The clock is read once per burst: a poll is one to four rays, and reading the clock
+        // around each took 4% of a frame. Each burst's time runs from the previous read.
+        let mut t = Instant::now();
+        let nodes = self.workers.iter_mut().zip(&mut self.ports);
+        for ((w, port), spent) in nodes.zip(&mut self.busy) {
+            let mut polls = 0;
+            while polls < BURST && w.poll(port) == Progress::Busy {
+                polls += 1;
+            }
+            let now = Instant::now();
+            if polls > 0 {
+                progressed = true;
+                *spent += now - t;
+            }
+            t = now;
+        }
+        progressed
+    }
+
+    /// After a round: nothing if something happened, else a yield, and after 64 idle rounds
+    /// in a row a short sleep, so that an idle thread leaves its core to the others.
+    fn rest(&mut self, progressed: bool) {
+        if progressed {
+            self.idle_rounds = 0;
+            return;
+        }
+        self.idle_rounds += 1;
+        if self.idle_rounds < 64 {
+            std::thread::yield_now();
+        } else {
+            std::thread::sleep(Duration::from_micros(50));
+        }
+    }
+
+    /// Each node's busy time.
+    fn times(self) -> Vec<(u16, Duration)> {
+        let nodes = self.workers.iter().map(|w| w.node());
+        nodes.zip(self.busy).collect()
+    }
+}
+
+/// The host's side of a run: pixels and tokens in, then statistics.
+struct HostLoop<'a> {
+    rx: &'a mpsc::Receiver<Msg>,
+    host: Host,
+    heard: Instant,
+    progress: &'a dyn Fn(u64),
+}
+
+impl<'a> HostLoop<'a> {
+    fn new(rx: &'a mpsc::Receiver<Msg>, host: Host, progress: &'a dyn Fn(u64)) -> HostLoop<'a> {
+        HostLoop {
+            rx,
+            host,
+            heard: Instant::now(),
+            progress,
+        }
+    }
+
+    /// Take every message waiting, and ask every node for its statistics once every token
+    /// is in; whether any came. Polled, never waited on: a receiver blocked in `recv` is
+    /// woken by every send, a futex call and a context switch per pixel message, which
+    /// cost a measured fifth of a one-node frame.
+    fn poll(&mut self, buffers: &[Buffer], capacity: usize) -> Result<bool, SimError> {
+        let mut heard = false;
+        loop {
+            let msg = match self.rx.try_recv() {
+                Ok(msg) => msg,
+                Err(mpsc::TryRecvError::Empty) if self.heard.elapsed() < STALL => break,
+                Err(_) => {
+                    return Err(stalled(format!(
+                        "threads stalled: no message for {STALL:?}; {} of {} pixels",
+                        self.host.received(),
+                        self.host.received() + self.host.missing()
+                    )))
+                }
+            };
+            heard = true;
+            self.heard = Instant::now();
+            if self.host.receive(msg).map_err(stalled)? {
+                for b in buffers {
+                    // The control reserve of every buffer has room for this request.
+                    if !b.reserve(Msg::Collect.kind().encoded_len(), capacity) {
+                        return Err(stalled("no room for the host's request".into()));
+                    }
+                    b.push(Dest::Host, Msg::Collect);
+                }
+            }
+            (self.progress)(self.host.received());
+        }
+        Ok(heard)
+    }
+
+    /// Whether every pixel and every node's statistics are in.
+    fn done(&self) -> bool {
+        self.host.done()
+    }
+
+    /// The image and the nodes' statistics.
+    fn finish(self) -> Result<(Vec<[u8; 4]>, Vec<NodeStats>), SimError> {
+        self.host.finish().map_err(stalled)
+    }
+}
+
+/// A run that broke an invariant of the host's protocol, or stalled.
+fn stalled(what: String) -> SimError {
+    SimError::Invariant {
         what,
         events: 0,
         seed: 0,
         scheduler: sim::Scheduler::Uniform,
         trace: Default::default(),
-    };
-    let mut host = Host::new(pixels, width, clusters, nodes);
-    let mut heard = Instant::now();
-    while !host.done() {
-        // Polled, not waited on: a receiver blocked in `recv` is woken by every send, and
-        // those wake-ups (a futex call and a context switch per pixel message, on a machine
-        // whose cores the workers need) cost a measured fifth of a one-node frame. Polling
-        // every HOST_POLL costs one wake-up per interval and at most one interval of latency.
-        let msg = match rx.try_recv() {
-            Ok(msg) => {
-                heard = Instant::now();
-                msg
-            }
-            Err(mpsc::TryRecvError::Empty) if heard.elapsed() < STALL => {
-                std::thread::sleep(HOST_POLL);
-                continue;
-            }
-            Err(_) => {
-                return Err(failed(format!(
-                    "threads stalled: no message for {STALL:?}; {} of {pixels} pixels",
-                    host.received()
-                )))
-            }
-        };
-        if host.receive(msg).map_err(failed)? {
-            for b in buffers {
-                // The control reserve of every buffer has room for this request.
-                if !b.reserve(Msg::Collect.kind().encoded_len(), capacity) {
-                    return Err(failed("no room for the host's request".into()));
-                }
-                b.push(Dest::Host, Msg::Collect);
-            }
-        }
-        progress(host.received());
     }
-    host.finish().map_err(failed)
 }
