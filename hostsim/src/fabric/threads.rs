@@ -647,7 +647,7 @@ impl<'a> HostLoop<'a> {
                 Ok(msg) => msg,
                 Err(mpsc::TryRecvError::Empty) if self.heard.elapsed() < STALL => break,
                 Err(_) => {
-                    return Err(stalled(format!(
+                    return Err(host_failure(format!(
                         "threads stalled: no message for {STALL:?}; {} of {} pixels",
                         self.host.received(),
                         self.host.received() + self.host.missing()
@@ -656,11 +656,11 @@ impl<'a> HostLoop<'a> {
             };
             heard = true;
             self.heard = Instant::now();
-            if self.host.receive(msg).map_err(stalled)? {
+            if self.host.receive(msg).map_err(host_failure)? {
                 for b in buffers {
                     // The control reserve of every buffer has room for this request.
                     if !b.reserve(Msg::Collect.kind().encoded_len(), capacity) {
-                        return Err(stalled("no room for the host's request".into()));
+                        return Err(host_failure("no room for the host's request".into()));
                     }
                     b.push(Dest::Host, Msg::Collect);
                 }
@@ -677,12 +677,12 @@ impl<'a> HostLoop<'a> {
 
     /// The image and the nodes' statistics.
     fn finish(self) -> Result<(Vec<[u8; 4]>, Vec<NodeStats>), SimError> {
-        self.host.finish().map_err(stalled)
+        self.host.finish().map_err(host_failure)
     }
 }
 
-/// A run that broke an invariant of the host's protocol, or stalled.
-fn stalled(what: String) -> SimError {
+/// The host's failure as the run's error: a message that breaks its protocol, or a stall.
+fn host_failure(what: String) -> SimError {
     SimError::Invariant {
         what,
         events: 0,
