@@ -149,3 +149,39 @@ fn the_threads_fabric_matches_on_every_cube_size() {
         }
     }
 }
+
+#[test]
+fn the_threads_fabric_matches_on_any_number_of_threads() {
+    // One thread: the calling thread polls every node and the host itself. Three and five:
+    // more threads than this machine's cores, and shares of unequal size (16 nodes over 3
+    // threads), with the host between the calling thread's rounds all the same.
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/scenes.toml"))
+        .expect("scenes");
+    let jobs = Scene::parse(&text, "scenes.toml", std::path::Path::new("."))
+        .and_then(Scene::load)
+        .expect("scenes");
+    let job = &jobs[0];
+    for v in &job.views {
+        let reference = render(&job.volume, &v.view).expect("renders").pixels;
+        for threads in [1, 3, 5] {
+            for (nodes, clusters) in [(2, 1), (4, 2), (16, 4)] {
+                let mut m = Machine::new(Fabric::Threads, nodes, clusters, 0);
+                m.threads = threads;
+                let run = render_on(&job.volume, &v.view, &m).unwrap_or_else(|e| {
+                    panic!("{} on {nodes}/{clusters}, {threads} threads: {e}", v.name)
+                });
+                assert!(
+                    run.pixels == reference,
+                    "{} on {nodes} nodes in {clusters} clusters, {threads} threads, differs",
+                    v.name
+                );
+                // Every node reports, each with the busy time of whichever thread polled it.
+                let d = run.distributed.expect("distributed");
+                assert_eq!(d.nodes.len(), nodes as usize);
+                for n in d.nodes.iter().filter(|n| n.stats.counters.samples > 0) {
+                    assert!(n.busy > std::time::Duration::ZERO, "node {}", n.stats.node);
+                }
+            }
+        }
+    }
+}
