@@ -216,8 +216,26 @@ pub fn build(
     rows: Rows,
     out: &mut [f32],
 ) -> Result<(), DepthsError> {
+    let places = 0..rows.count(view.spec().height);
+    build_places(blocks, view, rows, places, out)
+}
+
+/// [`build`]'s bounds of the rows at `places` among `rows` only, into `out` (those rows,
+/// row-major): the same bits as [`build`] gives them, since a row's bounds do not depend on
+/// the others. Parts of the rows can be built apart, on threads, into their own pieces of
+/// one map; a cell is placed on the image's rows before anything else is found of it, so a
+/// part passes over the cells of other rows at a third of a cell's cost.
+pub fn build_places(
+    blocks: &Blocks<'_>,
+    view: &View,
+    rows: Rows,
+    places: core::ops::Range<u32>,
+    out: &mut [f32],
+) -> Result<(), DepthsError> {
     blocks.masks().ok_or(DepthsError::NoMasks)?;
-    let pixels = rows.count(view.spec().height) as usize * view.spec().width as usize;
+    let held = rows.count(view.spec().height);
+    let places = places.start.min(held)..places.end.min(held);
+    let pixels = places.len() * view.spec().width as usize;
     if out.len() != pixels {
         return Err(DepthsError::Storage {
             needed: pixels,
@@ -279,12 +297,18 @@ pub fn build(
                         f64::from(bz * BLOCK + i / (BLOCK * BLOCK)),
                     );
                     let at = |row: usize| frame.rows[row].dot(c);
-                    let (a, b) = (at(0), at(1));
+                    let b = at(1);
+                    let ys = Frame::pixels(b + b_span.0, b + b_span.1, frame.height);
+                    let within = rows.within(ys);
+                    let (first, end) = (within.start.max(places.start), within.end.min(places.end));
+                    if first >= end {
+                        continue;
+                    }
+                    let a = at(0);
                     let t = round_down(at(2) + t_least);
                     let columns = Frame::pixels(a + a_span.0, a + a_span.1, frame.width);
-                    let ys = Frame::pixels(b + b_span.0, b + b_span.1, frame.height);
-                    for place in rows.within(ys) {
-                        let row = place as usize * w;
+                    for place in first..end {
+                        let row = (place - places.start) as usize * w;
                         let span = row + columns.start as usize..row + columns.end as usize;
                         if let Some(slots) = out.get_mut(span) {
                             for slot in slots {
@@ -414,13 +438,14 @@ mod tests {
     /// masks from empty to nearly full, anisotropic grids, whole volumes and slabs' columns,
     /// parallel views from every side, along an axis (rays parallel to faces), from outside,
     /// from inside and from far away (the view refused where too far), steps from 1/64 to 2;
-    /// each cluster's rows built alone are the same bounds. And the bounds pass over
-    /// samples: the check is not vacuous. A bound raised by one step is caught (the negative
-    /// control).
+    /// each cluster's rows built alone, and rows built in parts, are the same bounds. And the
+    /// bounds pass over samples: the check is not vacuous. A bound raised by one step is
+    /// caught (the negative control).
     #[test]
     fn no_sample_below_a_bound_lies_in_a_cell_that_shows() {
         let mut next = crate::testing::xorshift(0x5eed_d3b7);
         let (mut passed, mut raised_caught, mut far_rounds) = (0u32, 0u32, 0u32);
+        let mut part_missed = 0u32;
         let data = [0u8; 16 * 16 * 16];
         for round in 0..400 {
             let dims = [2 + next() % 15, 2 + next() % 15, 2 + next() % 15];
@@ -524,6 +549,21 @@ mod tests {
                     }
                 }
             }
+            // Rows built in two parts, each into its piece of one map: the same bounds. The
+            // control: the second part left unbuilt is missed somewhere.
+            let cut = next() % (height + 1);
+            let (mut parts, mut first_only) = ([0.0f32; 22 * 22], [f32::INFINITY; 22 * 22]);
+            let at = cut as usize * width as usize;
+            let (low, high) = parts[..pixels].split_at_mut(at);
+            build_places(&blocks, &view, Rows::ALL, 0..cut, low).unwrap();
+            build_places(&blocks, &view, Rows::ALL, cut..height, high).unwrap();
+            build_places(&blocks, &view, Rows::ALL, 0..cut, &mut first_only[..at]).unwrap();
+            let same = |a: &[f32]| {
+                let pairs = a.iter().zip(&bounds[..pixels]);
+                pairs.into_iter().all(|(a, b)| a.to_bits() == b.to_bits())
+            };
+            assert!(same(&parts[..pixels]), "round {round}: rows cut at {cut}");
+            part_missed += u32::from(!same(&first_only[..pixels]));
             let (bad, good) = below_bounds(&blocks, &view, &bounds[..pixels], &grid);
             assert_eq!(
                 bad, 0,
@@ -541,6 +581,10 @@ mod tests {
         assert!(
             raised_caught > 100,
             "raised bounds caught in only {raised_caught} rounds"
+        );
+        assert!(
+            part_missed > 100,
+            "a part left unbuilt changed the bounds in only {part_missed} rounds"
         );
     }
 
