@@ -106,12 +106,10 @@ impl Layout {
         (node / self.size, position)
     }
 
-    /// The image rows `cluster` renders: the clusters take rows in turn.
+    /// The image rows `cluster` renders: the clusters take rows in turn ([`Rows::of_cluster`];
+    /// a layout has at least one cluster).
     pub fn cluster_rows(&self, cluster: u16) -> Rows {
-        Rows {
-            first: u32::from(cluster),
-            step: u32::from(self.clusters.max(1)),
-        }
+        Rows::of_cluster(cluster, self.clusters).unwrap_or(Rows::ALL)
     }
 
     /// Rows of a `height`-row image that `cluster` renders.
@@ -144,8 +142,8 @@ impl Rows {
     /// Every row: the one cluster's of a machine of one.
     pub const ALL: Rows = Rows { first: 0, step: 1 };
 
-    /// The rows of cluster `cluster` of `clusters` (`None` for no clusters), as
-    /// [`Layout::cluster_rows`] deals them.
+    /// The rows of cluster `cluster` of `clusters` (`None` for no clusters): the clusters
+    /// take rows in turn. The one rule that deals them, [`Layout::cluster_rows`]'s too.
     pub fn of_cluster(cluster: u16, clusters: u16) -> Option<Rows> {
         (clusters > 0).then_some(Rows {
             first: u32::from(cluster),

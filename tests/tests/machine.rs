@@ -73,15 +73,19 @@ fn a_volume_too_big_for_one_node_renders_once_the_cluster_is_large_enough() {
     }
 }
 
+/// The dataflow suite's test scenes, loaded.
+fn test_scenes() -> Vec<voxcube::scene::DatasetJob> {
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/scenes.toml"))
+        .expect("scenes");
+    Scene::parse(&text, "scenes.toml", std::path::Path::new("."))
+        .and_then(Scene::load)
+        .expect("scenes")
+}
+
 #[test]
 fn every_cube_and_cluster_size_gives_the_same_image() {
     // The test scenes of the dataflow suite, on 1 to 128 nodes in every cluster size.
-    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/scenes.toml"))
-        .expect("scenes");
-    let jobs = Scene::parse(&text, "scenes.toml", std::path::Path::new("."))
-        .and_then(Scene::load)
-        .expect("scenes");
-    let job = &jobs[0];
+    let job = &test_scenes()[0];
     for (i, v) in job.views.iter().enumerate() {
         let reference = render(&job.volume, &v.view).expect("renders").pixels;
         for k in 0..=7u32 {
@@ -120,12 +124,7 @@ fn every_cube_and_cluster_size_gives_the_same_image() {
 
 #[test]
 fn the_threads_fabric_matches_on_every_cube_size() {
-    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/scenes.toml"))
-        .expect("scenes");
-    let jobs = Scene::parse(&text, "scenes.toml", std::path::Path::new("."))
-        .and_then(Scene::load)
-        .expect("scenes");
-    let job = &jobs[0];
+    let job = &test_scenes()[0];
     for v in &job.views {
         let reference = render(&job.volume, &v.view).expect("renders").pixels;
         for k in 0..=7u32 {
@@ -155,12 +154,7 @@ fn the_threads_fabric_matches_on_any_number_of_threads() {
     // One thread: the calling thread polls every node and the host itself. Three and five:
     // more threads than this machine's cores, and shares of unequal size (16 nodes over 3
     // threads), with the host between the calling thread's rounds all the same.
-    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/scenes.toml"))
-        .expect("scenes");
-    let jobs = Scene::parse(&text, "scenes.toml", std::path::Path::new("."))
-        .and_then(Scene::load)
-        .expect("scenes");
-    let job = &jobs[0];
+    let job = &test_scenes()[0];
     for v in &job.views {
         let reference = render(&job.volume, &v.view).expect("renders").pixels;
         for threads in [1, 3, 5] {

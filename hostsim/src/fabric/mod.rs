@@ -427,6 +427,13 @@ fn split_sizes<E>(
     })
 }
 
+/// `0..total` cut into `n` consecutive parts whose sizes differ by at most one.
+fn even_parts(total: u32, n: u32) -> Vec<Range<u32>> {
+    let n = n.max(1);
+    let cut = |i: u32| (u64::from(i) * u64::from(total) / u64::from(n)) as u32;
+    (0..n).map(|i| cut(i)..cut(i + 1)).collect()
+}
+
 /// One part of a skipping build, saying whether it built.
 type Part<'a> = Box<dyn FnOnce() -> bool + Send + 'a>;
 
@@ -518,9 +525,7 @@ impl Skipping {
         let per = column_len(slab.grid());
         let columns = x1 - x0;
         let n = threads.clamp(1, columns as usize) as u32;
-        let parts: Vec<std::ops::Range<u32>> = (0..n)
-            .map(|i| i * columns / n..(i + 1) * columns / n)
-            .collect();
+        let parts = even_parts(columns, n);
         let sizes: Vec<usize> = parts.iter().map(|c| c.len() * per).collect();
         // Every length comes from the slab: no build can fail; without blocks nothing is
         // skipped, without distances each jump ends at its block's faces, without masks no
@@ -634,8 +639,7 @@ impl Skipping {
             let held = rows.count(height);
             depths = vec![0.0; held as usize * width];
             let n = threads.clamp(1, held.max(1) as usize) as u32;
-            let places: Vec<std::ops::Range<u32>> =
-                (0..n).map(|i| i * held / n..(i + 1) * held / n).collect();
+            let places = even_parts(held, n);
             let sizes: Vec<usize> = places.iter().map(|p| p.len() * width).collect();
             let jobs = split_sizes(&mut depths, sizes.into_iter())
                 .zip(places)
