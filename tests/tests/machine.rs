@@ -122,6 +122,24 @@ fn every_cube_and_cluster_size_gives_the_same_image() {
     }
 }
 
+/// A ring of one holds the whole volume, and its worker traces each pixel's whole ray tree in
+/// place, with no records or messages: the direct render's image and work, counted alike, on
+/// every test view (shadows and transparency among them), on either in-process fabric.
+#[test]
+fn a_ring_of_one_does_the_direct_renders_work() {
+    for job in &test_scenes() {
+        for v in &job.views {
+            let direct = render(&job.volume, &v.view).expect("renders");
+            for fabric in [Fabric::Sim, Fabric::Threads] {
+                let run = render_on(&job.volume, &v.view, &Machine::new(fabric, 2, 2, 0))
+                    .unwrap_or_else(|e| panic!("{} on {fabric:?}: {e}", v.name));
+                assert!(run.pixels == direct.pixels, "{} on {fabric:?}", v.name);
+                assert_eq!(run.counters, direct.counters, "{} on {fabric:?}", v.name);
+            }
+        }
+    }
+}
+
 #[test]
 fn the_threads_fabric_matches_on_every_cube_size() {
     let job = &test_scenes()[0];
