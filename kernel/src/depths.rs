@@ -223,8 +223,9 @@ pub fn build(
 /// [`build`]'s bounds of the rows at `places` among `rows` only, into `out` (those rows,
 /// row-major): the same bits as [`build`] gives them, since a row's bounds do not depend on
 /// the others. Parts of the rows can be built apart, on threads, into their own pieces of
-/// one map; a cell is placed on the image's rows before anything else is found of it, so a
-/// part passes over the cells of other rows at a third of a cell's cost.
+/// one map. A part passes over a block none of whose rows it builds at the cost of placing
+/// the block on the image's rows, and over a cell of other rows at the cost of placing the
+/// cell on them, before anything else is found of it.
 pub fn build_places(
     blocks: &Blocks<'_>,
     view: &View,
@@ -261,6 +262,18 @@ pub fn build_places(
         )
     };
     let (a_span, b_span, t_least) = (over_cell(0), over_cell(1), over_cell(2).0);
+    // The same over a whole block, half a pixel wider still: a block none of whose rows is
+    // among `places` holds no cell that is, so a part passes over it whole. Only a filter:
+    // the cells are placed exactly below.
+    let block_rows = {
+        let r = frame.rows[1];
+        let (near, far) = (r * -WIDEN, r * (f64::from(BLOCK) + WIDEN));
+        let at_origin = r.dot(frame.origin);
+        (
+            near.min(far).element_sum() - at_origin - 0.5,
+            near.max(far).element_sum() - at_origin + 0.5,
+        )
+    };
     let w = frame.width as usize;
     let (bx0, bx1) = (blocks.first_column(), blocks.first_column() + cols);
     // The masks of the block in front along each axis (none past the blocks: no obstacle).
@@ -280,6 +293,17 @@ pub fn build_places(
                 let block = (bx, by, bz);
                 let mask = blocks.cells(block);
                 if mask == 0 {
+                    continue;
+                }
+                let corner = DVec3::new(
+                    f64::from(bx * BLOCK),
+                    f64::from(by * BLOCK),
+                    f64::from(bz * BLOCK),
+                );
+                let b = frame.rows[1].dot(corner);
+                let ys = Frame::pixels(b + block_rows.0, b + block_rows.1, frame.height);
+                let within = rows.within(ys);
+                if within.start.max(places.start) >= within.end.min(places.end) {
                     continue;
                 }
                 // The cells whose front neighbour is an obstacle, along every moving axis.

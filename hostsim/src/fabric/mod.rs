@@ -630,8 +630,8 @@ impl Skipping {
         };
         // Depth bounds from the masks, where the view's rays are parallel and near enough:
         // the rows in parts, one a thread, each into its own piece of the map
-        // (`depths::build_places`: the same bits). A part passes over the other parts' cells
-        // at a third of their cost; parts of block columns, each with a map to merge, cost
+        // (`depths::build_places`: the same bits). A part passes over the other parts' blocks
+        // and cells at the cost of placing them on the rows; parts of block columns, each with a map to merge, cost
         // more than they saved at 1024×768.
         let mut depths = Vec::new();
         if let Some(with_masks) = with_masks.filter(|_| crate::render::has_depths(view, mode)) {
