@@ -995,22 +995,22 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
                 self.cursor = run_end;
                 continue;
             };
-            let first = ray.ray.at(ray.lattice.t(0));
-            let owner = self
-                .partition
-                .owner(self.slab.grid().owner_plane(first.x, spec.model));
-            let mine = owner == usize::from(self.place.position);
-            if mine && self.place.layout.size() == 1 {
-                // A ring of one holds the whole volume: every ray of the pixel's tree starts
-                // and ends here, so nothing is sent, waited for or recorded. Its pixel is
-                // traced whole, as `trace` does, and is the same colour with the same counts
-                // (the render check compares them with the records' path of larger rings).
+            if self.place.layout.size() == 1 {
+                // A ring of one holds the whole volume, so the ray is its own, and every ray
+                // of the pixel's tree starts and ends here: nothing is sent, waited for or
+                // recorded. Its pixel is traced whole, as `trace` does, and is the same
+                // colour with the same counts as on the records' path of larger rings.
                 self.cursor += 1;
                 let color = trace_primary(self.view, &self.slab, ray, &mut self.stats.counters);
                 self.stats.counters.non_finite_pixels += u64::from(!color.is_finite());
                 self.emit(pixel, rgba8(color));
                 return true;
             }
+            let first = ray.ray.at(ray.lattice.t(0));
+            let owner = self
+                .partition
+                .owner(self.slab.grid().owner_plane(first.x, spec.model));
+            let mine = owner == usize::from(self.place.position);
             let unadopted = Travel {
                 ray,
                 reply: Reply {
