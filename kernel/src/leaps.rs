@@ -68,13 +68,13 @@ impl Octant {
 }
 
 /// The octants `view`'s rays take, one bit per octant ([`Octant::index`]): its primary and
-/// transparency rays, and the shadow rays of its lights that cast shadows. An octant left out
-/// only costs speed (its rays leap by no map), so near an axis both sides are taken.
+/// transparency rays ([`primary_octants`]), and the shadow rays of its lights that cast
+/// shadows. An octant left out only costs speed (its rays leap by no map), so near an axis
+/// both sides are taken where directions vary or are computed apart from the rays'.
 pub fn octants(view: &View) -> u8 {
     let spec = view.spec();
     let inv = view.inv_spacing();
-    let (lo, hi) = primary_bounds(view);
-    let mut mask = spread(lo, hi);
+    let mut mask = primary_octants(view);
     for light in spec.lights.iter().filter(|l| l.shadows) {
         mask |= match light.kind {
             LightKind::Directional { direction } => spread(-direction * inv, -direction * inv),
@@ -101,8 +101,10 @@ fn primary_bounds(view: &View) -> (Vec3, Vec3) {
 }
 
 /// The octants `view`'s primary rays take, one bit per octant: the one of their direction for
-/// a parallel projection (every pixel's is the same, and so its sign bits), else those
-/// [`octants`] finds for them. Transparency rays go on the same way.
+/// a parallel projection (every pixel's is the same, from the same expression as here, and so
+/// its sign bits: a view at zero elevation takes one map, not two), else every octant between
+/// the image corners' directions and within a rounding of them. Transparency rays go on the
+/// same way.
 pub fn primary_octants(view: &View) -> u8 {
     let (lo, hi) = primary_bounds(view);
     match view.spec().camera.projection() {
@@ -266,6 +268,50 @@ mod tests {
         let o = Octant::of(Vec3::new(0.5, -0.5, 0.0));
         assert!(!o.down(0) && o.down(1) && !o.down(2));
         assert_eq!(Octant::from_index(o.index()), o);
+    }
+
+    /// A parallel view's rays all have the direction its primary octants are found from, in
+    /// every bit, so a view at zero elevation (no motion along Y) takes one map: its rays'.
+    /// A perspective view's rays there go up and down, and it takes both sides.
+    #[test]
+    fn a_parallel_view_takes_its_rays_octant_only() {
+        use crate::camera::{Camera, Projection};
+        use crate::view::{Mode, ViewSpec};
+        let grid = crate::grid::Grid::new([8, 8, 8], Vec3::new(1.0, 0.5, 2.0)).unwrap();
+        let centre = Vec3::new(3.5, 1.75, 7.0);
+        for (eye, perspective) in [
+            (Vec3::new(30.0, 1.75, 40.0), false),
+            (Vec3::new(-20.0, 1.75, -9.0), false),
+            (Vec3::new(30.0, 1.75, 40.0), true),
+        ] {
+            let projection = match perspective {
+                false => Projection::Orthographic { width: 12.0 },
+                true => Projection::Perspective { fov_y: 0.6 },
+            };
+            let camera = Camera::look_at(eye, centre, Vec3::Y, projection).unwrap();
+            let mut surfaces = heapless::Vec::new();
+            let _ = surfaces.push(crate::surface::IsoSurface {
+                iso: 0.5,
+                color: Vec3::ONE,
+                transparency: 0.0,
+            });
+            let spec = ViewSpec {
+                width: 9,
+                height: 7,
+                ..crate::testing::spec(camera, Mode::Surfaces(surfaces))
+            };
+            let view = View::new(spec, &grid).unwrap();
+            let taken = octants(&view);
+            match perspective {
+                false => {
+                    let dir = view.primary_line(0).dir;
+                    assert_eq!(dir.y, 0.0, "{eye}: the rays do not move along Y");
+                    assert_eq!(taken, 1 << Octant::of(dir).index(), "{eye}");
+                }
+                // Rays above and below the image's middle row.
+                true => assert_eq!(taken.count_ones(), 2, "{eye}: {taken:08b}"),
+            }
+        }
     }
 
     #[test]
