@@ -388,6 +388,37 @@ impl<'a> Blocks<'a> {
         Ok(&self.data[columns.start as usize * len..columns.end as usize * len])
     }
 
+    /// The blocks of block columns `columns` of `slab` (counted from its first) in `data`,
+    /// filled for them by [`Blocks::build_columns`]: a part of the slab's blocks, whose first
+    /// column is the first of `columns`, for work on those columns alone (their cell masks,
+    /// built right after their ranges, with no wait for the other columns').
+    pub fn of_columns<T: Sample>(
+        slab: &Slab<'_, T>,
+        columns: core::ops::Range<u32>,
+        data: &'a [Range],
+    ) -> Result<Blocks<'a>, BlocksError> {
+        let (x0, x1, _) = extent(slab);
+        check_columns(&columns, x1 - x0)?;
+        BlocksError::check_storage(columns.len() * column_len(slab.grid()), data.len())?;
+        let [_, ny, nz] = slab.grid().dims();
+        Ok(Blocks {
+            data,
+            maps: &[],
+            octants: 0,
+            toward: Octant::default(),
+            leaps: None,
+            cells: None,
+            cell_maps: &[],
+            cell_octants: 0,
+            cell_leaps: None,
+            depths: None,
+            x0: x0 + columns.start,
+            x1: x0 + columns.end,
+            ny: count(ny),
+            nz: count(nz),
+        })
+    }
+
     /// Blocks along X (the slab's columns), Y and Z.
     pub fn shape(&self) -> (u32, u32, u32) {
         (self.x1 - self.x0, self.ny, self.nz)

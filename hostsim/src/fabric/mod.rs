@@ -518,6 +518,7 @@ impl Skipping {
         rows: voxcube_kernel::topology::Rows,
     ) -> Skipping {
         use voxcube_kernel::blocks::{column_len, extent, Blocks, Range};
+        use voxcube_kernel::cells;
         if !mode.skip {
             return Skipping::default();
         }
@@ -529,29 +530,66 @@ impl Skipping {
         let sizes: Vec<usize> = parts.iter().map(|c| c.len() * per).collect();
         // Every length comes from the slab: no build can fail; without blocks nothing is
         // skipped, without distances each jump ends at its block's faces, without masks no
-        // single cell is skipped.
+        // single cell is skipped. A part that panics leaves the view without skipping.
+        //
+        // First each part of the block columns: their ranges, then their cell masks, which
+        // read only their own blocks' ranges (`Blocks::of_columns`). Built with a wait for
+        // every part's ranges between them, the two phases cost a thread start and join more
+        // and ran unevenly (measured).
+        let by_cell = mode.cells && view.spec().model == voxcube_kernel::grid::Model::Cell;
         let mut ranges = vec![Range::UNKNOWN; len];
+        let mut cells = if by_cell { vec![0; len] } else { Vec::new() };
+        let mut mask_pieces = split_sizes(&mut cells, sizes.iter().copied());
         let jobs = split_sizes(&mut ranges, sizes.iter().copied())
-            .zip(parts.clone())
+            .zip(parts)
             .map(|(out, cols)| -> Part<'_> {
-                Box::new(move || Blocks::build_columns(slab, cols, out).is_ok())
+                let masks = mask_pieces.next().filter(|_| by_cell);
+                Box::new(move || {
+                    if Blocks::build_columns(slab, cols.clone(), out).is_err() {
+                        return false;
+                    }
+                    let Some(masks) = masks else {
+                        return true;
+                    };
+                    let own = 0..cols.len() as u32;
+                    Blocks::of_columns(slab, cols, out)
+                        .and_then(|part| cells::build_columns(slab, &part, view, own, masks))
+                        .is_ok()
+                })
             })
             .collect();
+        drop(mask_pieces);
         if !run_parts(jobs, threads).into_iter().all(|built| built) {
             return Skipping::default();
         }
         let Ok(blocks) = Blocks::new(slab, &ranges) else {
             return Skipping::default();
         };
-        // A map for each octant the view's rays take.
+        // Then everything that reads the whole slab's blocks or masks, in one set of parts:
+        // a leap map for each octant the view's rays take, a cell leap map in parts of
+        // planes for each octant of the primary rays, and the depth bounds in parts of rows.
         let octants = match mode.leap {
             true => voxcube_kernel::leaps::octants(view),
             false => 0,
         };
         let maps = octants.count_ones() as usize;
         let mut leaps = vec![0; maps * len];
-        let by_cell = mode.cells && view.spec().model == voxcube_kernel::grid::Model::Cell;
-        let mut cells = if by_cell { vec![0; len] } else { Vec::new() };
+        let with_masks = blocks.with_cells(&cells).ok().filter(|_| !cells.is_empty());
+        let cell_octants = match with_masks {
+            Some(_) => cell_leap_octants(view, mode),
+            None => 0,
+        };
+        let per_map = len * voxcube_kernel::cell_leaps::PER_BLOCK;
+        let mut cell_leaps = vec![0; cell_octants.count_ones() as usize * per_map];
+        let (width, height) = (view.spec().width as usize, view.spec().height);
+        let bounded = with_masks
+            .as_ref()
+            .filter(|_| crate::render::has_depths(view, mode));
+        let held = rows.count(height);
+        let mut depths = match bounded {
+            Some(_) => vec![0.0; held as usize * width],
+            None => Vec::new(),
+        };
         let mut jobs: Vec<Part<'_>> = Vec::new();
         let chosen = (0..voxcube_kernel::leaps::OCTANTS).filter(|o| octants >> o & 1 == 1);
         for (map, octant) in leaps.chunks_mut(len).zip(chosen) {
@@ -560,40 +598,15 @@ impl Skipping {
                 voxcube_kernel::leaps::build(blocks, view, octant, map).is_ok()
             }));
         }
-        if by_cell {
-            for (out, cols) in split_sizes(&mut cells, sizes.into_iter()).zip(parts) {
-                let blocks = &blocks;
-                jobs.push(Box::new(move || {
-                    voxcube_kernel::cells::build_columns(slab, blocks, view, cols, out).is_ok()
-                }));
-            }
-        }
-        let built = run_parts(jobs, threads);
-        let leaped = built.iter().take(maps).all(|&b| b);
-        let masked = built.iter().skip(maps).all(|&b| b);
-        let (leaps, octants) = match leaped {
-            true => (leaps, octants),
-            false => (Vec::new(), 0),
-        };
-        let cells = if masked { cells } else { Vec::new() };
-        // A cell leap map from the masks for each octant of the primary rays, one job each.
-        let with_masks = blocks.with_cells(&cells).ok().filter(|_| !cells.is_empty());
-        let cell_octants = match with_masks {
-            Some(_) => cell_leap_octants(view, mode),
-            None => 0,
-        };
-        let per_map = len * voxcube_kernel::cell_leaps::PER_BLOCK;
-        let mut cell_leaps = vec![0; cell_octants.count_ones() as usize * per_map];
-        if let Some(with_masks) = with_masks {
+        if let Some(with_masks) = &with_masks {
             let chosen = (0..voxcube_kernel::leaps::OCTANTS).filter(|o| cell_octants >> o & 1 == 1);
             // Each map in parts of planes, one a thread: a part is built with the planes ahead
             // of it that its distances depend on, and keeps its own. The parts even out what
             // each thread builds (`cell_leaps::part`).
             use voxcube_kernel::cell_leaps::with_planes_ahead;
             use voxcube_kernel::cell_leaps::{build_planes, part, plane_len, planes};
-            let (all, plane) = (planes(&with_masks), plane_len(&with_masks));
+            let (all, plane) = (planes(with_masks), plane_len(with_masks));
             let n = threads.clamp(1, all.max(1));
-            let mut jobs: Vec<Part<'_>> = Vec::new();
             for (map, octant) in cell_leaps.chunks_mut(per_map).zip(chosen) {
                 let octant = voxcube_kernel::leaps::Octant::from_index(octant);
                 let parts: Vec<std::ops::Range<usize>> =
@@ -604,11 +617,11 @@ impl Skipping {
                     jobs.push(Box::new(move || {
                         let region = with_planes_ahead(part.clone(), all, octant);
                         if region == part {
-                            return build_planes(&with_masks, octant, part, out).is_ok();
+                            return build_planes(with_masks, octant, part, out).is_ok();
                         }
                         let mut built = vec![0; region.len() * plane];
                         let at = (part.start - region.start) * plane;
-                        let ok = build_planes(&with_masks, octant, region, &mut built).is_ok();
+                        let ok = build_planes(with_masks, octant, region, &mut built).is_ok();
                         match built.get(at..at + out.len()) {
                             Some(own) if ok => {
                                 out.copy_from_slice(own);
@@ -619,40 +632,35 @@ impl Skipping {
                     }));
                 }
             }
-            if !run_parts(jobs, threads).into_iter().all(|built| built) {
-                cell_leaps.clear();
-            }
         }
-        let cell_octants = if cell_leaps.is_empty() {
-            0
-        } else {
-            cell_octants
-        };
+        let cell_jobs = jobs.len() - maps;
         // Depth bounds from the masks, where the view's rays are parallel and near enough:
         // the rows in parts, one a thread, each into its own piece of the map
         // (`depths::build_places`: the same bits). A part passes over the other parts' blocks
-        // and cells at the cost of placing them on the rows; parts of block columns, each with a map to merge, cost
-        // more than they saved at 1024×768.
-        let mut depths = Vec::new();
-        if let Some(with_masks) = with_masks.filter(|_| crate::render::has_depths(view, mode)) {
-            let (width, height) = (view.spec().width as usize, view.spec().height);
-            let held = rows.count(height);
-            depths = vec![0.0; held as usize * width];
+        // and cells at the cost of placing them on the rows; parts of block columns, each
+        // with a map to merge, cost more than they saved at 1024×768.
+        if let Some(with_masks) = bounded {
             let n = threads.clamp(1, held.max(1) as usize) as u32;
             let places = even_parts(held, n);
             let sizes: Vec<usize> = places.iter().map(|p| p.len() * width).collect();
-            let jobs = split_sizes(&mut depths, sizes.into_iter())
-                .zip(places)
-                .map(|(out, places)| -> Part<'_> {
-                    Box::new(move || {
-                        voxcube_kernel::depths::build_places(&with_masks, view, rows, places, out)
-                            .is_ok()
-                    })
-                })
-                .collect();
-            if !run_parts(jobs, threads).into_iter().all(|built| built) {
-                depths = Vec::new();
+            for (out, places) in split_sizes(&mut depths, sizes.into_iter()).zip(places) {
+                jobs.push(Box::new(move || {
+                    voxcube_kernel::depths::build_places(with_masks, view, rows, places, out)
+                        .is_ok()
+                }));
             }
+        }
+        let built = run_parts(jobs, threads);
+        let (leaps, octants) = match built.iter().take(maps).all(|&b| b) {
+            true => (leaps, octants),
+            false => (Vec::new(), 0),
+        };
+        let (cell_leaps, cell_octants) = match built.iter().skip(maps).take(cell_jobs).all(|&b| b) {
+            true if cell_octants != 0 => (cell_leaps, cell_octants),
+            _ => (Vec::new(), 0),
+        };
+        if !built.iter().skip(maps + cell_jobs).all(|&b| b) {
+            depths = Vec::new();
         }
         Skipping {
             ranges,
