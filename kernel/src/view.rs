@@ -343,7 +343,10 @@ impl View {
     }
 
     /// The line of pixel `pixel`'s primary ray (row-major), whether or not it meets the
-    /// dataset: the origin and direction [`View::primary_ray`] clips.
+    /// dataset: the origin and direction [`View::primary_ray`] clips. Always inline, as
+    /// [`crate::camera::Camera::primary`] is: a ray returned through the stack stalls its
+    /// caller's vector loads.
+    #[inline(always)]
     pub fn primary_line(&self, pixel: u32) -> Ray {
         let (px, py) = (pixel % self.spec.width, pixel / self.spec.width);
         let (origin, dir) = self
