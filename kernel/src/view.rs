@@ -369,6 +369,8 @@ impl View {
     }
 
     /// The primary ray of pixel `pixel` (row-major), or `None` when it misses the dataset.
+    /// Always inline: the ray returned through the stack stalled the pixel loops' loads of it.
+    #[inline(always)]
     pub fn primary_ray(&self, pixel: u32) -> Option<RayState> {
         let ray = self.primary_line(pixel);
         let span = clip(&ray, self.box_lo, self.box_hi, 0.0, f32::MAX)?;
