@@ -172,7 +172,17 @@ impl Rows {
     }
 
     /// The places among them of those in the image rows `span`.
+    #[inline]
     pub fn within(&self, span: core::ops::Range<u32>) -> core::ops::Range<u32> {
+        if self.step == 1 {
+            // Every row from `first` on: the same places without two divisions, which the
+            // depth bounds' build asks for every cell it places.
+            let (start, end) = (
+                span.start.saturating_sub(self.first),
+                span.end.saturating_sub(self.first),
+            );
+            return start..end.max(start);
+        }
         let place = |row: u32| row.saturating_sub(self.first).div_ceil(self.step);
         let (start, end) = (place(span.start), place(span.end));
         start..end.max(start)
@@ -234,6 +244,28 @@ mod tests {
                 && Layout::new(1, 2000).is_err()
                 && Layout::new(65535, 1).is_err()
         );
+    }
+
+    /// The places of the rows in a span are those whose row lies in it, for every span and
+    /// every cluster of up to five (one cluster: every row, the short way).
+    #[test]
+    fn the_places_within_a_span_are_those_of_its_rows() {
+        for clusters in 1..=5u16 {
+            for cluster in 0..clusters {
+                let rows = Rows::of_cluster(cluster, clusters).unwrap();
+                for start in 0..12 {
+                    for end in 0..12 {
+                        let places = rows.within(start..end);
+                        let expected: heapless::Vec<u32, 16> = (0..16)
+                            .filter(|&i| (start..end).contains(&rows.row(i)))
+                            .collect();
+                        let got: heapless::Vec<u32, 16> = places.clone().collect();
+                        assert_eq!(got, expected, "{cluster}/{clusters}: {start}..{end}");
+                        assert!(places.start <= places.end);
+                    }
+                }
+            }
+        }
     }
 
     #[test]
