@@ -481,8 +481,9 @@ pub fn table(rows: &[Row], runs: usize) -> String {
     out
 }
 
-/// Which vector instructions this binary was compiled to use: the figures depend on it, and a
-/// default build targets the x86-64 baseline, whatever the machine it runs on has.
+/// Which vector instructions this binary was compiled to use: the figures depend on it. A
+/// default build on x86-64 Linux targets x86-64-v2 (`.cargo/config.toml`: SSE4.1 and SSE4.2,
+/// no AVX), whatever more the machine it runs on has.
 fn build_line() -> String {
     let extensions: Vec<&str> = [
         ("sse4.1", cfg!(target_feature = "sse4.1")),
