@@ -203,25 +203,8 @@ impl<'a> Blocks<'a> {
         slab: &Slab<'_, T>,
         data: &'a [Range],
     ) -> Result<Blocks<'a>, BlocksError> {
-        let (x0, x1, needed) = extent(slab);
-        BlocksError::check_storage(needed, data.len())?;
-        let [_, ny, nz] = slab.grid().dims();
-        Ok(Blocks {
-            data,
-            maps: &[],
-            octants: 0,
-            toward: Octant::default(),
-            leaps: None,
-            cells: None,
-            cell_maps: &[],
-            cell_octants: 0,
-            cell_leaps: None,
-            depths: None,
-            x0,
-            x1,
-            ny: count(ny),
-            nz: count(nz),
-        })
+        let (x0, x1, _) = extent(slab);
+        Blocks::of_columns(slab, 0..x1 - x0, data)
     }
 
     /// Fill `out` (exactly [`extent`]'s length) with `slab`'s blocks.

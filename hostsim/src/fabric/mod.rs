@@ -539,11 +539,12 @@ impl Skipping {
         let by_cell = mode.cells && view.spec().model == voxcube_kernel::grid::Model::Cell;
         let mut ranges = vec![Range::UNKNOWN; len];
         let mut cells = if by_cell { vec![0; len] } else { Vec::new() };
-        let mut mask_pieces = split_sizes(&mut cells, sizes.iter().copied());
-        let jobs = split_sizes(&mut ranges, sizes.iter().copied())
+        let pieces = split_sizes(&mut ranges, sizes.iter().copied())
+            .zip(split_sizes(&mut cells, sizes.iter().copied()));
+        let jobs = pieces
             .zip(parts)
-            .map(|(out, cols)| -> Part<'_> {
-                let masks = mask_pieces.next().filter(|_| by_cell);
+            .map(|((out, masks), cols)| -> Part<'_> {
+                let masks = by_cell.then_some(masks);
                 Box::new(move || {
                     if Blocks::build_columns(slab, cols.clone(), out).is_err() {
                         return false;
@@ -558,7 +559,6 @@ impl Skipping {
                 })
             })
             .collect();
-        drop(mask_pieces);
         if !run_parts(jobs, threads).into_iter().all(|built| built) {
             return Skipping::default();
         }
