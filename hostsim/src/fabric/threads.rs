@@ -23,7 +23,7 @@ use crate::fabric::sim::{self, SimConfig, SimError, SimWorker};
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc;
-use std::sync::Mutex;
+use std::sync::{Mutex, PoisonError};
 use std::time::{Duration, Instant};
 use voxcube_kernel::flow::Class;
 use voxcube_kernel::grid::Grid;
@@ -93,10 +93,7 @@ impl Buffer {
     }
 
     fn push(&self, from: Dest, msg: Msg) {
-        let mut inbox = self
-            .inbox
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let mut inbox = self.inbox.lock().unwrap_or_else(PoisonError::into_inner);
         inbox.by_class[msg.class().index()].push_back((from, msg));
         self.queued.fetch_add(1, Ordering::Release);
     }
@@ -131,10 +128,7 @@ impl ThreadPort<'_> {
     /// poll, `fetch` took 17.8 M instructions of a 690 M one-node SOD frame; inlined, about 7 M.
     #[inline(never)]
     fn take(&mut self, i: usize, me: &Buffer) {
-        let mut inbox = me
-            .inbox
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let mut inbox = me.inbox.lock().unwrap_or_else(PoisonError::into_inner);
         let moved = inbox.by_class[i].len();
         self.local[i].extend(inbox.by_class[i].drain(..));
         me.queued.fetch_sub(moved, Ordering::Release);
@@ -269,42 +263,50 @@ fn run_typed<T: Sample + Send + Sync>(
     let mut own = shares.next().unwrap_or_else(Crew::empty);
     let others: Vec<_> = shares.collect();
     let mut busy = vec![Duration::ZERO; nodes];
-    let mut host = HostLoop::new(
-        &host_rx,
+    let host = Mutex::new(HostLoop::new(
+        host_rx,
         Host::new(
             view.pixel_count() as usize,
             view.spec().width,
             usize::from(layout.clusters()),
             nodes,
         ),
-        progress,
-    );
+    ));
     let outcome = std::thread::scope(|scope| {
-        let done = &done;
+        let (done, host, buffers) = (&done, &host, &buffers);
         let handles: Vec<_> = others
             .into_iter()
             .map(|mut crew| {
                 scope.spawn(move || {
                     while !done.load(Ordering::Acquire) {
                         let progressed = crew.round();
-                        crew.rest(progressed);
+                        let heard = host
+                            .try_lock()
+                            .is_ok_and(|mut host| host.poll(buffers, capacity));
+                        crew.rest(progressed || heard);
                     }
                     crew.times()
                 })
             })
             .collect();
-        // The host runs between the rounds of the calling thread's own nodes, not on a
-        // thread of its own: two worker threads and a host that slept and woke every 100 µs
-        // shared two cores, and each wake-up took its core from a worker. The first worker
-        // thread was then busy about 1.8 ms longer than the second in a 14 ms SOD surfaces
-        // frame, and 20–30 ms longer in a 165 ms composited one (measured).
+        // The host runs between the rounds of the threads' own nodes, not on a thread of its
+        // own: two worker threads and a host that slept and woke every 100 µs shared two
+        // cores, and each wake-up took its core from a worker. The first worker thread was
+        // then busy about 1.8 ms longer than the second in a 14 ms SOD surfaces frame, and
+        // 20–30 ms longer in a 165 ms composited one (measured).
         let result = loop {
             let progressed = own.round();
-            match host.poll(&buffers, capacity) {
-                Ok(_) if host.done() => break Ok(()),
-                Ok(heard) => own.rest(progressed || heard),
-                Err(e) => break Err(e),
+            let mut at = host.lock().unwrap_or_else(PoisonError::into_inner);
+            let heard = at.poll(buffers, capacity);
+            progress(at.host.received());
+            if let Some(e) = at.failure.take() {
+                break Err(e);
             }
+            if at.done() {
+                break Ok(());
+            }
+            drop(at);
+            own.rest(progressed || heard);
         };
         done.store(true, Ordering::Release);
         let own_times = own.times();
@@ -321,7 +323,10 @@ fn run_typed<T: Sample + Send + Sync>(
         result
     });
     outcome?;
-    let (image, reports) = host.finish()?;
+    let (image, reports) = host
+        .into_inner()
+        .unwrap_or_else(PoisonError::into_inner)
+        .finish()?;
     let shape = super::RunShape::new(cfg, &partition, &grid, view, size_of::<T>());
     let nodes: Vec<NodeReport> = reports
         .into_iter()
@@ -386,9 +391,7 @@ pub fn shift<T: Sample + Send + Sync>(
     let failure: Mutex<Option<ShiftFailure>> = Mutex::new(None);
     let stop = AtomicBool::new(false);
     let fail = |e: ShiftFailure| {
-        let mut f = failure
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let mut f = failure.lock().unwrap_or_else(PoisonError::into_inner);
         f.get_or_insert(e);
         stop.store(true, Ordering::Release);
     };
@@ -475,10 +478,7 @@ pub fn shift<T: Sample + Send + Sync>(
             }
         }
     });
-    if let Some(e) = failure
-        .into_inner()
-        .unwrap_or_else(std::sync::PoisonError::into_inner)
-    {
+    if let Some(e) = failure.into_inner().unwrap_or_else(PoisonError::into_inner) {
         return Err(e);
     }
     Ok((storages, report))
@@ -626,33 +626,57 @@ impl<'s, 'v, T: Sample> Crew<'s, 'v, T> {
     }
 }
 
-/// The host's side of a run: pixels and tokens in, then statistics.
-struct HostLoop<'a> {
-    rx: &'a mpsc::Receiver<Msg>,
+/// The host's side of a run: pixels and tokens in, then statistics. Shared by the threads:
+/// each polls it after its own round when no other thread is at it (the calling thread waits
+/// its turn), so the host's work falls on both cores. Polled by the calling thread alone, it
+/// left that thread's node about 0.25 ms behind the other's in a SOD surfaces frame, and the
+/// other thread idle for as long at the end (measured).
+struct HostLoop {
+    rx: mpsc::Receiver<Msg>,
     host: Host,
     heard: Instant,
-    progress: &'a dyn Fn(u64),
+    /// The first break of the host's protocol, or a stall, for the calling thread to end the
+    /// run with.
+    failure: Option<SimError>,
 }
 
-impl<'a> HostLoop<'a> {
-    fn new(rx: &'a mpsc::Receiver<Msg>, host: Host, progress: &'a dyn Fn(u64)) -> HostLoop<'a> {
+impl HostLoop {
+    fn new(rx: mpsc::Receiver<Msg>, host: Host) -> HostLoop {
         HostLoop {
             rx,
             host,
             heard: Instant::now(),
-            progress,
+            failure: None,
         }
     }
 
     /// Take every message waiting, and ask every node for its statistics once every token
     /// is in; whether any came. Polled, never waited on: a receiver blocked in `recv` is
     /// woken by every send, a futex call and a context switch per pixel message, which
-    /// cost a measured fifth of a one-node frame.
-    fn poll(&mut self, buffers: &[Buffer], capacity: usize) -> Result<bool, SimError> {
+    /// cost a measured fifth of a one-node frame. The clock is read once a poll, not once a
+    /// message. A failure is kept in `failure`, and nothing more is taken after it.
+    fn poll(&mut self, buffers: &[Buffer], capacity: usize) -> bool {
+        if self.failure.is_some() {
+            return false;
+        }
+        match self.take(buffers, capacity) {
+            Ok(heard) => heard,
+            Err(e) => {
+                self.failure = Some(e);
+                false
+            }
+        }
+    }
+
+    fn take(&mut self, buffers: &[Buffer], capacity: usize) -> Result<bool, SimError> {
         let mut heard = false;
         loop {
             let msg = match self.rx.try_recv() {
                 Ok(msg) => msg,
+                Err(mpsc::TryRecvError::Empty) if heard => {
+                    self.heard = Instant::now();
+                    break;
+                }
                 Err(mpsc::TryRecvError::Empty) if self.heard.elapsed() < STALL => break,
                 Err(_) => {
                     return Err(host_failure(format!(
@@ -663,7 +687,6 @@ impl<'a> HostLoop<'a> {
                 }
             };
             heard = true;
-            self.heard = Instant::now();
             if self.host.receive(msg).map_err(host_failure)? {
                 for b in buffers {
                     // The control reserve of every buffer has room for this request.
@@ -673,7 +696,6 @@ impl<'a> HostLoop<'a> {
                     b.push(Dest::Host, Msg::Collect);
                 }
             }
-            (self.progress)(self.host.received());
         }
         Ok(heard)
     }
@@ -697,5 +719,44 @@ fn host_failure(what: String) -> SimError {
         seed: 0,
         scheduler: sim::Scheduler::Uniform,
         trace: Default::default(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use voxcube_kernel::msg::PixelSet;
+
+    /// A message that breaks the host's protocol is kept as the run's failure for the calling
+    /// thread, whichever thread polled, and nothing more is taken after it; the pixels before
+    /// it stay counted.
+    #[test]
+    fn the_host_keeps_its_first_failure_and_takes_nothing_after_it() {
+        let (tx, rx) = mpsc::channel();
+        let mut host = HostLoop::new(rx, Host::new(4, 2, 1, 1));
+        let buffers = [Buffer::new()];
+        let set = |pixel: u32| {
+            let mut set = PixelSet::default();
+            set.push(pixel, [1, 2, 3, 4]).expect("room for one pixel");
+            Msg::Pixels(set)
+        };
+        tx.send(set(1)).expect("the host listens");
+        assert!(host.poll(&buffers, 1024), "a pixel was heard");
+        assert!(host.failure.is_none());
+        // Pixel 1 again, then a new one.
+        tx.send(set(1)).expect("the host listens");
+        tx.send(set(2)).expect("the host listens");
+        assert!(!host.poll(&buffers, 1024));
+        let kept = host.failure.as_ref().map(ToString::to_string);
+        assert!(
+            kept.as_ref().is_some_and(|f| f.contains("twice")),
+            "{kept:?}"
+        );
+        assert!(
+            !host.poll(&buffers, 1024),
+            "nothing taken after the failure"
+        );
+        assert_eq!(host.host.received(), 1);
+        assert!(host.rx.try_recv().is_ok(), "pixel 2 still waits");
     }
 }
