@@ -274,6 +274,13 @@ pub fn build_places(
             near.max(far).element_sum() - at_origin + 0.5,
         )
     };
+    // The places among `places` of the rows whose image coordinates lie in `[lo, hi]`.
+    let placed = |lo: f64, hi: f64| {
+        let within = rows.within(Frame::pixels(lo, hi, frame.height));
+        within.start.max(places.start)..within.end.min(places.end)
+    };
+    // A part that builds every row has no block to pass over.
+    let every_row = places == (0..held);
     let w = frame.width as usize;
     let (bx0, bx1) = (blocks.first_column(), blocks.first_column() + cols);
     // The masks of the block in front along each axis (none past the blocks: no obstacle).
@@ -295,16 +302,16 @@ pub fn build_places(
                 if mask == 0 {
                     continue;
                 }
-                let corner = DVec3::new(
-                    f64::from(bx * BLOCK),
-                    f64::from(by * BLOCK),
-                    f64::from(bz * BLOCK),
-                );
-                let b = frame.rows[1].dot(corner);
-                let ys = Frame::pixels(b + block_rows.0, b + block_rows.1, frame.height);
-                let within = rows.within(ys);
-                if within.start.max(places.start) >= within.end.min(places.end) {
-                    continue;
+                if !every_row {
+                    let corner = DVec3::new(
+                        f64::from(bx * BLOCK),
+                        f64::from(by * BLOCK),
+                        f64::from(bz * BLOCK),
+                    );
+                    let b = frame.rows[1].dot(corner);
+                    if placed(b + block_rows.0, b + block_rows.1).is_empty() {
+                        continue;
+                    }
                 }
                 // The cells whose front neighbour is an obstacle, along every moving axis.
                 let mut hidden = ALL;
@@ -322,16 +329,14 @@ pub fn build_places(
                     );
                     let at = |row: usize| frame.rows[row].dot(c);
                     let b = at(1);
-                    let ys = Frame::pixels(b + b_span.0, b + b_span.1, frame.height);
-                    let within = rows.within(ys);
-                    let (first, end) = (within.start.max(places.start), within.end.min(places.end));
-                    if first >= end {
+                    let ys = placed(b + b_span.0, b + b_span.1);
+                    if ys.is_empty() {
                         continue;
                     }
                     let a = at(0);
                     let t = round_down(at(2) + t_least);
                     let columns = Frame::pixels(a + a_span.0, a + a_span.1, frame.width);
-                    for place in first..end {
+                    for place in ys {
                         let row = (place - places.start) as usize * w;
                         let span = row + columns.start as usize..row + columns.end as usize;
                         if let Some(slots) = out.get_mut(span) {

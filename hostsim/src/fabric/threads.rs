@@ -262,6 +262,9 @@ fn run_typed<T: Sample + Send + Sync>(
         .map(|share| Crew::new(share, &buffers, capacity, &host_tx));
     let mut own = shares.next().unwrap_or_else(Crew::empty);
     let others: Vec<_> = shares.collect();
+    // The ports hold the only senders: should every port go with its failed thread, the host
+    // hears so at once rather than after STALL.
+    drop(host_tx);
     let mut busy = vec![Duration::ZERO; nodes];
     let host = Mutex::new(HostLoop::new(
         host_rx,
@@ -298,15 +301,15 @@ fn run_typed<T: Sample + Send + Sync>(
             let progressed = own.round();
             let mut at = host.lock().unwrap_or_else(PoisonError::into_inner);
             let heard = at.poll(buffers, capacity);
-            progress(at.host.received());
-            if let Some(e) = at.failure.take() {
-                break Err(e);
-            }
-            if at.done() {
-                break Ok(());
-            }
+            let (failure, done, received) = (at.failure.take(), at.done(), at.host.received());
+            // Told with the host free, so that another thread may take it meanwhile.
             drop(at);
-            own.rest(progressed || heard);
+            progress(received);
+            match failure {
+                Some(e) => break Err(e),
+                None if done => break Ok(()),
+                None => own.rest(progressed || heard),
+            }
         };
         done.store(true, Ordering::Release);
         let own_times = own.times();
