@@ -639,18 +639,27 @@ impl Skipping {
         // (`depths::build_places`: the same bits). A part passes over the other parts' blocks
         // and cells at the cost of placing them on the rows; parts of block columns, each
         // with a map to merge, cost more than they saved at 1024×768.
+        //
+        // They go first: on SOD's paper view they are the longest parts, and the thread that
+        // ends its part first then builds the leap map. With the map first, its thread took
+        // the second depth part after it, and on two threads the two ended 160–210 µs apart;
+        // now about 50 µs, and the set takes about 50 µs less (measured).
+        let mut first: Vec<Part<'_>> = Vec::new();
         if let Some(with_masks) = bounded {
             let n = threads.clamp(1, held.max(1) as usize) as u32;
             let places = even_parts(held, n);
             let sizes: Vec<usize> = places.iter().map(|p| p.len() * width).collect();
             for (out, places) in split_sizes(&mut depths, sizes.into_iter()).zip(places) {
-                jobs.push(Box::new(move || {
+                first.push(Box::new(move || {
                     voxcube_kernel::depths::build_places(with_masks, view, rows, places, out)
                         .is_ok()
                 }));
             }
         }
-        let built = run_parts(jobs, threads);
+        let depth_jobs = first.len();
+        first.extend(jobs);
+        let built = run_parts(first, threads);
+        let (depths_built, built) = built.split_at(depth_jobs);
         let (leaps, octants) = match built.iter().take(maps).all(|&b| b) {
             true => (leaps, octants),
             false => (Vec::new(), 0),
@@ -659,7 +668,7 @@ impl Skipping {
             true if cell_octants != 0 => (cell_leaps, cell_octants),
             _ => (Vec::new(), 0),
         };
-        if !built.iter().skip(maps + cell_jobs).all(|&b| b) {
+        if !depths_built.iter().all(|&b| b) {
             depths = Vec::new();
         }
         Skipping {
