@@ -565,9 +565,10 @@ impl Skipping {
         let Ok(blocks) = Blocks::new(slab, &ranges) else {
             return Skipping::default();
         };
-        // Then everything that reads the whole slab's blocks or masks, in one set of parts:
-        // a leap map for each octant the view's rays take, a cell leap map in parts of
-        // planes for each octant of the primary rays, and the depth bounds in parts of rows.
+        // Then everything that reads the whole slab's blocks or masks, in one set of parts, in
+        // this order: the depth bounds in parts of rows, a leap map for each octant the
+        // view's rays take, and a cell leap map in parts of planes for each octant of the
+        // primary rays.
         let octants = match mode.leap {
             true => voxcube_kernel::leaps::octants(view),
             false => 0,
@@ -591,6 +592,28 @@ impl Skipping {
             None => Vec::new(),
         };
         let mut jobs: Vec<Part<'_>> = Vec::new();
+        // Depth bounds from the masks, where the view's rays are parallel and near enough:
+        // the rows in parts, one a thread, each into its own piece of the map
+        // (`depths::build_places`: the same bits). A part passes over the other parts' blocks
+        // and cells at the cost of placing them on the rows; parts of block columns, each
+        // with a map to merge, cost more than they saved at 1024×768.
+        //
+        // They go first: on SOD's paper view they are the longest parts, and the thread that
+        // ends its part first then builds the leap map. With the map first, its thread took
+        // the second depth part after it, and on two threads the two ended 160–210 µs apart;
+        // now about 50 µs, and the set takes about 50 µs less (measured).
+        if let Some(with_masks) = bounded {
+            let n = threads.clamp(1, held.max(1) as usize) as u32;
+            let places = even_parts(held, n);
+            let sizes: Vec<usize> = places.iter().map(|p| p.len() * width).collect();
+            for (out, places) in split_sizes(&mut depths, sizes.into_iter()).zip(places) {
+                jobs.push(Box::new(move || {
+                    voxcube_kernel::depths::build_places(with_masks, view, rows, places, out)
+                        .is_ok()
+                }));
+            }
+        }
+        let depth_jobs = jobs.len();
         let chosen = (0..voxcube_kernel::leaps::OCTANTS).filter(|o| octants >> o & 1 == 1);
         for (map, octant) in leaps.chunks_mut(len).zip(chosen) {
             let (blocks, octant) = (&blocks, voxcube_kernel::leaps::Octant::from_index(octant));
@@ -633,38 +656,14 @@ impl Skipping {
                 }
             }
         }
-        let cell_jobs = jobs.len() - maps;
-        // Depth bounds from the masks, where the view's rays are parallel and near enough:
-        // the rows in parts, one a thread, each into its own piece of the map
-        // (`depths::build_places`: the same bits). A part passes over the other parts' blocks
-        // and cells at the cost of placing them on the rows; parts of block columns, each
-        // with a map to merge, cost more than they saved at 1024×768.
-        //
-        // They go first: on SOD's paper view they are the longest parts, and the thread that
-        // ends its part first then builds the leap map. With the map first, its thread took
-        // the second depth part after it, and on two threads the two ended 160–210 µs apart;
-        // now about 50 µs, and the set takes about 50 µs less (measured).
-        let mut first: Vec<Part<'_>> = Vec::new();
-        if let Some(with_masks) = bounded {
-            let n = threads.clamp(1, held.max(1) as usize) as u32;
-            let places = even_parts(held, n);
-            let sizes: Vec<usize> = places.iter().map(|p| p.len() * width).collect();
-            for (out, places) in split_sizes(&mut depths, sizes.into_iter()).zip(places) {
-                first.push(Box::new(move || {
-                    voxcube_kernel::depths::build_places(with_masks, view, rows, places, out)
-                        .is_ok()
-                }));
-            }
-        }
-        let depth_jobs = first.len();
-        first.extend(jobs);
-        let built = run_parts(first, threads);
+        let built = run_parts(jobs, threads);
         let (depths_built, built) = built.split_at(depth_jobs);
-        let (leaps, octants) = match built.iter().take(maps).all(|&b| b) {
+        let (maps_built, cells_built) = built.split_at(maps);
+        let (leaps, octants) = match maps_built.iter().all(|&b| b) {
             true => (leaps, octants),
             false => (Vec::new(), 0),
         };
-        let (cell_leaps, cell_octants) = match built.iter().skip(maps).take(cell_jobs).all(|&b| b) {
+        let (cell_leaps, cell_octants) = match cells_built.iter().all(|&b| b) {
             true if cell_octants != 0 => (cell_leaps, cell_octants),
             _ => (Vec::new(), 0),
         };
