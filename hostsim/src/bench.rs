@@ -177,9 +177,15 @@ impl Row {
     }
 }
 
-fn median(mut v: Vec<Duration>) -> Duration {
-    v.sort();
-    v.get(v.len() / 2).copied().unwrap_or_default()
+fn median(v: Vec<Duration>) -> Duration {
+    middle(v, Ord::cmp).unwrap_or_default()
+}
+
+/// The middle of `v` in the order `by` (the upper of the two middles of an even count);
+/// `None` when empty.
+fn middle<T: Copy>(mut v: Vec<T>, by: impl FnMut(&T, &T) -> std::cmp::Ordering) -> Option<T> {
+    v.sort_by(by);
+    v.get(v.len() / 2).copied()
 }
 
 /// The machine shapes compared at `size`: one node; pure image partition over the cores; and,
@@ -288,6 +294,8 @@ pub struct Ceiling {
 /// count on more.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EveryCore {
+    /// The cores that ran it at once.
+    pub cores: usize,
     /// The best of the runs.
     pub best: f64,
     /// The median run: what the machine's other tenants left in a typical run.
@@ -342,17 +350,18 @@ pub fn ceiling(
         samples,
         rate: best,
         packet_rate: packet_best,
-        every_core: EveryCore::of(together_rates),
+        every_core: EveryCore::of(cores, together_rates),
     })
 }
 
 impl EveryCore {
-    /// The best and the median of the slowest core's rate in each run; `None` without runs.
-    fn of(mut rates: Vec<f64>) -> Option<EveryCore> {
-        rates.sort_by(f64::total_cmp);
+    /// The best and the median of the slowest core's rate in each run on `cores` cores;
+    /// `None` without runs.
+    fn of(cores: usize, rates: Vec<f64>) -> Option<EveryCore> {
         Some(EveryCore {
-            best: *rates.last()?,
-            median: rates[rates.len() / 2],
+            cores,
+            best: rates.iter().copied().reduce(f64::max)?,
+            median: middle(rates, f64::total_cmp)?,
         })
     }
 }
@@ -578,7 +587,13 @@ fn build_line() -> String {
 /// best and in the median run. Machines on several cores cannot count on more; on a machine
 /// shared with other tenants the median moves with them. `None` when no row measured it.
 fn every_core_line(rows: &[Row], runs: usize) -> Option<String> {
-    let cores = rows.iter().map(|r| r.threads).max().filter(|&c| c > 1)?;
+    // The loop's own core count: the machines' thread counts are rounded up to a power of
+    // two, and on a machine of three cores the line would have said four.
+    let cores = rows
+        .iter()
+        .filter_map(|r| Some(r.every_core.as_ref()?.cores))
+        .max()
+        .filter(|&c| c > 1)?;
     let span = |of: fn(&EveryCore) -> f64| {
         rows.iter()
             .filter_map(|r| Some(100.0 * of(r.every_core.as_ref()?) / r.ceiling.max(1e-9)))
@@ -802,38 +817,41 @@ mod tests {
             interpolations: 2_000_000,
             ceiling: 100e6,
             packet_ceiling: 120e6,
-            every_core: Some(EveryCore {
-                best: 90e6,
-                median: 80e6,
-            }),
+            every_core: None,
         }
     }
 
     #[test]
     fn every_core_keeps_the_best_and_the_median_run() {
-        assert_eq!(EveryCore::of(Vec::new()), None);
-        let e = EveryCore::of(vec![70.0, 90.0, 50.0, 80.0, 60.0]).expect("runs");
-        assert_eq!((e.best, e.median), (90.0, 70.0));
+        assert_eq!(EveryCore::of(2, Vec::new()), None);
+        let e = EveryCore::of(2, vec![70.0, 90.0, 50.0, 80.0, 60.0]).expect("runs");
+        assert_eq!((e.cores, e.best, e.median), (2, 90.0, 70.0));
     }
 
     #[test]
     fn the_every_core_line_spans_the_views_and_needs_several_cores() {
+        let on = |cores, best, median| {
+            Some(EveryCore {
+                cores,
+                best,
+                median,
+            })
+        };
         let mut rows = vec![
             row("sod", Size::PAPER, "surfaces", "direct, 1 node", 10),
             row("sod", Size::PAPER, "composite", "direct, 1 node", 10),
+            row("sod", Size::LARGE, "composite", "direct, 1 node", 10),
         ];
+        rows[0].threads = 2;
+        assert_eq!(every_core_line(&rows, 5), None, "not measured");
+        rows[0].every_core = on(1, 90e6, 80e6);
         assert_eq!(
             every_core_line(&rows, 5),
             None,
             "one core: nothing to compare"
         );
-        rows[0].threads = 2;
-        rows[1].every_core = Some(EveryCore {
-            best: 60e6,
-            median: 50e6,
-        });
-        rows.push(row("sod", Size::LARGE, "composite", "direct, 1 node", 10));
-        rows[2].every_core = None;
+        rows[0].every_core = on(2, 90e6, 80e6);
+        rows[1].every_core = on(2, 60e6, 50e6);
         let line = every_core_line(&rows, 5).expect("two cores");
         assert!(line.contains("at 60-90% of its one-core rate"), "{line}");
         assert!(line.contains("at best, 50-80% in the median run"), "{line}");
@@ -841,6 +859,14 @@ mod tests {
             line.contains("slowest of 2 cores") && line.contains("5 runs"),
             "{line}"
         );
+        // On three cores the two-thread machine rounds up to four: the line names the three
+        // the loop ran on.
+        for r in &mut rows[..2] {
+            r.threads = 4;
+            r.every_core = r.every_core.map(|e| EveryCore { cores: 3, ..e });
+        }
+        let line = every_core_line(&rows, 5).expect("three cores");
+        assert!(line.contains("slowest of 3 cores"), "{line}");
     }
 
     #[test]
@@ -983,6 +1009,7 @@ mod tests {
             match c.every_core {
                 Some(e) => {
                     assert!(cores > 1 && e.median.is_finite() && e.median > 0.0, "{c:?}");
+                    assert_eq!(e.cores, cores, "{c:?}");
                     assert!(e.best >= e.median, "{c:?}");
                 }
                 None => assert_eq!(cores, 1, "{c:?}"),
