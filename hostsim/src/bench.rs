@@ -859,7 +859,7 @@ mod tests {
             line.contains("slowest of 2 cores") && line.contains("5 runs"),
             "{line}"
         );
-        // On three cores the two-thread machine rounds up to four: the line names the three
+        // On three cores the machines round up to four threads: the line names the three
         // the loop ran on.
         for r in &mut rows[..2] {
             r.threads = 4;
