@@ -95,11 +95,6 @@ pub enum Command {
         /// changes no pixel, only the time).
         #[arg(long)]
         no_depths: bool,
-        /// Leap through the empty cells after a primary ray's last cell that may show, not
-        /// passing over them at once by its pixel's far bound (a debug option: it changes
-        /// no pixel, only the time).
-        #[arg(long)]
-        no_far_bounds: bool,
         /// Balance every view's slabs first, as the paper does: one cluster traces a probe
         /// of about 32x32 primary rays, timed by the --machine profile, and the slab sizes
         /// follow the workers' times. The nodes start on uniform slabs and shift planes to
@@ -369,7 +364,6 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             no_cell_leaps,
             no_row_leaps,
             no_depths,
-            no_far_bounds,
             balance,
         } => {
             let (scene, name) = match &scene {
@@ -394,7 +388,6 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                         cell_leaps: !no_cell_leaps,
                         rows: !no_row_leaps,
                         depths: !no_depths,
-                        far: !no_far_bounds,
                     };
                     m.profile = match profile {
                         ProfileArg::Ncube2 => Profile::ncube2(),

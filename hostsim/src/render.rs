@@ -292,27 +292,20 @@ pub fn node_skipping(volume: &Volume, view: &View, machine: &Machine, balanced: 
         return SkipMode {
             cell_leaps: false,
             depths: false,
-            far: false,
             ..mode
         };
     };
     // Depth bounds first: whether a view takes cell leap maps depends on whether it has them.
-    // Far bounds last, where room is left: they take the depth bounds' room again.
     let least = budget::ViewNeeds::of(view);
-    let clusters = cfg.layout.clusters();
-    let bounds = depth_bytes(view, SkipMode { far: false, ..mode }, clusters);
+    let bounds = depth_bytes(view, mode, cfg.layout.clusters());
     let depths = bounds > 0 && fits(least.with_depths(bounds), cfg.buffer());
     let with_depths = least.with_depths(if depths { bounds } else { 0 });
     let maps = crate::fabric::cell_leap_octants(view, SkipMode { depths, ..mode });
     let maps = maps.count_ones() as usize;
     let held = maps > 0 && fits(with_depths.with_cell_maps(maps), cfg.buffer());
-    let with_maps = with_depths.with_cell_maps(if held { maps } else { 0 });
-    let far_bytes = depth_bytes(view, SkipMode { far: true, ..mode }, clusters);
-    let far = depths && mode.far && fits(with_maps.with_depths(far_bytes), cfg.buffer());
     SkipMode {
         cell_leaps: held,
         depths,
-        far,
         ..mode
     }
 }
@@ -336,8 +329,7 @@ pub fn depth_bytes(view: &View, mode: SkipMode, clusters: u16) -> usize {
     match (has_depths(view, mode), rows) {
         (true, Some(rows)) => {
             let (width, height) = (view.spec().width, view.spec().height);
-            let bounds = mode.bounds().per_pixel() * size_of::<f32>();
-            rows.count(height) as usize * width as usize * bounds
+            rows.count(height) as usize * width as usize * size_of::<f32>()
         }
         _ => 0,
     }

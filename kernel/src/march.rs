@@ -171,9 +171,6 @@ pub fn march<T: Sample>(
         Some(blocks) if by_cell && ray.kind == RayKind::Primary => blocks.depths(),
         _ => None,
     };
-    // And once past its pixel's far bound, over every sample after it: they lie in no cell
-    // the masks keep, and the turns below would skip each of them.
-    let far = depths.map_or(f32::INFINITY, |d| d.far(ray.pixel));
     loop {
         if ray.k > ray.lattice.last {
             return Stop::Exit;
@@ -191,13 +188,6 @@ pub fn march<T: Sample>(
                 skip_to(view, ray, last, counters);
                 continue;
             }
-        }
-        if t > far && view.may_skip(ray) {
-            // Every owned sample from here on: those below an infinite bound.
-            let exits = exits.get_or_insert_with(|| Exits::new(ray));
-            let last = before_bound(ray, slab, f32::INFINITY, exits);
-            skip_to(view, ray, last, counters);
-            continue;
         }
         if let Some(leaps) = &cell_leaps {
             if view.may_skip(ray) {

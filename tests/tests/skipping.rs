@@ -119,15 +119,7 @@ fn check(text: &str, file: &str) {
                 depths: false,
                 ..SkipMode::ALL
             };
-            let no_far = SkipMode {
-                far: false,
-                ..SkipMode::ALL
-            };
-            for (what, mode) in [
-                ("row leaps", no_rows),
-                ("depth bounds", no_depths),
-                ("far bounds", no_far),
-            ] {
+            for (what, mode) in [("row leaps", no_rows), ("depth bounds", no_depths)] {
                 let without = render_skipping(&job.volume, &v.view, mode).expect("renders");
                 assert!(
                     without.pixels == all.pixels,
@@ -438,9 +430,8 @@ proptest! {
         let no_cell_leaps = SkipMode { cell_leaps: false, ..SkipMode::ALL };
         let mut counters = Vec::new();
         let no_depths = SkipMode { depths: false, ..SkipMode::ALL };
-        let no_far = SkipMode { far: false, ..SkipMode::ALL };
         let cells_no_depths = SkipMode { depths: false, ..cells_only };
-        for mode in [SkipMode::BLOCKS, SkipMode::LEAPS, cells_only, no_cell_leaps, SkipMode::ALL, no_depths, cells_no_depths, no_far] {
+        for mode in [SkipMode::BLOCKS, SkipMode::LEAPS, cells_only, no_cell_leaps, SkipMode::ALL, no_depths, cells_no_depths] {
             let r = render_skipping(&volume, &view, mode).expect("renders");
             prop_assert!(r.pixels == off.pixels, "{mode:?} changed the image");
             prop_assert_eq!(r.counters.slab_misses, 0);
@@ -452,8 +443,6 @@ proptest! {
         // Depth bounds change no count, with cell leaps or with scans and jumps.
         prop_assert_eq!(&counters[4], &counters[5]);
         prop_assert_eq!(&counters[2], &counters[6]);
-        // Far bounds neither.
-        prop_assert_eq!(&counters[4], &counters[7]);
         // On a cluster cut anywhere (plane x starts a slab where bit x of `cut_bits` is set),
         // the same image, and the slabs skip every sample one node skips: on the cell model
         // exactly one node's samples are evaluated, on the voxel model at most those (a block
@@ -533,17 +522,7 @@ fn skipping_built_on_threads_is_the_same_storage() {
                     depths: false,
                     ..SkipMode::ALL
                 };
-                let no_far = SkipMode {
-                    far: false,
-                    ..SkipMode::ALL
-                };
-                for skipping in [
-                    SkipMode::ALL,
-                    no_depths,
-                    no_far,
-                    SkipMode::LEAPS,
-                    SkipMode::BLOCKS,
-                ] {
+                for skipping in [SkipMode::ALL, no_depths, SkipMode::LEAPS, SkipMode::BLOCKS] {
                     let one = Skipping::build(slab, &view, skipping);
                     assert_ne!(one, Skipping::default(), "{dims:?}: blocks are built");
                     for threads in [2, 3, 8] {
@@ -559,7 +538,7 @@ fn skipping_built_on_threads_is_the_same_storage() {
             }
         }
     }
-    assert_eq!(compared, 5 * 3 * 3 * 5 * 3);
+    assert_eq!(compared, 5 * 3 * 3 * 4 * 3);
 }
 
 /// `volume`'s whole slab (of blobs, bytes) and its blocks' ranges.
@@ -787,9 +766,8 @@ fn nodes_hold_cell_leap_maps_only_where_they_fit() {
 }
 
 /// Depth bounds are an acceleration too: a node holds them, a bound a pixel of its cluster's
-/// rows, only where its memory has room beside everything else it holds, and far bounds
-/// beside them (a second bound a pixel) only where room is left after that; a perspective
-/// view has none.
+/// rows, only where its memory has room beside everything else it holds; a perspective view
+/// has none.
 #[test]
 fn nodes_hold_depth_bounds_only_where_they_fit() {
     use voxcube::render::{depth_bytes, node_skipping, preflight, Fabric, Machine};
@@ -809,34 +787,20 @@ fn nodes_hold_depth_bounds_only_where_they_fit() {
     };
     let machine = Machine::new(Fabric::Sim, 1, 1, 1);
     let (fits, huge) = (sized(cam, 40, 30), sized(cam, 1200, 1000));
-    let near = SkipMode {
-        far: false,
-        ..SkipMode::ALL
-    };
-    assert_eq!(depth_bytes(&fits, near, 1), 40 * 30 * 4);
-    assert_eq!(depth_bytes(&fits, near, 4), 40 * 8 * 4);
-    assert_eq!(depth_bytes(&fits, SkipMode::ALL, 1), 40 * 30 * 8);
-    for balanced in [false, true] {
-        let mode = node_skipping(&small, &fits, &machine, balanced);
-        assert!(mode.depths && mode.far, "{mode:?}");
-    }
+    assert_eq!(depth_bytes(&fits, SkipMode::ALL, 1), 40 * 30 * 4);
+    assert_eq!(depth_bytes(&fits, SkipMode::ALL, 4), 40 * 8 * 4);
+    assert!(node_skipping(&small, &fits, &machine, false).depths);
+    assert!(node_skipping(&small, &fits, &machine, true).depths);
     // 4.8 MB of bounds: more than an nCUBE 2 node's 4 MiB.
     preflight(&small, &huge, &machine).expect("fits without depth bounds");
-    let mode = node_skipping(&small, &huge, &machine, false);
-    assert!(!mode.depths && !mode.far && mode.cell_leaps, "{mode:?}");
-    // In four clusters a node holds a quarter of the rows: 1.2 MB, or 2.4 MB with far bounds.
+    assert!(!node_skipping(&small, &huge, &machine, false).depths);
+    assert!(node_skipping(&small, &huge, &machine, false).cell_leaps);
+    // In four clusters a node holds a quarter of the rows: 1.2 MB.
     let four = Machine::new(Fabric::Sim, 4, 4, 1);
     preflight(&small, &huge, &four).expect("fits");
-    let mode = node_skipping(&small, &huge, &four, false);
-    assert!(mode.depths && mode.far, "{mode:?}");
-    // In two, half: 2.4 MB fits, 4.8 MB with far bounds does not.
-    let two = Machine::new(Fabric::Sim, 2, 2, 1);
-    preflight(&small, &huge, &two).expect("fits");
-    let mode = node_skipping(&small, &huge, &two, false);
-    assert!(mode.depths && !mode.far, "{mode:?}");
+    assert!(node_skipping(&small, &huge, &four, false).depths);
     let direct = Machine::new(Fabric::Direct, 1, 1, 1);
-    let mode = node_skipping(&small, &huge, &direct, false);
-    assert!(mode.depths && mode.far, "{mode:?}");
+    assert!(node_skipping(&small, &huge, &direct, false).depths);
     let eye = Vec3::new(100.0, 16.0, 20.0);
     let persp = sized(
         voxcube_tests::perspective(eye, Vec3::splat(20.0), Vec3::Y, 40.0),

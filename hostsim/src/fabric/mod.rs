@@ -294,8 +294,6 @@ pub struct SkipMode {
     /// Pass a primary ray at once over the samples before its pixel's depth bound (only
     /// with cell masks, parallel projections; `voxcube_kernel::depths`).
     pub depths: bool,
-    /// And over the samples after its pixel's far bound (only with depth bounds).
-    pub far: bool,
 }
 
 impl SkipMode {
@@ -307,7 +305,6 @@ impl SkipMode {
         cell_leaps: false,
         rows: false,
         depths: false,
-        far: false,
     };
     /// Empty samples skipped by whole blocks, each jump ending at its block's faces.
     pub const BLOCKS: SkipMode = SkipMode {
@@ -317,7 +314,6 @@ impl SkipMode {
         cell_leaps: false,
         rows: true,
         depths: false,
-        far: false,
     };
     /// Empty samples skipped by whole blocks, each jump leaping over every empty block around.
     pub const LEAPS: SkipMode = SkipMode {
@@ -327,7 +323,6 @@ impl SkipMode {
         cell_leaps: false,
         rows: true,
         depths: false,
-        far: false,
     };
     /// Leaps, and single empty cells skipped too (the default).
     pub const ALL: SkipMode = SkipMode {
@@ -337,16 +332,7 @@ impl SkipMode {
         cell_leaps: true,
         rows: true,
         depths: true,
-        far: true,
     };
-
-    /// The depth bounds a pixel takes in this mode, when it takes any.
-    pub fn bounds(&self) -> voxcube_kernel::depths::Bounds {
-        match self.far {
-            true => voxcube_kernel::depths::Bounds::NearAndFar,
-            false => voxcube_kernel::depths::Bounds::Near,
-        }
-    }
 
     /// `view` as this mode renders it: without its row leaps when `rows` is off.
     pub fn view<'v>(&self, view: &'v View) -> Cow<'v, View> {
@@ -421,12 +407,11 @@ pub struct Skipping {
     /// One cell leap map per octant in `cell_octants`, in octant order.
     cell_leaps: Vec<u8>,
     cell_octants: u8,
-    /// The view's depth bounds over the slab, a near bound (and a far bound, with
-    /// `depth_far`) per pixel of the rows `depth_rows` of an image `depth_width` wide.
+    /// The view's depth bounds over the slab, a bound per pixel of the rows `depth_rows` of
+    /// an image `depth_width` wide.
     depths: Vec<f32>,
     depth_rows: voxcube_kernel::topology::Rows,
     depth_width: u32,
-    depth_far: bool,
 }
 
 /// `all` cut into consecutive pieces of `sizes` (the last piece short if they overrun).
@@ -603,7 +588,7 @@ impl Skipping {
             .filter(|_| crate::render::has_depths(view, mode));
         let held = rows.count(height);
         let mut depths = match bounded {
-            Some(_) => vec![0.0; held as usize * width * mode.bounds().per_pixel()],
+            Some(_) => vec![0.0; held as usize * width],
             None => Vec::new(),
         };
         let mut jobs: Vec<Part<'_>> = Vec::new();
@@ -620,15 +605,11 @@ impl Skipping {
         if let Some(with_masks) = bounded {
             let n = threads.clamp(1, held.max(1) as usize) as u32;
             let places = even_parts(held, n);
-            let per_row = width * mode.bounds().per_pixel();
-            let sizes: Vec<usize> = places.iter().map(|p| p.len() * per_row).collect();
+            let sizes: Vec<usize> = places.iter().map(|p| p.len() * width).collect();
             for (out, places) in split_sizes(&mut depths, sizes.into_iter()).zip(places) {
                 jobs.push(Box::new(move || {
-                    let bounds = mode.bounds();
-                    voxcube_kernel::depths::build_places(
-                        with_masks, view, rows, places, bounds, out,
-                    )
-                    .is_ok()
+                    voxcube_kernel::depths::build_places(with_masks, view, rows, places, out)
+                        .is_ok()
                 }));
             }
         }
@@ -699,7 +680,6 @@ impl Skipping {
             depths,
             depth_rows: rows,
             depth_width: view.spec().width,
-            depth_far: mode.far,
         }
     }
 
@@ -732,11 +712,6 @@ impl Skipping {
                 &self.depths,
                 self.depth_width,
                 self.depth_rows,
-                SkipMode {
-                    far: self.depth_far,
-                    ..SkipMode::ALL
-                }
-                .bounds(),
             )),
         };
         slab.with_blocks(blocks)
