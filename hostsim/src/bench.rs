@@ -595,11 +595,10 @@ fn every_core_line(rows: &[Row], runs: usize) -> Option<String> {
         .max()
         .filter(|&c| c > 1)?;
     let span = |of: fn(&EveryCore) -> f64| {
-        rows.iter()
-            .filter_map(|r| Some(100.0 * of(r.every_core.as_ref()?) / r.ceiling.max(1e-9)))
-            .fold(None, |span: Option<(f64, f64)>, x| {
-                Some(span.map_or((x, x), |(lo, hi)| (lo.min(x), hi.max(x))))
-            })
+        let shares = rows
+            .iter()
+            .filter_map(|r| Some(100.0 * of(r.every_core.as_ref()?) / r.ceiling.max(1e-9)));
+        Some((shares.clone().reduce(f64::min)?, shares.reduce(f64::max)?))
     };
     let ((lo, hi), (mlo, mhi)) = (span(|e| e.best)?, span(|e| e.median)?);
     Some(format!(
