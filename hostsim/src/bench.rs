@@ -732,7 +732,7 @@ pub fn targets(rows: &[Row]) -> String {
             .zip(sod_paper(under))
             .filter(|(a, b)| a.view == b.view)
             .map(|(a, b)| a.median.as_secs_f64() / b.median.as_secs_f64().max(1e-9))
-            .fold(None, |m: Option<f64>, x| Some(m.map_or(x, |m| m.max(x))))
+            .reduce(f64::max)
     };
     out += &line(
         "sim 128 nodes / 64 clusters over 1 node (worst view)",
@@ -753,7 +753,7 @@ pub fn targets(rows: &[Row]) -> String {
     let of_ceiling = sod_paper("direct")
         .iter()
         .map(|r| 100.0 * r.of_ceiling())
-        .fold(None, |m: Option<f64>, x| Some(m.map_or(x, |m| m.min(x))));
+        .reduce(f64::min);
     out += &line(
         "evaluated samples on 1 node, of the ceiling (worst view)",
         of_ceiling,
