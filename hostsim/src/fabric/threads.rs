@@ -3,11 +3,11 @@
 //! turn. Each node's receive buffer has the simulator's byte capacity: a send reserves its
 //! bytes with a compare-and-swap and is refused when they do not fit, so flow control bounds
 //! it exactly as in the simulator; its messages wait in lock-free queues, one per class. The
-//! host runs on the calling thread, between the rounds of
-//! the nodes that thread polls itself, so that a run takes no more threads than cores. It
-//! collects pixels and tokens, asks for statistics once every token is in, and ends when it
-//! has them and every pixel. A run whose host hears nothing for [`STALL`] is reported as
-//! stalled, not left hanging.
+//! host has no thread of its own, so that a run takes no more threads than cores: each
+//! thread polls it between the rounds of its own nodes (the calling thread waits its turn,
+//! the others pass when it is taken). It collects pixels and tokens, asks for statistics
+//! once every token is in, and ends when it has them and every pixel. A run whose host hears
+//! nothing for [`STALL`] is reported as stalled, not left hanging.
 //!
 //! With balanced cuts the nodes first shift planes from their uniform slabs to their new ones
 //! by slab-plane messages over the same buffers ([`shift`]), in rounds that every thread
