@@ -17,9 +17,17 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 use voxcube_kernel::worker::Generation;
 
+/// The version, and whether this build carries the kernel's test-only faults: a product build
+/// says `test faults: none`, which CI checks on the release binary.
+const VERSION: &str = if voxcube_kernel::worker::TEST_FAULTS {
+    concat!(env!("CARGO_PKG_VERSION"), " (test faults: compiled in, not for use)")
+} else {
+    concat!(env!("CARGO_PKG_VERSION"), " (test faults: none)")
+};
+
 /// voxcube: parallel volume ray tracing after Montani, Perego & Scopigno (1992).
 #[derive(Debug, Parser)]
-#[command(name = "voxcube", version, about)]
+#[command(name = "voxcube", version = VERSION, about)]
 pub struct Cli {
     /// What to do.
     #[command(subcommand)]

@@ -73,6 +73,10 @@ pub enum Generation {
     Centralized,
 }
 
+/// Whether this build carries the test-only faults of [`Mutants`] (the `mutants` feature). A
+/// product build must not: the host reports it, and CI checks the release binary's report.
+pub const TEST_FAULTS: bool = cfg!(feature = "mutants");
+
 /// Faults that tests switch on to show that the test suite catches them (negative controls).
 #[cfg(feature = "mutants")]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
