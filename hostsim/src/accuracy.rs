@@ -15,10 +15,10 @@ use crate::scene::DatasetJob;
 use plotters::prelude::*;
 use std::fmt::Write as _;
 use std::path::Path;
-use voxcube_kernel::camera::{Camera, Projection};
 use voxcube_kernel::counters::Counters;
-use voxcube_kernel::grid::Model;
-use voxcube_kernel::view::View;
+use voxcube_kernel::trace::camera::{Camera, Projection};
+use voxcube_kernel::trace::view::View;
+use voxcube_kernel::volume::grid::Model;
 
 /// One measured setting.
 #[derive(Clone, Debug)]
@@ -67,7 +67,7 @@ pub fn compare(a: &[[u8; 4]], b: &[[u8; 4]]) -> (f64, u8) {
 fn with(
     view: &View,
     job: &DatasetJob,
-    f: impl FnOnce(&mut voxcube_kernel::view::ViewSpec),
+    f: impl FnOnce(&mut voxcube_kernel::trace::view::ViewSpec),
 ) -> Option<View> {
     let mut spec = view.spec().clone();
     f(&mut spec);

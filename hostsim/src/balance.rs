@@ -4,7 +4,7 @@
 //!
 //! Invariants: the new cuts cover every plane once, every slab keeps at least one plane and
 //! at most `max_planes` (what a node's memory holds) also in every round of shifts between
-//! neighbours that reaches them (see `voxcube_kernel::shift`), and the new cuts are kept
+//! neighbours that reaches them (see `voxcube_kernel::node::shift`), and the new cuts are kept
 //! only if the probe runs faster with them (the formula is one-shot and can overshoot). Times are
 //! simulated: each worker's work and message handling priced by a machine profile, so the
 //! same scene balances the same way on every fabric and every run. The image does not depend
@@ -15,9 +15,9 @@ use crate::fabric::sim::{self, SimConfig};
 use crate::fabric::{Category, SkipMode, VirtualTime};
 use crate::profile::MachineProfile;
 use std::fmt;
-use voxcube_kernel::partition::Partition;
-use voxcube_kernel::topology::Layout;
-use voxcube_kernel::view::{View, ViewSpec};
+use voxcube_kernel::node::partition::Partition;
+use voxcube_kernel::node::topology::Layout;
+use voxcube_kernel::trace::view::{View, ViewSpec};
 
 /// Primary rays the probe traces, about: the paper's 32 × 32 grid, in the image's aspect.
 pub const PROBE_RAYS: u32 = 32 * 32;

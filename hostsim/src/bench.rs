@@ -18,10 +18,10 @@ use std::path::Path;
 use std::sync::Barrier;
 use std::time::{Duration, Instant};
 use voxcube_kernel::counters::Counters;
-use voxcube_kernel::field;
-use voxcube_kernel::sample::Sample;
-use voxcube_kernel::slab::{Slab, SlabError};
-use voxcube_kernel::view::View;
+use voxcube_kernel::trace::view::View;
+use voxcube_kernel::volume::field;
+use voxcube_kernel::volume::sample::Sample;
+use voxcube_kernel::volume::slab::{Slab, SlabError};
 
 /// The views benchmarked: the paper's view as a shaded surface and composited.
 const VIEWS: &str = r#"

@@ -12,9 +12,9 @@ use crate::fabric::sim::SimWorker;
 use crate::profile::{MachineProfile, BUILT_IN};
 use std::fmt;
 use std::sync::OnceLock;
-use voxcube_kernel::grid::Grid;
-use voxcube_kernel::partition::Partition;
-use voxcube_kernel::slab::stored_planes;
+use voxcube_kernel::node::partition::Partition;
+use voxcube_kernel::volume::grid::Grid;
+use voxcube_kernel::volume::slab::stored_planes;
 
 /// Bytes set aside on every node for code and stack.
 pub const CODE_AND_STACK: usize = 256 * 1024;
@@ -64,15 +64,15 @@ pub fn worker_bytes() -> usize {
 }
 
 /// Bytes of the min/max blocks a slab storing planes `stored` of `grid` keeps, with the leap
-/// maps of `needs` (a byte per block each, [`voxcube_kernel::leaps`]), its view's cell mask
-/// ([`voxcube_kernel::cells`]), its cell leap maps (a byte per cell each,
-/// [`voxcube_kernel::cell_leaps`]) and its depth bounds ([`voxcube_kernel::depths`]).
+/// maps of `needs` (a byte per block each, [`voxcube_kernel::skip::leaps`]), its view's cell mask
+/// ([`voxcube_kernel::skip::cells`]), its cell leap maps (a byte per cell each,
+/// [`voxcube_kernel::skip::cell_leaps`]) and its depth bounds ([`voxcube_kernel::skip::depths`]).
 pub fn block_bytes(grid: &Grid, stored: std::ops::Range<u32>, needs: ViewNeeds) -> usize {
-    voxcube_kernel::blocks::extent_for(grid, stored).2
-        * (size_of::<voxcube_kernel::blocks::Range>()
+    voxcube_kernel::skip::blocks::extent_for(grid, stored).2
+        * (size_of::<voxcube_kernel::skip::blocks::Range>()
             + needs.maps * size_of::<u8>()
-            + size_of::<voxcube_kernel::cells::CellMask>()
-            + needs.cell_maps * voxcube_kernel::cell_leaps::PER_BLOCK)
+            + size_of::<voxcube_kernel::skip::cells::CellMask>()
+            + needs.cell_maps * voxcube_kernel::skip::cell_leaps::PER_BLOCK)
         + needs.depths
 }
 
@@ -94,10 +94,10 @@ pub struct ViewNeeds {
 
 impl ViewNeeds {
     /// What `view` needs.
-    pub fn of(view: &voxcube_kernel::view::View) -> ViewNeeds {
+    pub fn of(view: &voxcube_kernel::trace::view::View) -> ViewNeeds {
         ViewNeeds {
             ghost: view.ghost_planes(),
-            maps: voxcube_kernel::leaps::octants(view).count_ones() as usize,
+            maps: voxcube_kernel::skip::leaps::octants(view).count_ones() as usize,
             cell_maps: 0,
             depths: 0,
         }
@@ -296,7 +296,7 @@ mod tests {
     #[test]
     fn each_leap_map_costs_a_byte_per_block_and_each_cell_leap_map_a_byte_per_cell() {
         let grid = Grid::new([97, 97, 116], Vec3::ONE).unwrap();
-        let blocks = voxcube_kernel::blocks::extent_for(&grid, 0..10).2;
+        let blocks = voxcube_kernel::skip::blocks::extent_for(&grid, 0..10).2;
         assert_eq!(blocks, 3 * 24 * 29);
         let needs = |maps: usize, cell_maps: usize| ViewNeeds {
             ghost: 3,

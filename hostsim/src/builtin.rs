@@ -10,7 +10,7 @@
 
 use crate::dataset::{plane_major_from_fn, Volume, VolumeData};
 use crate::rng::SplitMix;
-use voxcube_kernel::grid::Grid;
+use voxcube_kernel::volume::grid::Grid;
 use voxcube_kernel::Vec3;
 
 /// The names `builtin = "…"` accepts.

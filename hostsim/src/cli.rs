@@ -15,12 +15,15 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::cell::Cell;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
-use voxcube_kernel::worker::Generation;
+use voxcube_kernel::node::worker::Generation;
 
 /// The version, and whether this build carries the kernel's test-only faults: a product build
 /// says `test faults: none`, which CI checks on the release binary.
-const VERSION: &str = if voxcube_kernel::worker::TEST_FAULTS {
-    concat!(env!("CARGO_PKG_VERSION"), " (test faults: compiled in, not for use)")
+const VERSION: &str = if voxcube_kernel::node::worker::TEST_FAULTS {
+    concat!(
+        env!("CARGO_PKG_VERSION"),
+        " (test faults: compiled in, not for use)"
+    )
 } else {
     concat!(env!("CARGO_PKG_VERSION"), " (test faults: none)")
 };
@@ -329,7 +332,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 all.retain(|c| {
                     c.view < 2
                         && c.size >= 2
-                        && c.buffer <= voxcube_kernel::flow::buffer_bytes(c.size as usize, 8)
+                        && c.buffer <= voxcube_kernel::node::flow::buffer_bytes(c.size as usize, 8)
                 });
             }
             if let Some(bytes) = buffer {
@@ -516,7 +519,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
 /// with `--machine`, each slab kept within the node memory of `machine`'s profile.
 fn balance_view(
     volume: &crate::dataset::Volume,
-    view: &voxcube_kernel::view::View,
+    view: &voxcube_kernel::trace::view::View,
     machine: &Machine,
     profile: ProfileArg,
 ) -> Result<BalanceReport, String> {
@@ -575,7 +578,7 @@ fn mpi_start(
 fn mpi_serve(
     world: &mpi::topology::SimpleCommunicator,
     volume: &crate::dataset::Volume,
-    view: &voxcube_kernel::view::View,
+    view: &voxcube_kernel::trace::view::View,
     machine: &Machine,
     balanced: bool,
 ) -> Result<(), Box<dyn std::error::Error>> {
@@ -592,7 +595,7 @@ fn mpi_serve(
 fn mpi_host(
     world: &mpi::topology::SimpleCommunicator,
     volume: &crate::dataset::Volume,
-    view: &voxcube_kernel::view::View,
+    view: &voxcube_kernel::trace::view::View,
     machine: &Machine,
     cuts: Option<&[u32]>,
 ) -> Result<crate::render::Rendered, Box<dyn std::error::Error>> {

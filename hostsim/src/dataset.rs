@@ -6,8 +6,8 @@
 
 use std::fmt;
 use std::ops::Range;
-use voxcube_kernel::grid::Grid;
-use voxcube_kernel::sample::SampleKind;
+use voxcube_kernel::volume::grid::Grid;
+use voxcube_kernel::volume::sample::SampleKind;
 
 /// Samples of a dataset, plane-major.
 #[derive(Clone, Debug, PartialEq)]

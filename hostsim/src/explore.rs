@@ -8,7 +8,7 @@ use crate::fabric::sim::{self, Scheduler, SimConfig, SimError};
 use crate::render::render;
 use crate::scene::{DatasetJob, Scene, SceneError};
 use std::fmt;
-use voxcube_kernel::flow;
+use voxcube_kernel::node::flow;
 
 /// The scenes explored: shadow rays flowing against primary rays, nested transparency, point
 /// lights inside the volume (rays in both directions), compositing.

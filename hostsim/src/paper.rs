@@ -19,7 +19,7 @@ use crate::scene::{DatasetJob, Scene, SceneError};
 use plotters::prelude::*;
 use std::fmt::Write as _;
 use std::path::Path;
-use voxcube_kernel::view::View;
+use voxcube_kernel::trace::view::View;
 
 /// The paper's Table 1: nodes, seconds.
 pub const TABLE1: [(u32, f64); 8] = [

@@ -12,14 +12,14 @@ use crate::fabric::threads;
 use crate::fabric::{Distributed, SkipMode, Skipping};
 use std::time::{Duration, Instant};
 use voxcube_kernel::counters::Counters;
-use voxcube_kernel::flow;
-use voxcube_kernel::pixel::rgba8;
-use voxcube_kernel::sample::Sample;
-use voxcube_kernel::slab::{Slab, SlabError};
-use voxcube_kernel::topology::LayoutError;
-use voxcube_kernel::trace::Pixels;
-use voxcube_kernel::view::View;
-use voxcube_kernel::worker::Generation;
+use voxcube_kernel::node::flow;
+use voxcube_kernel::node::topology::LayoutError;
+use voxcube_kernel::node::worker::Generation;
+use voxcube_kernel::trace::pixel::rgba8;
+use voxcube_kernel::trace::tracer::Pixels;
+use voxcube_kernel::trace::view::View;
+use voxcube_kernel::volume::sample::Sample;
+use voxcube_kernel::volume::slab::{Slab, SlabError};
 
 /// What carries the work.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -313,10 +313,10 @@ pub fn node_skipping(volume: &Volume, view: &View, machine: &Machine, balanced: 
 /// Whether a node skipping as `mode` says takes depth bounds for `view`: with cell masks, in
 /// the cell model, for a parallel projection.
 pub fn has_depths(view: &View, mode: SkipMode) -> bool {
-    let by_cell = view.spec().model == voxcube_kernel::grid::Model::Cell;
+    let by_cell = view.spec().model == voxcube_kernel::volume::grid::Model::Cell;
     let parallel = matches!(
         view.spec().camera.projection(),
-        voxcube_kernel::camera::Projection::Orthographic { .. }
+        voxcube_kernel::trace::camera::Projection::Orthographic { .. }
     );
     mode.skip && mode.cells && mode.depths && by_cell && parallel
 }
@@ -325,7 +325,7 @@ pub fn has_depths(view: &View, mode: SkipMode) -> bool {
 /// skipping as `mode` says: a bound per pixel of its cluster's rows (the first cluster's,
 /// which has the most), or none ([`has_depths`]).
 pub fn depth_bytes(view: &View, mode: SkipMode, clusters: u16) -> usize {
-    let rows = voxcube_kernel::topology::Rows::of_cluster(0, clusters);
+    let rows = voxcube_kernel::node::topology::Rows::of_cluster(0, clusters);
     match (has_depths(view, mode), rows) {
         (true, Some(rows)) => {
             let (width, height) = (view.spec().width, view.spec().height);

@@ -4,8 +4,8 @@ use crate::render::{Machine, Rendered};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use voxcube_kernel::counters::Counters;
-use voxcube_kernel::stats::KIND_NAMES;
-use voxcube_kernel::view::View;
+use voxcube_kernel::node::stats::KIND_NAMES;
+use voxcube_kernel::trace::view::View;
 
 /// Rays by type.
 #[derive(Clone, Copy, Debug, Serialize, PartialEq, Eq)]

@@ -10,12 +10,12 @@ use crate::dataset::Volume;
 use crate::formats::{self, raw::RawLayout, Endian, FileType, LoadError};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
-use voxcube_kernel::camera::{Camera, Projection};
-use voxcube_kernel::grid::{Grid, Model};
-use voxcube_kernel::shade::{Light, Shading, MAX_LIGHTS};
-use voxcube_kernel::surface::{IsoSurface, MAX_SURFACES};
-use voxcube_kernel::transfer::{ControlPoint, TransferFunction};
-use voxcube_kernel::view::{Mode, View, ViewSpec, DEFAULT_CUTOFF};
+use voxcube_kernel::optics::shade::{Light, Shading, MAX_LIGHTS};
+use voxcube_kernel::optics::surface::{IsoSurface, MAX_SURFACES};
+use voxcube_kernel::optics::transfer::{ControlPoint, TransferFunction};
+use voxcube_kernel::trace::camera::{Camera, Projection};
+use voxcube_kernel::trace::view::{Mode, View, ViewSpec, DEFAULT_CUTOFF};
+use voxcube_kernel::volume::grid::{Grid, Model};
 use voxcube_kernel::Vec3;
 
 /// The built-in default scene: the paper's view of the procedural molecule.

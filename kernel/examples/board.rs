@@ -10,20 +10,20 @@
 use heapless::spsc::{Consumer, Producer, Queue};
 use heapless::Deque;
 use static_cell::StaticCell;
-use voxcube_kernel::camera::{Camera, Projection};
 use voxcube_kernel::counters::Counters;
-use voxcube_kernel::flow::{Class, FlowControl, CLASSES};
-use voxcube_kernel::grid::{Grid, Model};
-use voxcube_kernel::msg::{Msg, MAX_MSG_LEN};
-use voxcube_kernel::partition::Partition;
-use voxcube_kernel::pixel::rgba8;
-use voxcube_kernel::port::{Dest, Port};
-use voxcube_kernel::slab::{stored_planes, Slab};
-use voxcube_kernel::surface::IsoSurface;
-use voxcube_kernel::topology::Layout;
-use voxcube_kernel::trace::trace_pixel;
-use voxcube_kernel::view::{Mode, View, ViewSpec};
-use voxcube_kernel::worker::{Generation, Place, Setup, Worker, RAYS_PER_POLL};
+use voxcube_kernel::node::flow::{Class, FlowControl, CLASSES};
+use voxcube_kernel::node::msg::{Msg, MAX_MSG_LEN};
+use voxcube_kernel::node::partition::Partition;
+use voxcube_kernel::node::port::{Dest, Port};
+use voxcube_kernel::node::topology::Layout;
+use voxcube_kernel::node::worker::{Generation, Place, Setup, Worker, RAYS_PER_POLL};
+use voxcube_kernel::optics::surface::IsoSurface;
+use voxcube_kernel::trace::camera::{Camera, Projection};
+use voxcube_kernel::trace::pixel::rgba8;
+use voxcube_kernel::trace::tracer::trace_pixel;
+use voxcube_kernel::trace::view::{Mode, View, ViewSpec};
+use voxcube_kernel::volume::grid::{Grid, Model};
+use voxcube_kernel::volume::slab::{stored_planes, Slab};
 use voxcube_kernel::Vec3;
 
 /// The volume: `N³` samples of a ball, built at compile time, plane-major.

@@ -4,22 +4,17 @@
 //! The kernel traces in *index space* (voxel `(i, j, k)` sits at `(i, j, k)`) with the ray
 //! parameter `t` measured in world units, so anisotropic spacing costs nothing per sample.
 //! Every sample of every ray sits on the global lattice `t_k = t_entry + k·Δt` of
-//! [`lattice`], and belongs to the slab that owns its plane ([`grid::Grid::owner_plane`]):
+//! [`trace::lattice`], and belongs to the slab that owns its plane ([`volume::grid::Grid::owner_plane`]):
 //! this is what makes an image bit-identical for any partition of the volume.
 //!
-//! Map of the crate:
-//! - data: [`sample`], [`grid`], [`slab`], [`field`] (nearest and trilinear reads, gradients);
-//! - empty-space skipping: [`blocks`] (min/max blocks), [`leaps`] (a view's chessboard
-//!   distances between them, ahead of each octant of ray directions), [`cells`] (a view's
-//!   empty cells inside them), [`cell_leaps`] (distances between those cells), [`depths`]
-//!   (each pixel's ray parameter before its first cell that shows), [`scan`] (a ray's next
-//!   samples against those cells);
-//! - geometry: [`ray`] (box clipping), [`lattice`], [`camera`];
-//! - appearance: [`transfer`], [`surface`], [`shade`], [`lighting`], [`view`] (one view's parameters and the
-//!   effects it calls for);
-//! - tracing: [`march`] (the explicit-state ray marcher that stops at slab boundaries),
-//!   [`tree`] (the one formula that combines a ray tree), [`trace`] (a whole pixel on one slab),
-//!   [`pixel`] (colour to RGBA8), [`counters`].
+//! Map of the crate, by role (each folder's own page says what it owns):
+//! - [`volume`]: sample types, the grid, a node's slab, the field (reads and gradients);
+//! - [`skip`]: empty-space skipping behind one small face the marcher uses;
+//! - [`optics`]: transfer function, iso-surfaces, shading, lighting;
+//! - [`trace`]: camera, rays, the lattice, one view, the marcher, the ray tree, a whole pixel;
+//! - [`node`]: the worker, its port and messages, flow control, records, partition, topology,
+//!   plane shifting, statistics;
+//! - [`counters`]: the work counters every part adds to.
 #![no_std]
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
@@ -28,41 +23,14 @@
     reason = "`!(x > limit)` is the kernel's NaN-catching idiom: it is true for NaN, `x <= limit` is not"
 )]
 
-pub mod blocks;
-pub mod camera;
-pub mod cell_leaps;
-pub mod cells;
 pub mod counters;
-pub mod depths;
-pub mod field;
-pub mod flow;
-pub mod grid;
-pub mod lattice;
-pub mod leaps;
-pub mod lighting;
-pub mod march;
-pub mod msg;
-pub mod partition;
-pub mod pixel;
-pub mod port;
-pub mod ray;
-pub mod record;
-pub mod sample;
-pub mod scan;
-pub mod shade;
-pub mod shift;
-pub mod slab;
-pub mod starts;
-pub mod stats;
-pub mod surface;
+pub mod node;
+pub mod optics;
+pub mod skip;
 #[cfg(test)]
 mod testing;
-pub mod topology;
 pub mod trace;
-pub mod transfer;
-pub mod tree;
-pub mod view;
-pub mod worker;
+pub mod volume;
 
 pub use glam::Vec3;
 /// The fixed-capacity containers the kernel's types are built from, for hosts that fill them.

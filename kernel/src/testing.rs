@@ -15,12 +15,15 @@ pub fn xorshift(seed: u32) -> impl FnMut() -> u32 {
 
 /// A small view's parameters for `camera` and `mode`: 4×4 pixels, the cell model, Δt = ½,
 /// unlit and without lights. A test states what it is about over these with `..`.
-pub fn spec(camera: crate::camera::Camera, mode: crate::view::Mode) -> crate::view::ViewSpec {
-    crate::view::ViewSpec {
+pub fn spec(
+    camera: crate::trace::camera::Camera,
+    mode: crate::trace::view::Mode,
+) -> crate::trace::view::ViewSpec {
+    crate::trace::view::ViewSpec {
         width: 4,
         height: 4,
         camera,
-        model: crate::grid::Model::Cell,
+        model: crate::volume::grid::Model::Cell,
         dt: 0.5,
         gradient_distance: 1.0,
         mode,
@@ -38,9 +41,9 @@ pub const HASHED_DIMS: [u32; 3] = [9, 7, 8];
 
 /// A small anisotropic field with no structure for a shortcut to hide behind: every node a
 /// different hash, plane-major, on a grid of spacing (1, ½, 2).
-pub fn hashed_field() -> ([f32; 9 * 7 * 8], crate::grid::Grid) {
+pub fn hashed_field() -> ([f32; 9 * 7 * 8], crate::volume::grid::Grid) {
     let hash = |i: usize| ((i as u32).wrapping_mul(2_654_435_761) >> 7) as f32 * 1e-3;
-    let grid = crate::grid::Grid::new(HASHED_DIMS, glam::Vec3::new(1.0, 0.5, 2.0));
+    let grid = crate::volume::grid::Grid::new(HASHED_DIMS, glam::Vec3::new(1.0, 0.5, 2.0));
     match grid {
         Ok(grid) => (core::array::from_fn(hash), grid),
         Err(e) => panic!("the hashed field's grid: {e}"),

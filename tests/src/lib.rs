@@ -2,17 +2,17 @@
 //! built without a scene file, and whole-image traces that keep the unquantised colours.
 
 use voxcube::dataset::{plane_major_from_fn, Volume, VolumeData};
-use voxcube_kernel::camera::{Camera, Projection};
 use voxcube_kernel::counters::Counters;
-use voxcube_kernel::grid::{Grid, Model};
 use voxcube_kernel::heapless;
-use voxcube_kernel::sample::Sample;
-use voxcube_kernel::shade::{Light, Shading};
-use voxcube_kernel::slab::Slab;
-use voxcube_kernel::surface::IsoSurface;
-use voxcube_kernel::trace::trace_pixel;
-use voxcube_kernel::transfer::{ControlPoint, TransferFunction};
-use voxcube_kernel::view::{Mode, View, ViewSpec};
+use voxcube_kernel::optics::shade::{Light, Shading};
+use voxcube_kernel::optics::surface::IsoSurface;
+use voxcube_kernel::optics::transfer::{ControlPoint, TransferFunction};
+use voxcube_kernel::trace::camera::{Camera, Projection};
+use voxcube_kernel::trace::tracer::trace_pixel;
+use voxcube_kernel::trace::view::{Mode, View, ViewSpec};
+use voxcube_kernel::volume::grid::{Grid, Model};
+use voxcube_kernel::volume::sample::Sample;
+use voxcube_kernel::volume::slab::Slab;
 use voxcube_kernel::Vec3;
 
 /// The shared data folder beside the repository (`../shared/data`).

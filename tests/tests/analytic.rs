@@ -1,7 +1,7 @@
 //! Tests against analytic answers: the silhouette of a sphere and Beer–Lambert attenuation.
 
 use voxcube::builtin;
-use voxcube_kernel::grid::Model;
+use voxcube_kernel::volume::grid::Model;
 use voxcube_kernel::Vec3;
 use voxcube_tests::*;
 

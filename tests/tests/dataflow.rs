@@ -7,11 +7,11 @@ use voxcube::fabric::sim::{self, SimConfig};
 use voxcube::fabric::SkipMode;
 use voxcube::render::{render, render_skipping};
 use voxcube::scene::{DatasetJob, Scene};
-use voxcube_kernel::grid::Model;
-use voxcube_kernel::shade::Light;
-use voxcube_kernel::topology::Layout;
-use voxcube_kernel::view::View;
-use voxcube_kernel::worker::{Generation, Mutants};
+use voxcube_kernel::node::topology::Layout;
+use voxcube_kernel::node::worker::{Generation, Mutants};
+use voxcube_kernel::optics::shade::Light;
+use voxcube_kernel::trace::view::View;
+use voxcube_kernel::volume::grid::Model;
 use voxcube_kernel::Vec3;
 use voxcube_tests::*;
 

@@ -5,8 +5,8 @@
 
 use voxcube::explore::{configs, explore, scenes, Config};
 use voxcube::fabric::sim::{self, SimConfig, SimError};
-use voxcube_kernel::flow;
-use voxcube_kernel::worker::Mutants;
+use voxcube_kernel::node::flow;
+use voxcube_kernel::node::worker::Mutants;
 
 fn seeds() -> u64 {
     if std::env::var_os("VOXCUBE_LONG").is_some() {

@@ -7,10 +7,10 @@ use proptest::prelude::*;
 use voxcube::builtin;
 use voxcube::dataset::Volume;
 use voxcube_kernel::counters::Counters;
-use voxcube_kernel::grid::Model;
-use voxcube_kernel::shade::Light;
-use voxcube_kernel::transfer::{ControlPoint, TransferFunction};
-use voxcube_kernel::view::{Mode, ViewSpec};
+use voxcube_kernel::optics::shade::Light;
+use voxcube_kernel::optics::transfer::{ControlPoint, TransferFunction};
+use voxcube_kernel::trace::view::{Mode, ViewSpec};
+use voxcube_kernel::volume::grid::Model;
 use voxcube_kernel::Vec3;
 use voxcube_tests::*;
 

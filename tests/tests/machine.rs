@@ -5,7 +5,7 @@
 use voxcube::budget::Profile;
 use voxcube::render::{render, render_on, Fabric, Machine, RenderError};
 use voxcube::scene::Scene;
-use voxcube_kernel::grid::Model;
+use voxcube_kernel::volume::grid::Model;
 use voxcube_kernel::Vec3;
 use voxcube_tests::*;
 

@@ -2,7 +2,7 @@
 //! re-encodes to bytes that decode to the same encoding (floats may be NaN, so compare bytes).
 
 use proptest::prelude::*;
-use voxcube_kernel::msg::{Msg, MsgKind, MAX_MSG_LEN};
+use voxcube_kernel::node::msg::{Msg, MsgKind, MAX_MSG_LEN};
 
 fn reencode(m: &Msg) -> Vec<u8> {
     let mut buf = [0u8; MAX_MSG_LEN];

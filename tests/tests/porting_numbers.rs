@@ -1,6 +1,6 @@
 //! The figures PORTING.md quotes, recomputed so the document cannot drift from the code.
 
-use voxcube_kernel::flow;
+use voxcube_kernel::node::flow;
 
 #[test]
 fn porting_md_memory_map_figures_hold() {
@@ -17,7 +17,7 @@ fn porting_md_memory_map_figures_hold() {
         "PORTING.md must quote the simulator worker's size: {worker} bytes"
     );
     // The board example's worker: queues of 8, 16 records, an outbox of 8.
-    let board = size_of::<voxcube_kernel::worker::Worker<'static, u8, 8, 16, 8>>();
+    let board = size_of::<voxcube_kernel::node::worker::Worker<'static, u8, 8, 16, 8>>();
     let board = format!("{},{:03}", board / 1000, board % 1000);
     assert!(
         text.contains(&format!("{board} in the board example's")),
@@ -29,8 +29,8 @@ fn porting_md_memory_map_figures_hold() {
 fn porting_md_slab_figure_holds() {
     let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../PORTING.md"))
         .expect("PORTING.md");
-    let grid =
-        voxcube_kernel::grid::Grid::new([97, 97, 116], voxcube_kernel::Vec3::ONE).expect("grid");
+    let grid = voxcube_kernel::volume::grid::Grid::new([97, 97, 116], voxcube_kernel::Vec3::ONE)
+        .expect("grid");
     // The paper's view: a parallel projection without shadows, so one leap map.
     let needs = voxcube::budget::ViewNeeds {
         ghost: 3,

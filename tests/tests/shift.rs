@@ -5,11 +5,11 @@
 
 use proptest::prelude::*;
 use voxcube::fabric::{shift, threads};
-use voxcube_kernel::grid::Grid;
-use voxcube_kernel::partition::Partition;
-use voxcube_kernel::shift::{next_step, plan};
-use voxcube_kernel::slab::stored_planes;
-use voxcube_kernel::topology::Layout;
+use voxcube_kernel::node::partition::Partition;
+use voxcube_kernel::node::shift::{next_step, plan};
+use voxcube_kernel::node::topology::Layout;
+use voxcube_kernel::volume::grid::Grid;
+use voxcube_kernel::volume::slab::stored_planes;
 use voxcube_kernel::Vec3;
 
 /// `n` slabs of `nx` planes with cuts drawn from `picks`.

@@ -13,14 +13,14 @@ use voxcube::fabric::sim::{self, SimConfig};
 use voxcube::fabric::{cell_leap_octants, SkipMode, Skipping};
 use voxcube::render::render_skipping;
 use voxcube::scene::Scene;
-use voxcube_kernel::grid::{Grid, Model};
-use voxcube_kernel::pixel::rgba8;
-use voxcube_kernel::sample::Sample;
-use voxcube_kernel::scan;
-use voxcube_kernel::slab::Slab;
-use voxcube_kernel::trace::trace_pixel;
-use voxcube_kernel::transfer::{ControlPoint, TransferFunction};
-use voxcube_kernel::view::{Mode, View, ViewSpec};
+use voxcube_kernel::optics::transfer::{ControlPoint, TransferFunction};
+use voxcube_kernel::skip::scan;
+use voxcube_kernel::trace::pixel::rgba8;
+use voxcube_kernel::trace::tracer::trace_pixel;
+use voxcube_kernel::trace::view::{Mode, View, ViewSpec};
+use voxcube_kernel::volume::grid::{Grid, Model};
+use voxcube_kernel::volume::sample::Sample;
+use voxcube_kernel::volume::slab::Slab;
 use voxcube_kernel::Vec3;
 
 fn check(text: &str, file: &str) {
@@ -452,7 +452,7 @@ proptest! {
         cuts.extend((1..dims[0]).filter(|x| cut_bits & (1 << x) != 0));
         cuts.push(dims[0]);
         let cfg = SimConfig {
-            layout: voxcube_kernel::topology::Layout::new(1, cuts.len() as u32 - 1).expect("layout"),
+            layout: voxcube_kernel::node::topology::Layout::new(1, cuts.len() as u32 - 1).expect("layout"),
             cuts: Some(cuts.clone()),
             ..SimConfig::cluster(1, seed).expect("layout")
         };
@@ -512,7 +512,7 @@ fn skipping_built_on_threads_is_the_same_storage() {
             let [nx, ..] = dims;
             let mut slabs = vec![Slab::whole(grid, data.as_slice()).expect("slab")];
             for owned in [1..nx / 2, nx / 3..nx] {
-                let s = voxcube_kernel::slab::stored_planes(&grid, owned.clone(), 1);
+                let s = voxcube_kernel::volume::slab::stored_planes(&grid, owned.clone(), 1);
                 let stored = &data[s.start as usize * plane..s.end as usize * plane];
                 slabs.push(Slab::new(grid, owned, 1, stored).expect("slab"));
             }
@@ -542,8 +542,8 @@ fn skipping_built_on_threads_is_the_same_storage() {
 }
 
 /// `volume`'s whole slab (of blobs, bytes) and its blocks' ranges.
-fn whole_slab_blocks(volume: &Volume) -> (Slab<'_, u8>, Vec<voxcube_kernel::blocks::Range>) {
-    use voxcube_kernel::blocks::{extent, Blocks, Range};
+fn whole_slab_blocks(volume: &Volume) -> (Slab<'_, u8>, Vec<voxcube_kernel::skip::blocks::Range>) {
+    use voxcube_kernel::skip::blocks::{extent, Blocks, Range};
     let VolumeData::U8(data) = &volume.data else {
         unreachable!("blobs are bytes")
     };
@@ -561,8 +561,8 @@ fn trace_with_octant_maps(
     label: u8,
     built_for: &dyn Fn(usize) -> usize,
 ) -> Vec<[u8; 4]> {
-    use voxcube_kernel::blocks::Blocks;
-    use voxcube_kernel::leaps::{self, Octant};
+    use voxcube_kernel::skip::blocks::Blocks;
+    use voxcube_kernel::skip::leaps::{self, Octant};
     let (slab, ranges) = whole_slab_blocks(volume);
     let blocks = Blocks::new(&slab, &ranges).expect("storage");
     let len = ranges.len();
@@ -578,7 +578,7 @@ fn trace_with_octant_maps(
 }
 
 /// A 40×30 view of the iso-150 surface of `volume` through `cam`.
-fn blob_view(cam: voxcube_kernel::camera::Camera, volume: &Volume) -> View {
+fn blob_view(cam: voxcube_kernel::trace::camera::Camera, volume: &Volume) -> View {
     let surface = voxcube_tests::surfaces(&[(150.0, 0.0)]);
     voxcube_tests::view(
         voxcube_tests::spec(cam, 40, 30, Model::Cell, 0.5, surface),
@@ -595,7 +595,7 @@ fn rays_without_a_map_for_their_octant_leap_by_none() {
     let cam = voxcube_tests::perspective(inside, inside + Vec3::new(1.0, 0.2, 0.3), Vec3::Y, 150.0);
     let view = blob_view(cam, &volume);
     assert_eq!(
-        voxcube_kernel::leaps::octants(&view),
+        voxcube_kernel::skip::leaps::octants(&view),
         u8::MAX,
         "the rays take every octant"
     );
@@ -617,7 +617,7 @@ fn a_leap_map_built_for_another_octant_changes_the_image() {
     let centre = Vec3::new(10.0, 9.0, 11.0);
     let cam = voxcube_tests::ortho(centre + Vec3::new(30.0, 11.0, 19.0), centre, Vec3::Y, 30.0);
     let view = blob_view(cam, &volume);
-    let octants = voxcube_kernel::leaps::octants(&view);
+    let octants = voxcube_kernel::skip::leaps::octants(&view);
     assert_eq!(
         octants.count_ones(),
         1,
@@ -639,8 +639,8 @@ fn a_leap_map_built_for_another_octant_changes_the_image() {
 #[test]
 fn every_node_skips_by_the_same_storage_however_the_build_is_threaded() {
     use voxcube::fabric::NodeStorage;
-    use voxcube_kernel::partition::Partition;
-    use voxcube_kernel::topology::Layout;
+    use voxcube_kernel::node::partition::Partition;
+    use voxcube_kernel::node::topology::Layout;
     let volume = blobs([37, 21, 30], Vec3::ONE, 0x7e_4d_11);
     let VolumeData::U8(data) = &volume.data else {
         unreachable!("blobs are bytes")
@@ -820,13 +820,13 @@ fn nodes_hold_depth_bounds_only_where_they_fit() {
 /// it, is the map built whole, in every octant; the same parts built without the planes
 /// ahead are not (the negative control: the planes ahead are what makes the parts exact).
 ///
-/// [`MAX_DISTANCE`]: voxcube_kernel::cell_leaps::MAX_DISTANCE
+/// [`MAX_DISTANCE`]: voxcube_kernel::skip::cell_leaps::MAX_DISTANCE
 #[test]
 fn a_cell_leap_map_built_in_parts_of_planes_is_the_whole_map() {
-    use voxcube_kernel::blocks::Blocks;
-    use voxcube_kernel::cell_leaps::with_planes_ahead;
-    use voxcube_kernel::cell_leaps::{build, build_planes, part, plane_len, planes};
-    use voxcube_kernel::leaps::Octant;
+    use voxcube_kernel::skip::blocks::Blocks;
+    use voxcube_kernel::skip::cell_leaps::with_planes_ahead;
+    use voxcube_kernel::skip::cell_leaps::{build, build_planes, part, plane_len, planes};
+    use voxcube_kernel::skip::leaps::Octant;
     let volume = blobs([10, 9, 150], Vec3::ONE, 0x7e);
     let (slab, ranges) = whole_slab_blocks(&volume);
     let blocks = Blocks::new(&slab, &ranges).expect("storage");
@@ -843,7 +843,7 @@ fn a_cell_leap_map_built_in_parts_of_planes_is_the_whole_map() {
         &volume,
     );
     let mut masks = vec![0; ranges.len()];
-    voxcube_kernel::cells::build(&slab, &blocks, &view, &mut masks).expect("storage");
+    voxcube_kernel::skip::cells::build(&slab, &blocks, &view, &mut masks).expect("storage");
     let blocks = blocks.with_cells(&masks).expect("storage");
     let (all, plane) = (planes(&blocks), plane_len(&blocks));
     let mut differs = 0;

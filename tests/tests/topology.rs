@@ -3,7 +3,7 @@
 //! shortest paths through neighbours.
 
 use proptest::prelude::*;
-use voxcube_kernel::topology::{ecube_route, hops, Layout};
+use voxcube_kernel::node::topology::{ecube_route, hops, Layout};
 
 #[test]
 fn every_ring_edge_is_one_hop_and_every_node_has_one_place() {

@@ -7,8 +7,8 @@
 //! host ends with every pixel of the image.
 
 use crate::fabric::sim::missing_rows;
-use voxcube_kernel::msg::Msg;
-use voxcube_kernel::stats::NodeStats;
+use voxcube_kernel::node::msg::Msg;
+use voxcube_kernel::node::stats::NodeStats;
 
 /// The host's state in one run.
 #[derive(Debug)]

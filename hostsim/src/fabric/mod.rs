@@ -13,12 +13,12 @@ use std::borrow::Cow;
 use std::ops::Range;
 use std::time::Duration;
 use voxcube_kernel::counters::Counters;
-use voxcube_kernel::grid::Grid;
-use voxcube_kernel::partition::Partition;
-use voxcube_kernel::slab::stored_planes;
-use voxcube_kernel::stats::NodeStats;
-use voxcube_kernel::topology::Layout;
-use voxcube_kernel::view::View;
+use voxcube_kernel::node::partition::Partition;
+use voxcube_kernel::node::stats::NodeStats;
+use voxcube_kernel::node::topology::Layout;
+use voxcube_kernel::trace::view::View;
+use voxcube_kernel::volume::grid::Grid;
+use voxcube_kernel::volume::slab::stored_planes;
 
 /// One node of a distributed run.
 #[derive(Clone, Debug, PartialEq)]
@@ -191,7 +191,7 @@ pub struct Distributed {
     pub pixels: Vec<[u8; 4]>,
     /// Per node, in node-id order.
     pub nodes: Vec<NodeReport>,
-    /// Messages delivered, by kind (see `voxcube_kernel::stats::KIND_NAMES`).
+    /// Messages delivered, by kind (see `voxcube_kernel::node::stats::KIND_NAMES`).
     pub messages: [u64; 9],
     /// Bytes delivered.
     pub bytes: u64,
@@ -253,8 +253,8 @@ impl Distributed {
 pub fn flow_for(
     cfg: &sim::SimConfig,
     view: &View,
-) -> Result<(voxcube_kernel::flow::FlowControl, usize), sim::SimError> {
-    use voxcube_kernel::flow;
+) -> Result<(voxcube_kernel::node::flow::FlowControl, usize), sim::SimError> {
+    use voxcube_kernel::node::flow;
     let size = usize::from(cfg.layout.size());
     let capacity = cfg.buffer();
     let mut control = flow::FlowControl::for_buffer(capacity, size);
@@ -285,14 +285,14 @@ pub struct SkipMode {
     /// (only when skipping, and in the cell model).
     pub cells: bool,
     /// Leap from empty cell to empty cell by distances between the cells the masks keep
-    /// (only with cell masks; `voxcube_kernel::cell_leaps`).
+    /// (only with cell masks; `voxcube_kernel::skip::cell_leaps`).
     pub cell_leaps: bool,
     /// Pass over the pixels of a row that a node certainly does not start, or that
     /// certainly miss, without setting up their rays (parallel projections only;
-    /// `voxcube_kernel::starts`).
+    /// `voxcube_kernel::trace::starts`).
     pub rows: bool,
     /// Pass a primary ray at once over the samples before its pixel's depth bound (only
-    /// with cell masks, parallel projections; `voxcube_kernel::depths`).
+    /// with cell masks, parallel projections; `voxcube_kernel::skip::depths`).
     pub depths: bool,
 }
 
@@ -358,9 +358,12 @@ impl SkipMode {
 /// volume after their bound, and keep their maps (SOD's paper view without them: 2,559.4 →
 /// 2,724.2 M instructions).
 pub fn cell_leap_octants(view: &View, mode: SkipMode) -> u8 {
-    let by_cell = view.spec().model == voxcube_kernel::grid::Model::Cell;
-    let primary = voxcube_kernel::leaps::primary_octants(view);
-    let surfaces = matches!(view.spec().mode, voxcube_kernel::view::Mode::Surfaces(_));
+    let by_cell = view.spec().model == voxcube_kernel::volume::grid::Model::Cell;
+    let primary = voxcube_kernel::skip::leaps::primary_octants(view);
+    let surfaces = matches!(
+        view.spec().mode,
+        voxcube_kernel::trace::view::Mode::Surfaces(_)
+    );
     let sparse = surfaces
         && crate::render::has_depths(view, mode)
         && samples_per_cell(view).is_some_and(|n| n < MAP_SAMPLES_PER_CELL);
@@ -383,7 +386,8 @@ pub const MAP_SAMPLES_PER_CELL: f64 = 16.0;
 /// `None` for a perspective view, whose pixels' areas grow with depth.
 pub fn samples_per_cell(view: &View) -> Option<f64> {
     let spec = view.spec();
-    let voxcube_kernel::camera::Projection::Orthographic { width } = spec.camera.projection()
+    let voxcube_kernel::trace::camera::Projection::Orthographic { width } =
+        spec.camera.projection()
     else {
         return None;
     };
@@ -399,18 +403,18 @@ pub fn samples_per_cell(view: &View) -> Option<f64> {
 /// bounds, each empty when that acceleration is off.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Skipping {
-    ranges: Vec<voxcube_kernel::blocks::Range>,
+    ranges: Vec<voxcube_kernel::skip::blocks::Range>,
     /// One leap map per octant in `octants`, in octant order.
     leaps: Vec<u8>,
     octants: u8,
-    cells: Vec<voxcube_kernel::cells::CellMask>,
+    cells: Vec<voxcube_kernel::skip::cells::CellMask>,
     /// One cell leap map per octant in `cell_octants`, in octant order.
     cell_leaps: Vec<u8>,
     cell_octants: u8,
     /// The view's depth bounds over the slab, a bound per pixel of the rows `depth_rows` of
     /// an image `depth_width` wide.
     depths: Vec<f32>,
-    depth_rows: voxcube_kernel::topology::Rows,
+    depth_rows: voxcube_kernel::node::topology::Rows,
     depth_width: u32,
 }
 
@@ -475,8 +479,8 @@ fn run_parts(parts: Vec<Part<'_>>, threads: usize) -> Vec<bool> {
 impl Skipping {
     /// The blocks of `slab` (`mode.skip`), their distances for each octant of ray directions
     /// the view takes (`mode.leap`) and cell masks (`mode.cells`, cell model only) for `view`.
-    pub fn build<T: voxcube_kernel::sample::Sample + Sync>(
-        slab: &voxcube_kernel::slab::Slab<'_, T>,
+    pub fn build<T: voxcube_kernel::volume::sample::Sample + Sync>(
+        slab: &voxcube_kernel::volume::slab::Slab<'_, T>,
         view: &View,
         mode: SkipMode,
     ) -> Skipping {
@@ -485,11 +489,11 @@ impl Skipping {
 
     /// [`Skipping::build`] with depth bounds for the image rows `rows` only: a node's, whose
     /// cluster traces those (`topology::Layout::cluster_rows`).
-    pub fn build_for<T: voxcube_kernel::sample::Sample + Sync>(
-        slab: &voxcube_kernel::slab::Slab<'_, T>,
+    pub fn build_for<T: voxcube_kernel::volume::sample::Sample + Sync>(
+        slab: &voxcube_kernel::volume::slab::Slab<'_, T>,
         view: &View,
         mode: SkipMode,
-        rows: voxcube_kernel::topology::Rows,
+        rows: voxcube_kernel::node::topology::Rows,
     ) -> Skipping {
         Skipping::build_rows_on(slab, view, mode, 1, rows)
     }
@@ -500,25 +504,25 @@ impl Skipping {
     /// start-up is on every frame's clock, and the masks of a composited SOD view alone took a
     /// tenth of a one-node frame. The depth bounds cover every row: the in-process fabrics
     /// share a ring position's storage among its clusters, whose nodes read their own rows.
-    pub fn build_on<T: voxcube_kernel::sample::Sample + Sync>(
-        slab: &voxcube_kernel::slab::Slab<'_, T>,
+    pub fn build_on<T: voxcube_kernel::volume::sample::Sample + Sync>(
+        slab: &voxcube_kernel::volume::slab::Slab<'_, T>,
         view: &View,
         mode: SkipMode,
         threads: usize,
     ) -> Skipping {
-        let all = voxcube_kernel::topology::Rows::ALL;
+        let all = voxcube_kernel::node::topology::Rows::ALL;
         Skipping::build_rows_on(slab, view, mode, threads, all)
     }
 
-    fn build_rows_on<T: voxcube_kernel::sample::Sample + Sync>(
-        slab: &voxcube_kernel::slab::Slab<'_, T>,
+    fn build_rows_on<T: voxcube_kernel::volume::sample::Sample + Sync>(
+        slab: &voxcube_kernel::volume::slab::Slab<'_, T>,
         view: &View,
         mode: SkipMode,
         threads: usize,
-        rows: voxcube_kernel::topology::Rows,
+        rows: voxcube_kernel::node::topology::Rows,
     ) -> Skipping {
-        use voxcube_kernel::blocks::{column_len, extent, Blocks, Range};
-        use voxcube_kernel::cells;
+        use voxcube_kernel::skip::blocks::{column_len, extent, Blocks, Range};
+        use voxcube_kernel::skip::cells;
         if !mode.skip {
             return Skipping::default();
         }
@@ -536,7 +540,7 @@ impl Skipping {
         // read only their own blocks' ranges (`Blocks::of_columns`). Built with a wait for
         // every part's ranges between them, the two phases cost a thread start and join more
         // and ran unevenly (measured).
-        let by_cell = mode.cells && view.spec().model == voxcube_kernel::grid::Model::Cell;
+        let by_cell = mode.cells && view.spec().model == voxcube_kernel::volume::grid::Model::Cell;
         let mut ranges = vec![Range::UNKNOWN; len];
         let mut cells = if by_cell { vec![0; len] } else { Vec::new() };
         let pieces = split_sizes(&mut ranges, sizes.iter().copied())
@@ -570,7 +574,7 @@ impl Skipping {
         // view's rays take, and a cell leap map in parts of planes for each octant of the
         // primary rays.
         let octants = match mode.leap {
-            true => voxcube_kernel::leaps::octants(view),
+            true => voxcube_kernel::skip::leaps::octants(view),
             false => 0,
         };
         let maps = octants.count_ones() as usize;
@@ -580,7 +584,7 @@ impl Skipping {
             Some(_) => cell_leap_octants(view, mode),
             None => 0,
         };
-        let per_map = len * voxcube_kernel::cell_leaps::PER_BLOCK;
+        let per_map = len * voxcube_kernel::skip::cell_leaps::PER_BLOCK;
         let mut cell_leaps = vec![0; cell_octants.count_ones() as usize * per_map];
         let (width, height) = (view.spec().width as usize, view.spec().height);
         let bounded = with_masks
@@ -608,30 +612,34 @@ impl Skipping {
             let sizes: Vec<usize> = places.iter().map(|p| p.len() * width).collect();
             for (out, places) in split_sizes(&mut depths, sizes.into_iter()).zip(places) {
                 jobs.push(Box::new(move || {
-                    voxcube_kernel::depths::build_places(with_masks, view, rows, places, out)
+                    voxcube_kernel::skip::depths::build_places(with_masks, view, rows, places, out)
                         .is_ok()
                 }));
             }
         }
         let depth_jobs = jobs.len();
-        let chosen = (0..voxcube_kernel::leaps::OCTANTS).filter(|o| octants >> o & 1 == 1);
+        let chosen = (0..voxcube_kernel::skip::leaps::OCTANTS).filter(|o| octants >> o & 1 == 1);
         for (map, octant) in leaps.chunks_mut(len).zip(chosen) {
-            let (blocks, octant) = (&blocks, voxcube_kernel::leaps::Octant::from_index(octant));
+            let (blocks, octant) = (
+                &blocks,
+                voxcube_kernel::skip::leaps::Octant::from_index(octant),
+            );
             jobs.push(Box::new(move || {
-                voxcube_kernel::leaps::build(blocks, view, octant, map).is_ok()
+                voxcube_kernel::skip::leaps::build(blocks, view, octant, map).is_ok()
             }));
         }
         if let Some(with_masks) = &with_masks {
-            let chosen = (0..voxcube_kernel::leaps::OCTANTS).filter(|o| cell_octants >> o & 1 == 1);
+            let chosen =
+                (0..voxcube_kernel::skip::leaps::OCTANTS).filter(|o| cell_octants >> o & 1 == 1);
             // Each map in parts of planes, one a thread: a part is built with the planes ahead
             // of it that its distances depend on, and keeps its own. The parts even out what
             // each thread builds (`cell_leaps::part`).
-            use voxcube_kernel::cell_leaps::with_planes_ahead;
-            use voxcube_kernel::cell_leaps::{build_planes, part, plane_len, planes};
+            use voxcube_kernel::skip::cell_leaps::with_planes_ahead;
+            use voxcube_kernel::skip::cell_leaps::{build_planes, part, plane_len, planes};
             let (all, plane) = (planes(with_masks), plane_len(with_masks));
             let n = threads.clamp(1, all.max(1));
             for (map, octant) in cell_leaps.chunks_mut(per_map).zip(chosen) {
-                let octant = voxcube_kernel::leaps::Octant::from_index(octant);
+                let octant = voxcube_kernel::skip::leaps::Octant::from_index(octant);
                 let parts: Vec<std::ops::Range<usize>> =
                     (0..n).map(|i| part(i, n, all, octant)).collect();
                 let sizes: Vec<usize> = parts.iter().map(|p| p.len() * plane).collect();
@@ -684,14 +692,14 @@ impl Skipping {
     }
 
     /// `slab`, skipping empty space with this storage (unchanged when it holds none).
-    pub fn apply<'a, T: voxcube_kernel::sample::Sample>(
+    pub fn apply<'a, T: voxcube_kernel::volume::sample::Sample>(
         &'a self,
-        slab: voxcube_kernel::slab::Slab<'a, T>,
-    ) -> voxcube_kernel::slab::Slab<'a, T> {
+        slab: voxcube_kernel::volume::slab::Slab<'a, T>,
+    ) -> voxcube_kernel::volume::slab::Slab<'a, T> {
         if self.ranges.is_empty() {
             return slab;
         }
-        let Ok(blocks) = voxcube_kernel::blocks::Blocks::new(&slab, &self.ranges) else {
+        let Ok(blocks) = voxcube_kernel::skip::blocks::Blocks::new(&slab, &self.ranges) else {
             return slab;
         };
         let blocks = match blocks.with_leaps(&self.leaps, self.octants) {
@@ -708,7 +716,7 @@ impl Skipping {
         };
         let blocks = match self.depths.is_empty() {
             true => blocks,
-            false => blocks.with_depths(voxcube_kernel::depths::Depths::new(
+            false => blocks.with_depths(voxcube_kernel::skip::depths::Depths::new(
                 &self.depths,
                 self.depth_width,
                 self.depth_rows,
@@ -733,7 +741,7 @@ pub struct NodeStorage<'d, T> {
     skipping: Vec<Skipping>,
 }
 
-impl<'d, T: voxcube_kernel::sample::Sample + Sync> NodeStorage<'d, T> {
+impl<'d, T: voxcube_kernel::volume::sample::Sample + Sync> NodeStorage<'d, T> {
     /// Each node's stored planes: its own storage after a plane shift (`shifted`, by node
     /// id), else its slab of `partition` in `data`, which every cluster holds alike at a ring
     /// position. Nothing is skipped until [`NodeStorage::with_skipping`].
@@ -791,7 +799,8 @@ impl<'d, T: voxcube_kernel::sample::Sample + Sync> NodeStorage<'d, T> {
     pub fn slab(
         &self,
         node: u16,
-    ) -> Result<voxcube_kernel::slab::Slab<'_, T>, voxcube_kernel::slab::SlabError> {
+    ) -> Result<voxcube_kernel::volume::slab::Slab<'_, T>, voxcube_kernel::volume::slab::SlabError>
+    {
         let j = usize::from(self.layout.place(node).1);
         Ok(self.skipping[j].apply(self.bare_slab(node)?))
     }
@@ -799,9 +808,10 @@ impl<'d, T: voxcube_kernel::sample::Sample + Sync> NodeStorage<'d, T> {
     fn bare_slab(
         &self,
         node: u16,
-    ) -> Result<voxcube_kernel::slab::Slab<'d, T>, voxcube_kernel::slab::SlabError> {
+    ) -> Result<voxcube_kernel::volume::slab::Slab<'d, T>, voxcube_kernel::volume::slab::SlabError>
+    {
         let j = usize::from(self.layout.place(node).1);
-        voxcube_kernel::slab::Slab::new(
+        voxcube_kernel::volume::slab::Slab::new(
             self.grid,
             self.planes[j].clone(),
             self.ghost,

@@ -33,16 +33,16 @@ use mpi::point_to_point::{Destination, Source};
 use mpi::topology::{Communicator, SimpleCommunicator};
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
-use voxcube_kernel::flow::Class;
-use voxcube_kernel::grid::Grid;
-use voxcube_kernel::msg::{Msg, MAX_MSG_LEN};
-use voxcube_kernel::partition::Partition;
-use voxcube_kernel::port::{Dest, Port};
-use voxcube_kernel::sample::Sample;
-use voxcube_kernel::slab::{stored_planes, Slab};
-use voxcube_kernel::topology::Layout;
-use voxcube_kernel::view::View;
-use voxcube_kernel::worker::Progress;
+use voxcube_kernel::node::flow::Class;
+use voxcube_kernel::node::msg::{Msg, MAX_MSG_LEN};
+use voxcube_kernel::node::partition::Partition;
+use voxcube_kernel::node::port::{Dest, Port};
+use voxcube_kernel::node::topology::Layout;
+use voxcube_kernel::node::worker::Progress;
+use voxcube_kernel::trace::view::View;
+use voxcube_kernel::volume::grid::Grid;
+use voxcube_kernel::volume::sample::Sample;
+use voxcube_kernel::volume::slab::{stored_planes, Slab};
 
 /// Tag of kernel messages.
 const TAG_MSG: i32 = 1;

@@ -12,16 +12,16 @@
 use crate::profile::MachineProfile;
 use std::collections::VecDeque;
 use std::fmt;
-use voxcube_kernel::flow::Class;
-use voxcube_kernel::grid::Grid;
-use voxcube_kernel::msg::Msg;
-use voxcube_kernel::partition::Partition;
-use voxcube_kernel::port::{Dest, Port};
-use voxcube_kernel::sample::Sample;
-use voxcube_kernel::shift::{next_step, plan, Shift, ShiftError};
-use voxcube_kernel::slab::stored_planes;
-use voxcube_kernel::topology::Layout;
-use voxcube_kernel::worker::{Place, Progress};
+use voxcube_kernel::node::flow::Class;
+use voxcube_kernel::node::msg::Msg;
+use voxcube_kernel::node::partition::Partition;
+use voxcube_kernel::node::port::{Dest, Port};
+use voxcube_kernel::node::shift::{next_step, plan, Shift, ShiftError};
+use voxcube_kernel::node::topology::Layout;
+use voxcube_kernel::node::worker::{Place, Progress};
+use voxcube_kernel::volume::grid::Grid;
+use voxcube_kernel::volume::sample::Sample;
+use voxcube_kernel::volume::slab::stored_planes;
 
 /// What the shift did.
 #[derive(Clone, Debug, PartialEq)]

@@ -30,18 +30,18 @@ use std::collections::VecDeque;
 use std::fmt;
 use std::time::{Duration, Instant};
 use voxcube_kernel::counters::Counters;
-use voxcube_kernel::flow::{self, Class};
-use voxcube_kernel::msg::{DecodeError, Msg, MsgKind, MAX_MSG_LEN, PIXELS_PER_SET};
-use voxcube_kernel::partition::{Partition, PartitionError};
-use voxcube_kernel::port::{Dest, Port};
-use voxcube_kernel::sample::Sample;
-use voxcube_kernel::slab::{Slab, SlabError};
-use voxcube_kernel::topology::hops;
-use voxcube_kernel::topology::Layout;
-use voxcube_kernel::view::View;
-use voxcube_kernel::worker::{
+use voxcube_kernel::node::flow::{self, Class};
+use voxcube_kernel::node::msg::{DecodeError, Msg, MsgKind, MAX_MSG_LEN, PIXELS_PER_SET};
+use voxcube_kernel::node::partition::{Partition, PartitionError};
+use voxcube_kernel::node::port::{Dest, Port};
+use voxcube_kernel::node::topology::hops;
+use voxcube_kernel::node::topology::Layout;
+use voxcube_kernel::node::worker::{
     Generation, Place, Progress, Setup, Worker, WorkerError, RAYS_PER_POLL,
 };
+use voxcube_kernel::trace::view::View;
+use voxcube_kernel::volume::sample::Sample;
+use voxcube_kernel::volume::slab::{Slab, SlabError};
 
 /// Worker capacities in the simulator: continuations per direction, pixel records, outbox.
 pub type SimWorker<'a, T> = Worker<'a, T, 32, 64, 16>;
@@ -108,7 +108,7 @@ pub struct SimConfig {
     pub skipping: super::SkipMode,
     /// Test-only faults, applied to every worker.
     #[cfg(feature = "mutants")]
-    pub mutants: voxcube_kernel::worker::Mutants,
+    pub mutants: voxcube_kernel::node::worker::Mutants,
 }
 
 impl SimConfig {
@@ -116,7 +116,7 @@ impl SimConfig {
     pub fn cluster(
         size: u32,
         seed: u64,
-    ) -> Result<SimConfig, voxcube_kernel::topology::LayoutError> {
+    ) -> Result<SimConfig, voxcube_kernel::node::topology::LayoutError> {
         SimConfig::machine(1, size, seed)
     }
 
@@ -125,7 +125,7 @@ impl SimConfig {
         clusters: u32,
         size: u32,
         seed: u64,
-    ) -> Result<SimConfig, voxcube_kernel::topology::LayoutError> {
+    ) -> Result<SimConfig, voxcube_kernel::node::topology::LayoutError> {
         Ok(SimConfig {
             layout: Layout::new(clusters, size)?,
             seed,

@@ -27,16 +27,16 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc;
 use std::sync::{Mutex, PoisonError};
 use std::time::{Duration, Instant};
-use voxcube_kernel::flow::Class;
-use voxcube_kernel::grid::Grid;
-use voxcube_kernel::msg::Msg;
-use voxcube_kernel::partition::Partition;
-use voxcube_kernel::port::{Dest, Port};
-use voxcube_kernel::sample::Sample;
-use voxcube_kernel::stats::NodeStats;
-use voxcube_kernel::topology::Layout;
-use voxcube_kernel::view::View;
-use voxcube_kernel::worker::Progress;
+use voxcube_kernel::node::flow::Class;
+use voxcube_kernel::node::msg::Msg;
+use voxcube_kernel::node::partition::Partition;
+use voxcube_kernel::node::port::{Dest, Port};
+use voxcube_kernel::node::stats::NodeStats;
+use voxcube_kernel::node::topology::Layout;
+use voxcube_kernel::node::worker::Progress;
+use voxcube_kernel::trace::view::View;
+use voxcube_kernel::volume::grid::Grid;
+use voxcube_kernel::volume::sample::Sample;
 
 /// How long the host waits without hearing from any node before it reports a stall.
 pub const STALL: Duration = Duration::from_secs(20);
@@ -740,7 +740,7 @@ fn host_failure(what: String) -> SimError {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use voxcube_kernel::msg::PixelSet;
+    use voxcube_kernel::node::msg::PixelSet;
 
     /// A message that breaks the host's protocol is kept as the run's failure for the calling
     /// thread, whichever thread polled, and nothing more is taken after it; the pixels before

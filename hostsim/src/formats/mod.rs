@@ -9,7 +9,7 @@ pub mod raw;
 use crate::dataset::{to_plane_major, Volume, VolumeData};
 use std::fmt;
 use std::path::{Path, PathBuf};
-use voxcube_kernel::grid::{Grid, GridError};
+use voxcube_kernel::volume::grid::{Grid, GridError};
 use voxcube_kernel::Vec3;
 
 /// Sample types a file may hold.

@@ -241,7 +241,7 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
         .unwrap_or(u64::MAX);
     if let Some(axis) = dims.iter().position(|&d| d == 0) {
         return Err(data_err(
-            voxcube_kernel::grid::GridError::ZeroDimension { axis }.into(),
+            voxcube_kernel::volume::grid::GridError::ZeroDimension { axis }.into(),
         ));
     }
     let skip = match h.byte_skip {

@@ -4,7 +4,7 @@
 use super::{check_size, decode, read, Endian, FileType, LoadError, LoadErrorKind};
 use crate::dataset::Volume;
 use std::path::Path;
-use voxcube_kernel::grid::GridError;
+use voxcube_kernel::volume::grid::GridError;
 use voxcube_kernel::Vec3;
 
 /// How to read a raw file.

@@ -3,7 +3,7 @@
 //!
 //! A record collects each hit's lighting (a [`HitRecord`]), each shadow ray's visibility, and
 //! the chain's length, in whatever order they arrive, then combines them with the one formula
-//! of [`crate::tree`]: from the deepest hit outward, `through(alpha, color, behind)`, the
+//! of [`crate::trace::tree`]: from the deepest hit outward, `through(alpha, color, behind)`, the
 //! background behind the deepest. Invariants: a part arrives once (a second copy is refused);
 //! a record is complete only when the chain's length is known and every hit up to it and
 //! every shadow visibility those hits asked for have arrived; a complete record never changes.
@@ -15,10 +15,10 @@
 //! Slots are written when first needed, not when the worker is built: building a worker then
 //! writes none of its 64 records of 1,368 bytes, only ever as many as were open at once.
 
-use crate::msg::{HitRecord, Outcome};
-use crate::shade::MAX_LIGHTS;
-use crate::tree;
-use crate::view::MAX_DEPTH;
+use crate::node::msg::{HitRecord, Outcome};
+use crate::optics::shade::MAX_LIGHTS;
+use crate::trace::tree;
+use crate::trace::view::MAX_DEPTH;
 use core::fmt;
 use glam::Vec3;
 use heapless::Vec;
@@ -318,7 +318,7 @@ impl<const N: usize> Records<N> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::msg::Reply;
+    use crate::node::msg::Reply;
 
     fn hit(pixel: u32, alpha: f32, mask: u8, continues: bool) -> HitRecord {
         HitRecord {

@@ -12,7 +12,7 @@
 //! clusters: row `r` belongs to cluster `r mod m`, so neighbouring rows of similar cost go to
 //! different clusters.
 
-use crate::partition::MAX_CLUSTER;
+use crate::node::partition::MAX_CLUSTER;
 use core::fmt;
 
 /// Why a layout is impossible.
@@ -125,7 +125,7 @@ impl Layout {
 
 /// The image rows one cluster renders ([`Layout::cluster_rows`]): `first`, `first + step`, …
 /// below the image's height, `step` the number of clusters. A node's depth bounds
-/// ([`crate::depths`]) cover its cluster's rows only.
+/// ([`crate::skip::depths`]) cover its cluster's rows only.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Rows {
     first: u32,

@@ -2,16 +2,16 @@
 //! cluster's rows that start in its slab, traces rays through its slab, forwards those that
 //! leave to the node owning their next sample, keeps the pixel records of the primary rays it
 //! generated, sends finished pixels to the host in pixel sets, keeps the ack counters of
-//! [`crate::flow`], and passes its cluster's termination token. It is driven by
+//! [`crate::node::flow`], and passes its cluster's termination token. It is driven by
 //! [`Worker::poll`] and talks only through a [`Port`].
 //!
 //! Where the paper keeps a primary-ray descriptor on the node of the first intersection,
 //! voxcube keeps it on the node that generated the ray (its *home*), reserved before the ray
 //! starts. Every hit's lighting and every secondary ray's result returns there, and the pixel
-//! is combined there by [`crate::tree`]'s formula. So a ray never waits for memory on another
+//! is combined there by [`crate::trace::tree`]'s formula. So a ray never waits for memory on another
 //! node, and "all pixels of my primary rays are final" (the token's condition) is a local
 //! fact. A worker that is a ring of one holds the whole volume: it traces each of its pixels'
-//! whole ray tree in place ([`crate::trace`]), with nothing to send, wait for or record.
+//! whole ray tree in place ([`crate::trace::tracer`]), with nothing to send, wait for or record.
 //!
 //! One step traces one primary or transparency ray through the slab, and at a hit also every
 //! shadow ray it spawns (as the paper does). A continuation past a semi-transparent surface
@@ -43,22 +43,24 @@
 //! back-pressure.
 
 use crate::counters::Counters;
-use crate::flow::{self, r_imax, Class, FlowControl, CREDITS};
-use crate::lighting::lighting;
-use crate::march::{march, Hit, RayKind, RayState, Stop};
-use crate::msg::{HitRecord, Msg, Outcome, PixelSet, Reply, Resolved, Travel, NO_HOME, NO_LIGHT};
-use crate::partition::{Partition, MAX_CLUSTER};
-use crate::pixel::rgba8;
-use crate::port::{Dest, Port};
-use crate::record::Records;
-use crate::sample::Sample;
-use crate::shade::MAX_LIGHTS;
-use crate::slab::{stored_planes, Slab};
-use crate::starts;
-use crate::stats::NodeStats;
-use crate::topology::Layout;
-use crate::trace::trace_primary;
-use crate::view::{Mode, View};
+use crate::node::flow::{self, r_imax, Class, FlowControl, CREDITS};
+use crate::node::msg::{
+    HitRecord, Msg, Outcome, PixelSet, Reply, Resolved, Travel, NO_HOME, NO_LIGHT,
+};
+use crate::node::partition::{Partition, MAX_CLUSTER};
+use crate::node::port::{Dest, Port};
+use crate::node::record::Records;
+use crate::node::stats::NodeStats;
+use crate::node::topology::Layout;
+use crate::optics::shade::MAX_LIGHTS;
+use crate::trace::lighting::lighting;
+use crate::trace::march::{march, Hit, RayKind, RayState, Stop};
+use crate::trace::pixel::rgba8;
+use crate::trace::starts;
+use crate::trace::tracer::trace_primary;
+use crate::trace::view::{Mode, View};
+use crate::volume::sample::Sample;
+use crate::volume::slab::{stored_planes, Slab};
 use core::fmt;
 use heapless::Deque;
 
@@ -73,7 +75,7 @@ pub enum Generation {
     Centralized,
 }
 
-/// Whether this build carries the test-only faults of [`Mutants`] (the `mutants` feature). A
+/// Whether this build carries the test-only faults of `Mutants` (the `mutants` feature). A
 /// product build must not: the host reports it, and CI checks the release binary's report.
 pub const TEST_FAULTS: bool = cfg!(feature = "mutants");
 
@@ -947,7 +949,7 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
             return false;
         }
         self.reported = true;
-        self.stats.sent[crate::msg::MsgKind::Stats as usize] += 1;
+        self.stats.sent[crate::node::msg::MsgKind::Stats as usize] += 1;
         let stats = self.stats;
         let _ = self.outbox.push_back((Dest::Host, Msg::Stats(stats)));
         true

@@ -11,13 +11,13 @@
 //! planes one way, so waits run one way along the line of ring positions and cannot form a
 //! cycle: the exchange cannot deadlock.
 
-use crate::grid::Grid;
-use crate::msg::{Msg, PlaneChunk, PLANE_CHUNK};
-use crate::partition::Partition;
-use crate::port::{Dest, Port};
-use crate::sample::Sample;
-use crate::slab::stored_planes;
-use crate::worker::{Place, Progress};
+use crate::node::msg::{Msg, PlaneChunk, PLANE_CHUNK};
+use crate::node::partition::Partition;
+use crate::node::port::{Dest, Port};
+use crate::node::worker::{Place, Progress};
+use crate::volume::grid::Grid;
+use crate::volume::sample::Sample;
+use crate::volume::slab::stored_planes;
 use core::fmt;
 use core::ops::Range;
 
@@ -86,7 +86,8 @@ pub fn next_step(current: &Partition, target: &Partition) -> Result<Partition, S
     if c.len() != t.len() || c.last() != t.last() {
         return Err(ShiftError::Shape);
     }
-    let mut next: heapless::Vec<u32, { crate::partition::MAX_CLUSTER + 1 }> = heapless::Vec::new();
+    let mut next: heapless::Vec<u32, { crate::node::partition::MAX_CLUSTER + 1 }> =
+        heapless::Vec::new();
     for i in 0..c.len() {
         let cut = if i == 0 || i + 1 == c.len() {
             c[i]
@@ -276,7 +277,7 @@ impl<'a, T: Sample> Shift<'a, T> {
             }
         }
         if self.phase == Phase::Take {
-            while let Some((_, msg)) = port.try_recv(crate::flow::Class::Control) {
+            while let Some((_, msg)) = port.try_recv(crate::node::flow::Class::Control) {
                 if let Msg::Planes(chunk) = msg {
                     self.take(&chunk);
                 } else {
@@ -400,8 +401,8 @@ impl<'a, T: Sample> Shift<'a, T> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::flow::Class;
-    use crate::topology::Layout;
+    use crate::node::flow::Class;
+    use crate::node::topology::Layout;
     use glam::Vec3;
     use heapless::{Deque, Vec};
 

@@ -36,7 +36,7 @@ impl Ray {
     }
 
     /// [`Ray::at`] in the first three lanes of a vector (`w` is zero): each lane the same
-    /// multiply and add, so the same bits, ready for [`crate::field::locate4`].
+    /// multiply and add, so the same bits, ready for [`crate::volume::field::locate4`].
     #[inline]
     pub fn at4(&self, t: f32) -> Vec4 {
         self.origin.extend(0.0) + self.dir.extend(0.0) * Vec4::splat(t)

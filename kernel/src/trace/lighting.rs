@@ -1,7 +1,7 @@
 //! The lighting of one point before shadowing: its ambient term, each light's direct term, and
 //! which lights need a shadow ray. A surface hit's [`Lighting`] is what a distributed trace
 //! sends to the pixel's home; the home multiplies in the visibilities that come back and
-//! combines them by [`crate::tree::surface_color`], exactly as the in-process tracer does. A
+//! combines them by [`crate::trace::tree::surface_color`], exactly as the in-process tracer does. A
 //! composited sample, which no shadow darkens, gets the same colour from [`unshadowed_color`]
 //! without the record.
 //!
@@ -9,12 +9,12 @@
 //! if it casts shadows and lights the point (`direct[l] ≠ 0`).
 
 use crate::counters::Counters;
-use crate::field;
-use crate::sample::Sample;
-use crate::shade::{self, MAX_LIGHTS};
-use crate::slab::Slab;
-use crate::tree;
-use crate::view::View;
+use crate::optics::shade::{self, MAX_LIGHTS};
+use crate::trace::tree;
+use crate::trace::view::View;
+use crate::volume::field;
+use crate::volume::sample::Sample;
+use crate::volume::slab::Slab;
 use glam::Vec3;
 
 /// A point's light, before shadowing.
@@ -135,11 +135,11 @@ fn normal<T: Sample>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::camera::{Camera, Projection};
-    use crate::grid::Grid;
-    use crate::shade::{Light, Shading};
-    use crate::transfer::{ControlPoint, TransferFunction};
-    use crate::view::{Mode, ViewSpec};
+    use crate::optics::shade::{Light, Shading};
+    use crate::optics::transfer::{ControlPoint, TransferFunction};
+    use crate::trace::camera::{Camera, Projection};
+    use crate::trace::view::{Mode, ViewSpec};
+    use crate::volume::grid::Grid;
 
     fn view(grid: &Grid, shading: Option<Shading>, lights: &[Light]) -> View {
         let camera = Camera::look_at(

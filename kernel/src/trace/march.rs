@@ -11,95 +11,22 @@
 //! surface, the cut face is the surface ("capping"): the outside of the volume counts as below
 //! every iso value, and the cut face is lit with the face's normal.
 
-use crate::blocks::Blocks;
-use crate::cell_leaps::CellLeaps;
-use crate::cells::{self, CellMask};
 use crate::counters::Counters;
-use crate::field;
-use crate::grid::{Grid, Model};
-use crate::lattice::Lattice;
-use crate::lighting::unshadowed_color;
-use crate::ray::{Entry, Ray};
-use crate::sample::Sample;
-use crate::scan;
-use crate::slab::Slab;
-use crate::surface::{self, IsoSurface};
-use crate::transfer::corrected_opacity;
-use crate::view::{Mode, View};
+use crate::skip::blocks::Blocks;
+use crate::skip::cell_leaps::CellLeaps;
+use crate::skip::cells::{self, CellMask};
+use crate::trace::lighting::unshadowed_color;
+use crate::volume::field;
+use crate::volume::grid::{Grid, Model};
+
+use crate::optics::surface::{self, IsoSurface};
+use crate::optics::transfer::corrected_opacity;
+use crate::skip::scan;
+pub use crate::trace::state::{RayKind, RayState};
+use crate::trace::view::{Mode, View};
+use crate::volume::sample::Sample;
+use crate::volume::slab::Slab;
 use glam::{BVec4A, Vec3, Vec4};
-
-/// What a ray is for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum RayKind {
-    /// From the eye through a pixel.
-    Primary,
-    /// Continuing a primary ray past a semi-transparent surface.
-    Transparency,
-    /// From a surface point toward a shadow-casting light.
-    Shadow,
-}
-
-/// All the state of a ray in flight.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RayState {
-    /// What the ray is for.
-    pub kind: RayKind,
-    /// The pixel it contributes to (row-major).
-    pub pixel: u32,
-    /// The ray.
-    pub ray: Ray,
-    /// Its samples.
-    pub lattice: Lattice,
-    /// How it entered the volume (for capping).
-    pub entry: Entry,
-    /// Next sample to process.
-    pub k: u32,
-    /// Field value of sample `k - 1`, valid when `primed`.
-    pub prev: f32,
-    /// Whether `prev` holds a sample of this ray.
-    pub primed: bool,
-    /// Whether `prev` was skipped: its value is unknown but below every iso value (it is
-    /// evaluated again, exactly, before it is needed).
-    pub prev_stale: bool,
-    /// Surfaces (bit per index) already reported on the segment ending at sample `k`.
-    pub done_here: u16,
-    /// Transparency rays between the primary ray and this one.
-    pub depth: u8,
-    /// Light still reaching the eye from here: for primary and transparency rays the product
-    /// of `1 − opacity` of the surfaces in front; for shadow rays the visibility so far; when
-    /// compositing the transmittance.
-    pub weight: f32,
-    /// Colour accumulated front to back (compositing).
-    pub color: Vec3,
-}
-
-impl RayState {
-    /// A fresh ray starting at sample `k`.
-    pub fn new(
-        kind: RayKind,
-        pixel: u32,
-        ray: Ray,
-        lattice: Lattice,
-        entry: Entry,
-        k: u32,
-    ) -> RayState {
-        RayState {
-            kind,
-            pixel,
-            ray,
-            lattice,
-            entry,
-            k,
-            prev: 0.0,
-            primed: false,
-            prev_stale: false,
-            done_here: 0,
-            depth: 0,
-            weight: 1.0,
-            color: Vec3::ZERO,
-        }
-    }
-}
 
 /// A surface crossing.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -148,7 +75,7 @@ pub fn march<T: Sample>(
     // The blocks as this ray reads them: the leap map of its direction's octant.
     let blocks = slab
         .blocks()
-        .map(|b| b.toward(crate::leaps::Octant::of(ray.ray.dir)));
+        .map(|b| b.toward(crate::skip::leaps::Octant::of(ray.ray.dir)));
     // Where the view has a cell leap map for this octant, a ray leaps from cell to cell by
     // it, and asks no block; its leaps' exits are estimated with `exits`.
     let cell_leaps = match &blocks {
@@ -446,7 +373,7 @@ fn cell_run<T: Sample>(
     mask: CellMask,
     exits: &Exits,
 ) -> u32 {
-    let offset = cell.map(|c| c % crate::blocks::BLOCK);
+    let offset = cell.map(|c| c % crate::skip::blocks::BLOCK);
     let (first, last) = cells::empty_box(mask, offset, blocks.octant());
     let face = |a: usize, end: [u32; 3], past: u32| (cell[a] - offset[a] + end[a] + past) as f32;
     let lo = Vec4::new(face(0, first, 0), face(1, first, 0), face(2, first, 0), 0.0);
@@ -646,7 +573,7 @@ fn skip_run<T: Sample>(
 ) -> u32 {
     let (mut lo, mut hi) = blocks.bounds(block, reach, model);
     // Nor past the owned planes (their faces, under the model's ownership rule).
-    let shift = crate::blocks::face_shift(model);
+    let shift = crate::skip::blocks::face_shift(model);
     let owned = slab.owned();
     lo.x = lo.x.max(owned.start as f32 - shift);
     hi.x = hi.x.min(owned.end as f32 - shift);

@@ -5,10 +5,10 @@
 //! volume most empty space lies in small gaps between cells that show, where a leap map of
 //! whole blocks says nothing and a ray would otherwise look at its samples one by one.
 //!
-//! Invariants: a map is built from one view's cell masks ([`crate::cells`]), so a cell is an
+//! Invariants: a map is built from one view's cell masks ([`crate::skip::cells`]), so a cell is an
 //! obstacle (distance 0) exactly where its mask bit is set: the same proof, cell by cell.
 //! Distances are exact up to [`MAX_DISTANCE`] (the seven neighbours ahead, as in
-//! [`crate::leaps`], a row at a time; tested against brute force) and capped there, which
+//! [`crate::skip::leaps`], a row at a time; tested against brute force) and capped there, which
 //! only shortens leaps; so a distance depends on no cell further away, and a map built in
 //! parts of planes, each with that many planes ahead of it, is the same map. Cells outside
 //! the slab's block columns or past the grid are not obstacles: the marcher checks that every
@@ -17,8 +17,8 @@
 //! says. The map is laid out row by row, X fastest, over the cells of the blocks' columns:
 //! a byte per cell, 64 per block.
 
-use crate::blocks::{Blocks, BlocksError, BLOCK};
-use crate::leaps::Octant;
+use crate::skip::blocks::{Blocks, BlocksError, BLOCK};
+use crate::skip::leaps::Octant;
 
 /// Bytes of one octant's map per block: a byte per cell.
 pub const PER_BLOCK: usize = (BLOCK * BLOCK * BLOCK) as usize;
@@ -62,7 +62,7 @@ impl<'a> CellLeaps<'a> {
         self.octant
     }
 
-    /// The distance of the cell whose low corner is `lo` ([`crate::field::Site::lo`] of a
+    /// The distance of the cell whose low corner is `lo` ([`crate::volume::field::Site::lo`] of a
     /// cell-model sample): 0, nothing may be skipped, outside the map.
     #[inline]
     pub fn distance(&self, lo: [u32; 3]) -> u8 {

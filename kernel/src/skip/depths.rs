@@ -3,7 +3,7 @@
 //! every sample before it in one step instead of leaping through empty cells turn by turn
 //! (on the paper's view most of those turns came before a ray's first evaluated sample).
 //!
-//! The bound of a pixel is the least, over the cells whose mask bit is set ([`crate::cells`]:
+//! The bound of a pixel is the least, over the cells whose mask bit is set ([`crate::skip::cells`]:
 //! the obstacles) that its ray may pass through once widened by [`WIDEN`] on every side, of
 //! the least parameter at which any of the view's rays meets that widened cell. Which rays
 //! pass through a cell, and at which parameters, are linear in the point for a parallel
@@ -18,8 +18,8 @@
 //! cell that is kept, so no pixel's bound rises.
 //!
 //! Invariants: a sample before its pixel's bound lies in no obstacle, so skipping it is what
-//! the marcher would do turn by turn with the same masks: [`crate::march`] skips through the
-//! bound only while [`crate::view::View::may_skip`] holds and only over owned planes, and the
+//! the marcher would do turn by turn with the same masks: [`crate::trace::march`] skips through the
+//! bound only while [`crate::trace::view::View::may_skip`] holds and only over owned planes, and the
 //! image and every count are those of a render without bounds. The rays the kernel computes
 //! differ from the exact lines `O + a·U + b·V + t·D` by rounding, and a sample's position
 //! from its exact point on its line likewise; [`build`] refuses a view whose coordinates
@@ -28,11 +28,11 @@
 //! obstacle widened. A bound is rounded down to `f32`; a pixel no obstacle covers holds
 //! infinity. Perspective views get no bounds.
 
-use crate::blocks::{Blocks, BLOCK};
-use crate::camera::Projection;
-use crate::cells::{CellMask, ALL};
-use crate::topology::Rows;
-use crate::view::View;
+use crate::node::topology::Rows;
+use crate::skip::blocks::{Blocks, BLOCK};
+use crate::skip::cells::{CellMask, ALL};
+use crate::trace::camera::Projection;
+use crate::trace::view::View;
 use glam::{BVec3, DMat3, DVec3, Vec3};
 
 /// How far each obstacle is widened on every side, in cells: the room left for rounding.
@@ -388,13 +388,13 @@ fn round_down(x: f64) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::blocks::Range;
-    use crate::camera::Camera;
-    use crate::field;
-    use crate::grid::{Grid, Model};
-    use crate::slab::Slab;
-    use crate::surface::IsoSurface;
-    use crate::view::{Mode, ViewSpec};
+    use crate::optics::surface::IsoSurface;
+    use crate::skip::blocks::Range;
+    use crate::trace::camera::Camera;
+    use crate::trace::view::{Mode, ViewSpec};
+    use crate::volume::field;
+    use crate::volume::grid::{Grid, Model};
+    use crate::volume::slab::Slab;
 
     /// The cells of a block whose neighbour one cell back along an axis is an obstacle, one
     /// cell at a time.
@@ -454,7 +454,7 @@ mod tests {
                 if !columns.contains(&lo[0]) {
                     continue;
                 }
-                match blocks.cells(blocks.block_of(lo)) & crate::cells::bit(lo) {
+                match blocks.cells(blocks.block_of(lo)) & crate::skip::cells::bit(lo) {
                     0 => good += 1,
                     _ => bad += 1,
                 }
@@ -487,13 +487,13 @@ mod tests {
                 _ => {
                     let start = next() % dims[0];
                     let owned = start..(start + 1 + next() % 5).min(dims[0]);
-                    let stored = crate::slab::stored_planes(&grid, owned.clone(), 1);
+                    let stored = crate::volume::slab::stored_planes(&grid, owned.clone(), 1);
                     let len = (stored.end - stored.start) as usize * grid.plane_len();
                     Slab::new(grid, owned, 1, &data[..len]).unwrap()
                 }
             };
             let ranges = [Range::UNKNOWN; 4 * 4 * 4];
-            let (_, _, len) = crate::blocks::extent(&slab);
+            let (_, _, len) = crate::skip::blocks::extent(&slab);
             let blocks = Blocks::new(&slab, &ranges[..len]).unwrap();
             let density = next() % 64;
             let mut masks = [0u64; 4 * 4 * 4];

@@ -1,5 +1,5 @@
 //! A whole pixel traced on one node that holds the whole volume: the primary ray, its chain of
-//! transparency rays and every shadow ray, combined by [`crate::tree`].
+//! transparency rays and every shadow ray, combined by [`crate::trace::tree`].
 //!
 //! Invariants: no allocation (the chain of hits lives in a fixed stack of [`MAX_DEPTH`] + 1
 //! frames, which the view's depth limit never exceeds); the result is finite for every input.
@@ -8,13 +8,13 @@
 //! worker of a cluster forwards such rays instead.
 
 use crate::counters::Counters;
-use crate::lighting::lighting;
-use crate::march::{march, RayKind, RayState, Stop};
-use crate::sample::Sample;
-use crate::shade::MAX_LIGHTS;
-use crate::slab::Slab;
-use crate::tree;
-use crate::view::{Mode, View, MAX_DEPTH};
+use crate::optics::shade::MAX_LIGHTS;
+use crate::trace::lighting::lighting;
+use crate::trace::march::{march, RayKind, RayState, Stop};
+use crate::trace::tree;
+use crate::trace::view::{Mode, View, MAX_DEPTH};
+use crate::volume::sample::Sample;
+use crate::volume::slab::Slab;
 use glam::Vec3;
 use heapless::Vec;
 
@@ -135,7 +135,7 @@ pub fn render_into<T: Sample>(
     counters: &mut Counters,
 ) {
     for (slot, color) in out.iter_mut().zip(Pixels::new(view, slab, counters)) {
-        *slot = crate::pixel::rgba8(color);
+        *slot = crate::trace::pixel::rgba8(color);
     }
 }
 

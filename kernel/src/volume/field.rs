@@ -6,9 +6,9 @@
 //! yield a finite value. Each read is counted.
 
 use crate::counters::Counters;
-use crate::grid::{Grid, Model};
-use crate::sample::Sample;
-use crate::slab::Slab;
+use crate::volume::grid::{Grid, Model};
+use crate::volume::sample::Sample;
+use crate::volume::slab::Slab;
 use glam::{Vec3, Vec3A, Vec4};
 
 #[inline]
@@ -459,7 +459,7 @@ fn unit_steps_exact(p: Vec3) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::grid::{floor_index, Grid, MAX_DIM};
+    use crate::volume::grid::{floor_index, Grid, MAX_DIM};
     use heapless::Vec;
 
     /// Clamp `v` into `[0, n - 1]`; NaN becomes 0 (`max` returns the other operand).

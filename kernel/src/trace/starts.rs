@@ -26,9 +26,9 @@
 //! so the bounds change which rays are set up, never which node starts them or what any
 //! pixel shows.
 
-use crate::camera::Projection;
-use crate::grid::{Grid, Model};
-use crate::lattice::Lattice;
+use crate::trace::camera::Projection;
+use crate::trace::lattice::Lattice;
+use crate::volume::grid::{Grid, Model};
 use core::ops::Range;
 use glam::Vec3;
 
@@ -240,12 +240,12 @@ impl Claim {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::camera::Camera;
-    use crate::march::RayState;
-    use crate::partition::Partition;
-    use crate::surface::IsoSurface;
+    use crate::node::partition::Partition;
+    use crate::optics::surface::IsoSurface;
     use crate::testing::xorshift;
-    use crate::view::{Mode, View, ViewSpec};
+    use crate::trace::camera::Camera;
+    use crate::trace::march::RayState;
+    use crate::trace::view::{Mode, View, ViewSpec};
 
     /// A parallel view of `grid` from direction `from` at `distance` diagonals from its
     /// centre (inside the box when small), `across` diagonals wide, on a `width × height` image.

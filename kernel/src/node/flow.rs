@@ -23,8 +23,8 @@
 //! blocks another at the head of a queue. Acknowledgements need no credit: acks that needed
 //! credit could wait on each other forever (a negative control shows it).
 
-use crate::march::RayKind;
-use crate::msg::MsgKind;
+use crate::node::kind::MsgKind;
+use crate::trace::state::RayKind;
 
 /// Classes of received messages. The credit classes are also the reading queues. The order
 /// is the worker's reading priority: acks, then results, then rays.

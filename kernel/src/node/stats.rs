@@ -4,7 +4,7 @@
 //! own pixel records are not messages and are not counted).
 
 use crate::counters::Counters;
-use crate::msg::KINDS;
+use crate::node::kind::KINDS;
 
 /// Message kinds, in the order of [`NodeStats::sent`].
 pub const KIND_NAMES: [&str; 8] = [

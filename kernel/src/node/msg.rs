@@ -6,19 +6,17 @@
 //! bounded, and float fields may hold any bits (the tracer is robust to NaN).
 
 use crate::counters::Counters;
-use crate::flow::Class;
-use crate::lattice::{Lattice, MAX_SAMPLES};
-use crate::march::{RayKind, RayState};
-use crate::ray::{Entry, Ray};
-use crate::shade::MAX_LIGHTS;
-use crate::stats::NodeStats;
+use crate::node::flow::Class;
+use crate::node::kind::COUNTER_FIELDS;
+pub use crate::node::kind::{MsgKind, KINDS, MAX_MSG_LEN, PIXELS_PER_SET, PLANE_CHUNK};
+use crate::node::stats::NodeStats;
+use crate::optics::shade::MAX_LIGHTS;
+use crate::trace::lattice::{Lattice, MAX_SAMPLES};
+use crate::trace::ray::{Entry, Ray};
+use crate::trace::state::{RayKind, RayState};
 use core::fmt;
 use glam::Vec3;
 
-/// Pixels one pixel-set message carries.
-pub const PIXELS_PER_SET: usize = 32;
-/// Sample bytes one slab-planes message carries.
-pub const PLANE_CHUNK: usize = 256;
 /// `Reply::light` of a ray that is not a shadow ray.
 pub const NO_LIGHT: u8 = u8::MAX;
 /// `Reply::home` of a primary ray not yet adopted by a node (centralized generation).
@@ -167,7 +165,7 @@ pub enum Msg {
     Ack {
         /// The acknowledging node.
         from: u16,
-        /// Credit class index (see [`crate::flow::CREDIT_CLASSES`]).
+        /// Credit class index (see [`crate::node::flow::CREDIT_CLASSES`]).
         class: u8,
         /// Messages acknowledged.
         count: u16,
@@ -185,85 +183,6 @@ pub enum Msg {
     Planes(PlaneChunk),
     /// The host, after every cluster's token: send your statistics once your acks are in.
     Collect,
-}
-
-/// The kinds of message.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum MsgKind {
-    /// [`Msg::Ray`].
-    Ray = 0,
-    /// [`Msg::Hit`].
-    Hit = 1,
-    /// [`Msg::Resolved`].
-    Resolved = 2,
-    /// [`Msg::Ack`].
-    Ack = 3,
-    /// [`Msg::Token`].
-    Token = 4,
-    /// [`Msg::Pixels`].
-    Pixels = 5,
-    /// [`Msg::Stats`].
-    Stats = 6,
-    /// [`Msg::Planes`].
-    Planes = 7,
-    /// [`Msg::Collect`].
-    Collect = 8,
-}
-
-const RAY_LEN: usize = 1 + 4 + 36 + 16 + 1 + 4 + 4 + 1 + 2 + 1 + 4 + 12 + 6;
-const HIT_LEN: usize = 6 + 4 + 4 + 12 + 12 * MAX_LIGHTS + 1 + 1 + 1;
-const RESOLVED_LEN: usize = 6 + 4 + 1 + 12;
-const PIXELS_LEN: usize = 1 + 8 * PIXELS_PER_SET;
-const STATS_LEN: usize = 2 + 8 * COUNTER_FIELDS + 8 * 4 + 8 * KINDS + 8 + 8 * 5;
-/// Number of message kinds.
-pub const KINDS: usize = 9;
-const COUNTER_FIELDS: usize = 15;
-const PLANES_LEN: usize = 4 + 4 + 2 + PLANE_CHUNK;
-
-/// The longest encoded message.
-pub const MAX_MSG_LEN: usize = 1 + max(
-    max(max(RAY_LEN, HIT_LEN), max(PIXELS_LEN, STATS_LEN)),
-    PLANES_LEN,
-);
-
-const fn max(a: usize, b: usize) -> usize {
-    if a > b {
-        a
-    } else {
-        b
-    }
-}
-
-impl MsgKind {
-    /// Bytes a message of this kind encodes to, tag included.
-    pub const fn encoded_len(self) -> usize {
-        1 + match self {
-            MsgKind::Ray => RAY_LEN,
-            MsgKind::Hit => HIT_LEN,
-            MsgKind::Resolved => RESOLVED_LEN,
-            MsgKind::Ack => 5,
-            MsgKind::Token => 2,
-            MsgKind::Pixels => PIXELS_LEN,
-            MsgKind::Stats => STATS_LEN,
-            MsgKind::Planes => PLANES_LEN,
-            MsgKind::Collect => 0,
-        }
-    }
-
-    fn from_tag(tag: u8) -> Option<MsgKind> {
-        Some(match tag {
-            0 => MsgKind::Ray,
-            1 => MsgKind::Hit,
-            2 => MsgKind::Resolved,
-            3 => MsgKind::Ack,
-            4 => MsgKind::Token,
-            5 => MsgKind::Pixels,
-            6 => MsgKind::Stats,
-            7 => MsgKind::Planes,
-            8 => MsgKind::Collect,
-            _ => return None,
-        })
-    }
 }
 
 /// Why bytes are not a message.
@@ -868,7 +787,7 @@ mod tests {
             Msg::decode(&[4, 0]),
             Err(DecodeError::Length { .. })
         ));
-        let mut bad = [0u8; 1 + PIXELS_LEN];
+        let mut bad = [0u8; MsgKind::Pixels.encoded_len()];
         bad[0] = MsgKind::Pixels as u8;
         bad[1] = 33;
         assert_eq!(

@@ -80,6 +80,23 @@ sample!(u8, U8, core::cmp::min, core::cmp::max);
 sample!(u16, U16, core::cmp::min, core::cmp::max);
 sample!(f32, F32, f32::min, f32::max);
 
+/// The values a field can take over a region (a min/max block's, for skipping).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Range {
+    /// Least value.
+    pub min: f32,
+    /// Greatest value.
+    pub max: f32,
+}
+
+impl Range {
+    /// A range that proves nothing.
+    pub const UNKNOWN: Range = Range {
+        min: f32::NEG_INFINITY,
+        max: f32::INFINITY,
+    };
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -11,16 +11,17 @@
 //! never skipped. The tracer skips a sample only when the block says it provably contributes
 //! nothing, and skipping never changes an image; which samples a node skips is therefore free
 //! to differ from node to node. Blocks may carry one view's chessboard distances ahead, one
-//! map per octant of ray directions ([`crate::leaps`]), so that a jump crosses every empty
-//! block ahead at once, and one view's cell masks ([`crate::cells`]), so that an empty cell
+//! map per octant of ray directions ([`crate::skip::leaps`]), so that a jump crosses every empty
+//! block ahead at once, and one view's cell masks ([`crate::skip::cells`]), so that an empty cell
 //! inside a block that is not empty is skipped too.
 
-use crate::cells::CellMask;
-use crate::field::Site;
-use crate::grid::Model;
-use crate::leaps::Octant;
-use crate::sample::Sample;
-use crate::slab::Slab;
+use crate::skip::cells::CellMask;
+use crate::skip::leaps::Octant;
+use crate::volume::field::Site;
+use crate::volume::grid::Model;
+pub use crate::volume::sample::Range;
+use crate::volume::sample::Sample;
+use crate::volume::slab::Slab;
 use core::fmt;
 use glam::Vec3;
 
@@ -30,23 +31,6 @@ pub const BLOCK: u32 = 4;
 /// Y nodes of a line of blocks gathered at a time by [`Blocks::build`] (sixteen blocks), on
 /// the stack: the kernel's memory stays fixed for any grid.
 const GATHER: usize = 16 * BLOCK as usize;
-
-/// The values a block's field can take.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Range {
-    /// Least value.
-    pub min: f32,
-    /// Greatest value.
-    pub max: f32,
-}
-
-impl Range {
-    /// A range that proves nothing.
-    pub const UNKNOWN: Range = Range {
-        min: f32::NEG_INFINITY,
-        max: f32::INFINITY,
-    };
-}
 
 /// Why blocks cannot be built.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -115,7 +99,7 @@ pub struct Entry {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Blocks<'a> {
     data: &'a [Range],
-    /// One view's leap maps ([`crate::leaps`]), one per octant in `octants` (in octant order),
+    /// One view's leap maps ([`crate::skip::leaps`]), one per octant in `octants` (in octant order),
     /// one after the other.
     maps: &'a [u8],
     octants: u8,
@@ -123,16 +107,16 @@ pub struct Blocks<'a> {
     /// rays may leap.
     toward: Octant,
     leaps: Option<&'a [u8]>,
-    /// One view's cell masks ([`crate::cells`]), when the marcher may skip single cells.
+    /// One view's cell masks ([`crate::skip::cells`]), when the marcher may skip single cells.
     cells: Option<&'a [CellMask]>,
-    /// One view's cell leap maps ([`crate::cell_leaps`]), one per octant in `cell_octants`,
+    /// One view's cell leap maps ([`crate::skip::cell_leaps`]), one per octant in `cell_octants`,
     /// and the one of the octant traced, when there is one.
     cell_maps: &'a [u8],
     cell_octants: u8,
     cell_leaps: Option<&'a [u8]>,
-    /// One view's depth bounds ([`crate::depths`]), a bound per pixel of the rows held, when
+    /// One view's depth bounds ([`crate::skip::depths`]), a bound per pixel of the rows held, when
     /// its primary rays may pass over the samples before them.
-    depths: Option<crate::depths::Depths<'a>>,
+    depths: Option<crate::skip::depths::Depths<'a>>,
     x0: u32,
     x1: u32,
     ny: u32,
@@ -165,7 +149,10 @@ pub fn extent<T: Sample>(slab: &Slab<'_, T>) -> (u32, u32, usize) {
 }
 
 /// [`extent`] for stored planes `stored` of `grid`, before any slab exists (for budgets).
-pub fn extent_for(grid: &crate::grid::Grid, stored: core::ops::Range<u32>) -> (u32, u32, usize) {
+pub fn extent_for(
+    grid: &crate::volume::grid::Grid,
+    stored: core::ops::Range<u32>,
+) -> (u32, u32, usize) {
     let [nx, ny, nz] = grid.dims();
     let x0 = (stored.start / BLOCK).min(count(nx) - 1);
     let x1 = (stored.end.saturating_sub(1) / BLOCK + 1)
@@ -180,7 +167,7 @@ pub fn extent_for(grid: &crate::grid::Grid, stored: core::ops::Range<u32>) -> (u
 
 /// Blocks in one block column of `grid` (one block along X, every Y and Z): the unit in
 /// which a build may be split.
-pub fn column_len(grid: &crate::grid::Grid) -> usize {
+pub fn column_len(grid: &crate::volume::grid::Grid) -> usize {
     let [_, ny, nz] = grid.dims();
     count(ny) as usize * count(nz) as usize
 }
@@ -413,7 +400,7 @@ impl<'a> Blocks<'a> {
     }
 
     /// The same blocks, leaping by the maps in `maps`: one per octant in `octants` (bit
-    /// [`Octant::index`]), in octant order ([`crate::leaps::build`] for the view being traced:
+    /// [`Octant::index`]), in octant order ([`crate::skip::leaps::build`] for the view being traced:
     /// a map built for another view may skip samples that show). Tracing octant 0 until
     /// [`Blocks::toward`] says otherwise.
     pub fn with_leaps(self, maps: &'a [u8], octants: u8) -> Result<Blocks<'a>, BlocksError> {
@@ -444,7 +431,7 @@ impl<'a> Blocks<'a> {
         let cell_leaps = of(
             self.cell_maps,
             self.cell_octants,
-            len * crate::cell_leaps::PER_BLOCK,
+            len * crate::skip::cell_leaps::PER_BLOCK,
         );
         Blocks {
             toward: octant,
@@ -455,10 +442,10 @@ impl<'a> Blocks<'a> {
     }
 
     /// The same blocks, leaping cell by cell by the maps in `maps`: one per octant in
-    /// `octants`, in octant order ([`crate::cell_leaps::build`] from the cell masks of the view
+    /// `octants`, in octant order ([`crate::skip::cell_leaps::build`] from the cell masks of the view
     /// being traced, like a leap map). An octant left out leaps by blocks and scans cells.
     pub fn with_cell_leaps(self, maps: &'a [u8], octants: u8) -> Result<Blocks<'a>, BlocksError> {
-        let per_map = self.data.len() * crate::cell_leaps::PER_BLOCK;
+        let per_map = self.data.len() * crate::skip::cell_leaps::PER_BLOCK;
         BlocksError::check_storage(per_map * octants.count_ones() as usize, maps.len())?;
         Ok(Blocks {
             cell_maps: maps,
@@ -470,13 +457,13 @@ impl<'a> Blocks<'a> {
 
     /// The cell leap map of [`Blocks::toward`]'s octant, when the blocks carry one.
     #[inline]
-    pub fn cell_leaps(&self) -> Option<crate::cell_leaps::CellLeaps<'a>> {
-        crate::cell_leaps::CellLeaps::new(self, self.cell_leaps?).ok()
+    pub fn cell_leaps(&self) -> Option<crate::skip::cell_leaps::CellLeaps<'a>> {
+        crate::skip::cell_leaps::CellLeaps::new(self, self.cell_leaps?).ok()
     }
 
-    /// The same blocks, with the depth bounds `depths` ([`crate::depths::build`] from these
+    /// The same blocks, with the depth bounds `depths` ([`crate::skip::depths::build`] from these
     /// blocks' masks for the view being traced, like a leap map).
-    pub fn with_depths(self, depths: crate::depths::Depths<'a>) -> Blocks<'a> {
+    pub fn with_depths(self, depths: crate::skip::depths::Depths<'a>) -> Blocks<'a> {
         Blocks {
             depths: Some(depths),
             ..self
@@ -485,7 +472,7 @@ impl<'a> Blocks<'a> {
 
     /// The depth bounds, when the blocks carry them.
     #[inline]
-    pub fn depths(&self) -> Option<crate::depths::Depths<'a>> {
+    pub fn depths(&self) -> Option<crate::skip::depths::Depths<'a>> {
         self.depths
     }
 
@@ -494,7 +481,7 @@ impl<'a> Blocks<'a> {
         self.toward
     }
 
-    /// The same blocks, skipping single cells by the masks in `cells` ([`crate::cells::build`]
+    /// The same blocks, skipping single cells by the masks in `cells` ([`crate::skip::cells::build`]
     /// for the view being traced, like a leap map).
     pub fn with_cells(self, cells: &'a [CellMask]) -> Result<Blocks<'a>, BlocksError> {
         BlocksError::check_storage(self.data.len(), cells.len())?;
@@ -512,7 +499,7 @@ impl<'a> Blocks<'a> {
             return Entry {
                 range: Range::UNKNOWN,
                 leap: self.leaps.map(|_| 0),
-                cells: crate::cells::ALL,
+                cells: crate::skip::cells::ALL,
             };
         };
         Entry {
@@ -521,7 +508,7 @@ impl<'a> Blocks<'a> {
             cells: self
                 .cells
                 .and_then(|c| c.get(i).copied())
-                .unwrap_or(crate::cells::ALL),
+                .unwrap_or(crate::skip::cells::ALL),
         }
     }
 
@@ -536,7 +523,7 @@ impl<'a> Blocks<'a> {
     pub fn cells(&self, block: (u32, u32, u32)) -> CellMask {
         self.cells
             .and_then(|cells| cells.get(self.index(block)?).copied())
-            .unwrap_or(crate::cells::ALL)
+            .unwrap_or(crate::skip::cells::ALL)
     }
 
     /// Block `(bx, by, bz)`'s chessboard distance to the nearest block ahead, for rays of
@@ -557,8 +544,8 @@ impl<'a> Blocks<'a> {
 mod tests {
     use super::*;
     use crate::counters::Counters;
-    use crate::field;
-    use crate::grid::Grid;
+    use crate::volume::field;
+    use crate::volume::grid::Grid;
 
     #[test]
     fn every_field_value_a_slab_owns_lies_in_its_block() {
@@ -577,7 +564,7 @@ mod tests {
             (1..3, 2),
             (6..7, 1),
         ] {
-            let stored = crate::slab::stored_planes(&grid, owned.clone(), ghost);
+            let stored = crate::volume::slab::stored_planes(&grid, owned.clone(), ghost);
             let part = &data[stored.start as usize * plane..stored.end as usize * plane];
             let slab = Slab::new(grid, owned, ghost, part).unwrap();
             let mut storage = [Range::UNKNOWN; 3 * 2 * 2];
@@ -697,7 +684,7 @@ mod tests {
                 if owned.is_empty() {
                     continue;
                 }
-                let stored = crate::slab::stored_planes(&grid, owned.clone(), ghost);
+                let stored = crate::volume::slab::stored_planes(&grid, owned.clone(), ghost);
                 let part = stored.start as usize * grid.plane_len()
                     ..stored.end as usize * grid.plane_len();
                 add(check(

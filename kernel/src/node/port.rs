@@ -5,8 +5,8 @@
 //! back; received messages are queued by [`Class`], first in first out within a class, and
 //! `peek`/`try_recv` look only at the asked class; nothing blocks.
 
-use crate::flow::Class;
-use crate::msg::Msg;
+use crate::node::flow::Class;
+use crate::node::msg::Msg;
 
 /// Where a message goes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

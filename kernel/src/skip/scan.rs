@@ -2,8 +2,8 @@
 //! many in a row lie in cells the view calls empty, each found by its own exact position.
 //!
 //! Invariants: a lane holds one lattice sample, `t` and position from the same operations as
-//! [`crate::lattice::Lattice::t`] and [`crate::ray::Ray::at4`], and its cell from the same
-//! clamp as [`crate::field::corner4`] under the cell model, followed by a floor that is exact
+//! [`crate::trace::lattice::Lattice::t`] and [`crate::trace::ray::Ray::at4`], and its cell from the same
+//! clamp as [`crate::volume::field::corner4`] under the cell model, followed by a floor that is exact
 //! on the clamped range; so a scanned sample's cell and mask bit are the ones the marcher
 //! would read for it, bit for bit. A run ends at the first sample past the lattice, outside
 //! the slab's owned planes (whose blocks lie in its block columns), or in a cell whose bit is
@@ -17,12 +17,12 @@
 //! cell, a box holds many more samples than a scan step, and jumping wins: [`pays`] tells
 //! the two apart.
 
-use crate::blocks::{Blocks, BLOCK};
-use crate::cells::CellMask;
-use crate::field::{whole_lanes4, MAGIC};
-use crate::grid::Grid;
-use crate::lattice::Lattice;
-use crate::ray::Ray;
+use crate::skip::blocks::{Blocks, BLOCK};
+use crate::skip::cells::CellMask;
+use crate::trace::lattice::Lattice;
+use crate::trace::ray::Ray;
+use crate::volume::field::{whole_lanes4, MAGIC};
+use crate::volume::grid::Grid;
 use core::ops::Range;
 use glam::Vec4;
 
@@ -32,7 +32,7 @@ pub const STEPS: u32 = 8;
 
 /// The least distance in cells that a ray's step moves along its fastest axis for a scan to
 /// pay: below it a cell holds more than five samples of the ray, and jumping over a box of
-/// empty cells ([`crate::cells::empty_box`]) is cheaper. Measured on SOD at 350×250 with the
+/// empty cells ([`crate::skip::cells::empty_box`]) is cheaper. Measured on SOD at 350×250 with the
 /// paper's view, whose rays step `0.71·Δt` cells along X and Z (instructions, one node,
 /// scanning against jumping): surfaces at Δt = 0.25, 439 M against 419 M; at 0.3, 409 M
 /// against 404 M; at 0.35, 382 M against 393 M; at ½, 342 M against 372 M. Composited at
@@ -166,10 +166,10 @@ pub fn empty_run(ray: &Ray, lattice: &Lattice, k: u32, masks: &Masks<'_>) -> u32
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::blocks::Range as BlockRange;
-    use crate::field;
-    use crate::grid::Model;
-    use crate::slab::Slab;
+    use crate::skip::blocks::Range as BlockRange;
+    use crate::volume::field;
+    use crate::volume::grid::Model;
+    use crate::volume::slab::Slab;
     use glam::Vec3;
 
     /// What the marcher reads for sample `k`, one sample at a time: whether it exists, is
@@ -183,7 +183,7 @@ mod tests {
         }
         let corner = field::corner4(slab.grid(), Model::Cell, ray.at4(lattice.t(k)));
         slab.owns(corner.plane())
-            && blocks.cells(blocks.block_of(corner.lo)) & crate::cells::bit(corner.lo) == 0
+            && blocks.cells(blocks.block_of(corner.lo)) & crate::skip::cells::bit(corner.lo) == 0
     }
 
     /// Random rays through random slabs of a 13×10×9 grid with random masks (a tenth of the
@@ -203,10 +203,10 @@ mod tests {
             // A slab of some of the planes (ghosts as far as the grid goes).
             let start = case % 6;
             let owned = start..(start + 1 + case % 7).min(DIMS[0]);
-            let stored = crate::slab::stored_planes(&grid, owned.clone(), 1);
+            let stored = crate::volume::slab::stored_planes(&grid, owned.clone(), 1);
             let len = (stored.end - stored.start) as usize * grid.plane_len();
             let slab = Slab::new(grid, owned.clone(), 1, &data[..len]).expect("a valid slab");
-            let (_, _, blocks_len) = crate::blocks::extent(&slab);
+            let (_, _, blocks_len) = crate::skip::blocks::extent(&slab);
             let mut ranges = [BlockRange::UNKNOWN; 64];
             let mut masks = [0u64; 64];
             for m in masks.iter_mut() {

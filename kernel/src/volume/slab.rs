@@ -7,9 +7,9 @@
 //! A read outside the stored planes returns 0 and is counted, never a panic: the bit-identity
 //! tests assert the count stays zero, which proves `g` wide enough.
 
-use crate::blocks::Blocks;
-use crate::grid::Grid;
-use crate::sample::Sample;
+use crate::skip::blocks::Blocks;
+use crate::volume::grid::Grid;
+use crate::volume::sample::Sample;
 use core::fmt;
 use core::ops::Range;
 

@@ -78,7 +78,7 @@ impl core::error::Error for GridError {}
 /// Most samples along one axis: index-space positions are `f32`, which hold every whole
 /// number up to 2^24 exactly, so every node and cell boundary has its own coordinate; and
 /// the sample loop turns whole coordinates up to 2^23 into indices by adding 2^23
-/// ([`crate::field::locate`]), without checking each lane.
+/// ([`crate::volume::field::locate`]), without checking each lane.
 pub const MAX_DIM: u32 = 1 << 23;
 
 /// A regular grid of `dims[0] × dims[1] × dims[2]` samples, X fastest in files.

@@ -17,9 +17,9 @@
 //! reads the map of its own direction's octant, and leaps by no map when the view has none
 //! for it.
 
-use crate::blocks::{Blocks, BlocksError};
-use crate::shade::LightKind;
-use crate::view::View;
+use crate::optics::shade::LightKind;
+use crate::skip::blocks::{Blocks, BlocksError};
+use crate::trace::view::View;
 use glam::Vec3;
 
 /// Octants of ray directions.
@@ -108,8 +108,8 @@ fn primary_bounds(view: &View) -> (Vec3, Vec3) {
 pub fn primary_octants(view: &View) -> u8 {
     let (lo, hi) = primary_bounds(view);
     match view.spec().camera.projection() {
-        crate::camera::Projection::Orthographic { .. } => 1 << Octant::of(lo).index(),
-        crate::camera::Projection::Perspective { .. } => spread(lo, hi),
+        crate::trace::camera::Projection::Orthographic { .. } => 1 << Octant::of(lo).index(),
+        crate::trace::camera::Projection::Perspective { .. } => spread(lo, hi),
     }
 }
 
@@ -275,9 +275,9 @@ mod tests {
     /// A perspective view's rays there go up and down, and it takes both sides.
     #[test]
     fn a_parallel_view_takes_its_rays_octant_only() {
-        use crate::camera::{Camera, Projection};
-        use crate::view::{Mode, ViewSpec};
-        let grid = crate::grid::Grid::new([8, 8, 8], Vec3::new(1.0, 0.5, 2.0)).unwrap();
+        use crate::trace::camera::{Camera, Projection};
+        use crate::trace::view::{Mode, ViewSpec};
+        let grid = crate::volume::grid::Grid::new([8, 8, 8], Vec3::new(1.0, 0.5, 2.0)).unwrap();
         let centre = Vec3::new(3.5, 1.75, 7.0);
         for (eye, perspective) in [
             (Vec3::new(30.0, 1.75, 40.0), false),
@@ -290,7 +290,7 @@ mod tests {
             };
             let camera = Camera::look_at(eye, centre, Vec3::Y, projection).unwrap();
             let mut surfaces = heapless::Vec::new();
-            let _ = surfaces.push(crate::surface::IsoSurface {
+            let _ = surfaces.push(crate::optics::surface::IsoSurface {
                 iso: 0.5,
                 color: Vec3::ONE,
                 transparency: 0.0,

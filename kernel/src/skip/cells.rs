@@ -13,11 +13,11 @@
 //! Building them takes about 18 KiB of stack (a block's nodes and their ranges, and the
 //! remembered verdicts) and no other memory than the masks.
 
-use crate::blocks::{Blocks, BlocksError, Range, BLOCK};
-use crate::leaps::Octant;
-use crate::sample::Sample;
-use crate::slab::Slab;
-use crate::view::{Mode, View};
+use crate::skip::blocks::{Blocks, BlocksError, Range, BLOCK};
+use crate::skip::leaps::Octant;
+use crate::trace::view::{Mode, View};
+use crate::volume::sample::Sample;
+use crate::volume::slab::Slab;
 
 /// One bit per cell of a block: bit `x + 4·y + 16·z` for the cell at offset `(x, y, z)` from
 /// the block's low corner.
@@ -30,7 +30,7 @@ const EDGE: usize = BLOCK as usize;
 /// Nodes per block edge: the cells' corners.
 const NODES: usize = EDGE + 1;
 
-/// The bit, within its block, of the cell whose low corner is `lo` ([`crate::field::Site::lo`]
+/// The bit, within its block, of the cell whose low corner is `lo` ([`crate::volume::field::Site::lo`]
 /// of a cell-model sample). The corner is `4·block + offset` along every axis in the cell model,
 /// so the offset is the corner modulo the block edge.
 #[inline]
@@ -288,13 +288,13 @@ fn corner_extremes<T: Sample>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::camera::{Camera, Projection};
     use crate::counters::Counters;
-    use crate::field::{self, Site};
-    use crate::grid::{Grid, Model};
-    use crate::surface::IsoSurface;
-    use crate::transfer::{ControlPoint, TransferFunction};
-    use crate::view::Mode;
+    use crate::optics::surface::IsoSurface;
+    use crate::optics::transfer::{ControlPoint, TransferFunction};
+    use crate::trace::camera::{Camera, Projection};
+    use crate::trace::view::Mode;
+    use crate::volume::field::{self, Site};
+    use crate::volume::grid::{Grid, Model};
     use glam::Vec3;
 
     fn view(grid: &Grid, mode: Mode) -> View {
@@ -386,14 +386,14 @@ mod tests {
             // The whole volume, and a partial slab whose outer blocks lack planes.
             let whole = Slab::whole(grid, data).unwrap();
             let owned = dims[0] / 3..(dims[0] / 3 + 2).min(dims[0]);
-            let stored = crate::slab::stored_planes(&grid, owned.clone(), 1);
+            let stored = crate::volume::slab::stored_planes(&grid, owned.clone(), 1);
             let part = &data[stored.start as usize * grid.plane_len()..]
                 [..(stored.end - stored.start) as usize * grid.plane_len()];
             let partial = Slab::new(grid, owned, 1, part).unwrap();
             let iso = 40.0 + (round % 5) as f32 * 30.0;
             for slab in [whole, partial] {
                 let mut ranges = [Range::UNKNOWN; 3 * 3 * 3];
-                let (_, _, len) = crate::blocks::extent(&slab);
+                let (_, _, len) = crate::skip::blocks::extent(&slab);
                 Blocks::build(&slab, &mut ranges[..len]).unwrap();
                 let blocks = Blocks::new(&slab, &ranges[..len]).unwrap();
                 for view in views(&grid, &[iso, iso + 50.0], iso - 20.0) {
@@ -401,7 +401,7 @@ mod tests {
                     build(&slab, &blocks, &view, &mut masks[..len]).unwrap();
                     // Built in two parts, cut at every column: the same masks.
                     let cols = blocks.shape().0;
-                    let per = crate::blocks::column_len(&grid);
+                    let per = crate::skip::blocks::column_len(&grid);
                     for cut in 0..=cols {
                         let mut split = [0x5a5a; 3 * 3 * 3];
                         let (a, b) = split[..len].split_at_mut(cut as usize * per);

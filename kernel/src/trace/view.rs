@@ -7,16 +7,16 @@
 //! with finite iso values, colours in `[0, 1]` and transparency in `[0, 1]`; cutoff in
 //! `[0, 1)`; depth at most [`MAX_DEPTH`]; refinement at most [`MAX_REFINE_STEPS`] steps.
 
-use crate::blocks::Range;
-use crate::camera::Camera;
-use crate::grid::{Grid, Model};
-use crate::lattice::Lattice;
-use crate::march::{RayKind, RayState};
-use crate::ray::{clip, Ray};
-use crate::shade::{Light, Shading, MAX_LIGHTS};
-use crate::starts::RowLeaps;
-use crate::surface::{IsoSurface, MAX_SURFACES};
-use crate::transfer::TransferFunction;
+use crate::optics::shade::{Light, Shading, MAX_LIGHTS};
+use crate::optics::surface::{IsoSurface, MAX_SURFACES};
+use crate::optics::transfer::TransferFunction;
+use crate::trace::camera::Camera;
+use crate::trace::lattice::Lattice;
+use crate::trace::ray::{clip, Ray};
+use crate::trace::starts::RowLeaps;
+use crate::trace::state::{RayKind, RayState};
+use crate::volume::grid::{Grid, Model};
+use crate::volume::sample::Range;
 use core::fmt;
 use glam::Vec3;
 use heapless::Vec;
@@ -344,7 +344,7 @@ impl View {
 
     /// The line of pixel `pixel`'s primary ray (row-major), whether or not it meets the
     /// dataset: the origin and direction [`View::primary_ray`] clips. Always inline, as
-    /// [`crate::camera::Camera::primary`] is: a ray returned through the stack stalls its
+    /// [`crate::trace::camera::Camera::primary`] is: a ray returned through the stack stalls its
     /// caller's vector loads.
     #[inline(always)]
     pub fn primary_line(&self, pixel: u32) -> Ray {

@@ -1,0 +1,19 @@
+//! Empty-space skipping: the structures that prove samples empty for one view, so the marcher
+//! passes over them, and that change no pixel.
+//!
+//! The marcher's face is [`blocks::Blocks`] (min/max blocks, which carry the view's maps)
+//! and [`scan`] (a ray's next samples against the cell masks). The rest are the maps the
+//! host builds once per view and node: [`leaps`] (chessboard distances between blocks per
+//! octant of ray directions), [`cells`] (each block's cells the view cannot skip),
+//! [`cell_leaps`] (distances between those cells), [`depths`] (each pixel's ray parameter
+//! before its first cell that shows), and [`starts`] (row leaps of distributed generation).
+//!
+//! Invariant: a structure only ever claims a sample empty when the view's classification of
+//! every value the sample could take is empty; skipping is a bound, never an approximation.
+
+pub mod blocks;
+pub mod cell_leaps;
+pub mod cells;
+pub mod depths;
+pub mod leaps;
+pub mod scan;
