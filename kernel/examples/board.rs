@@ -57,8 +57,9 @@ const H: usize = 24;
 type Frame = ([u8; MAX_MSG_LEN], u16);
 /// A link: 32 frames deep.
 type Link = Queue<Frame, 32>;
-/// The worker as a board holds it: continuation queues, pixel records, outbox.
-type BoardWorker = Worker<'static, u8, 8, 16, 8>;
+/// The worker as a board holds it: continuation queues, pixel records, outbox, and ack
+/// counters for its ring of two.
+type BoardWorker = Worker<'static, u8, 8, 16, 8, 2>;
 
 static VIEW: StaticCell<View> = StaticCell::new();
 static PARTITION: StaticCell<Partition> = StaticCell::new();

@@ -16,8 +16,8 @@ fn porting_md_memory_map_figures_hold() {
         text.contains(&format!("{worker} bytes")),
         "PORTING.md must quote the simulator worker's size: {worker} bytes"
     );
-    // The board example's worker: queues of 8, 16 records, an outbox of 8.
-    let board = size_of::<voxcube_kernel::node::worker::Worker<'static, u8, 8, 16, 8>>();
+    // The board example's worker: queues of 8, 16 records, an outbox of 8, a ring of 2.
+    let board = size_of::<voxcube_kernel::node::worker::Worker<'static, u8, 8, 16, 8, 2>>();
     let board = format!("{},{:03}", board / 1000, board % 1000);
     assert!(
         text.contains(&format!("{board} in the board example's")),

@@ -218,6 +218,131 @@ pub fn room_ahead(
         || !(full(Class::ShadowUp, shadows) || full(Class::ShadowDown, shadows))
 }
 
+/// Counters per ring position and credit class for a ring of at most `RING` positions: a
+/// worker keeps one set for `n_i` (messages sent and not yet acknowledged) and one for the
+/// reads it owes an acknowledgement.
+///
+/// Invariants: only the first [`Credits::size`] positions are counted, so a worker built for
+/// a small ring holds counters for that ring only; a count saturates at `u16::MAX`, never
+/// wraps; classes without credit ([`Class::Ack`], [`Class::Control`]) have no counter and
+/// read as zero.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Credits<const RING: usize> {
+    counts: [[u16; CREDITS]; RING],
+    size: usize,
+}
+
+impl<const RING: usize> Credits<RING> {
+    /// Zero counters for a ring of `size` positions, or `None` when `size` exceeds `RING`.
+    pub const fn new(size: usize) -> Option<Credits<RING>> {
+        if size > RING {
+            return None;
+        }
+        Some(Credits {
+            counts: [[0; CREDITS]; RING],
+            size,
+        })
+    }
+
+    /// Zero counters for the first `size` positions, at most `RING` of them: for a caller
+    /// that has checked the ring against `RING` already ([`Credits::new`] checks).
+    pub const fn clamped(size: usize) -> Credits<RING> {
+        Credits {
+            counts: [[0; CREDITS]; RING],
+            size: if size < RING { size } else { RING },
+        }
+    }
+
+    /// Positions counted: the ring's size.
+    pub fn size(&self) -> usize {
+        self.size
+    }
+
+    /// The count toward ring position `position` in `class` (zero where there is none).
+    #[inline]
+    pub fn get(&self, position: usize, class: Class) -> u16 {
+        self.slot(position, class).map_or(0, |n| *n)
+    }
+
+    fn slot(&self, position: usize, class: Class) -> Option<&u16> {
+        let c = class.credit_index()?;
+        self.counts[..self.size].get(position)?.get(c)
+    }
+
+    fn slot_mut(&mut self, position: usize, class: Class) -> Option<&mut u16> {
+        let c = class.credit_index()?;
+        self.counts[..self.size].get_mut(position)?.get_mut(c)
+    }
+
+    /// Add one toward `position` in `class`; the new count, or `None` where there is no
+    /// counter (a class without credit, a position outside the ring).
+    #[inline]
+    pub fn add_one(&mut self, position: usize, class: Class) -> Option<u16> {
+        let n = self.slot_mut(position, class)?;
+        *n = n.saturating_add(1);
+        Some(*n)
+    }
+
+    /// Take `count` off the count toward `position` in `class`. `false`, changing nothing,
+    /// when it holds less (an acknowledgement of messages never sent: a protocol error).
+    pub fn take(&mut self, position: usize, class: Class, count: u16) -> bool {
+        match self.slot_mut(position, class) {
+            Some(n) if *n >= count => {
+                *n -= count;
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// Set the count toward `position` in `class` to zero and return what it was.
+    pub fn clear(&mut self, position: usize, class: Class) -> u16 {
+        self.slot_mut(position, class).map_or(0, core::mem::take)
+    }
+
+    /// Whether every count is zero.
+    pub fn all_zero(&self) -> bool {
+        self.counts[..self.size].iter().flatten().all(|&n| n == 0)
+    }
+
+    /// The largest count, over positions and classes.
+    pub fn max(&self) -> u16 {
+        self.counts[..self.size]
+            .iter()
+            .flatten()
+            .copied()
+            .max()
+            .unwrap_or(0)
+    }
+
+    /// Whether any class toward `position` is one message short of `i_max`.
+    pub fn any_full(&self, position: usize, i_max: u16) -> bool {
+        self.counts[..self.size]
+            .get(position)
+            .is_some_and(|row| row.iter().any(|&n| n.saturating_add(1) >= i_max))
+    }
+
+    /// [`room_ahead`] over these counters, from ring position `me`.
+    #[inline]
+    pub fn room_ahead(
+        &self,
+        me: usize,
+        kind: RayKind,
+        own: Class,
+        shadow_lights: u8,
+        i_max: u16,
+    ) -> bool {
+        room_ahead(
+            &self.counts[..self.size],
+            me,
+            kind,
+            own,
+            shadow_lights,
+            i_max,
+        )
+    }
+}
+
 /// The smallest `i_max` with which any ray can start (`r_imax < i_max` from `n_i = 0`).
 pub const fn min_i_max(shadow_lights: u8) -> usize {
     r_imax(RayKind::Primary, shadow_lights) + 1
@@ -331,6 +456,31 @@ mod tests {
             refused > 2_000 && allowed > 2_000,
             "{refused} refused, {allowed} allowed"
         );
+    }
+
+    #[test]
+    fn credits_count_the_ring_only_and_name_their_classes() {
+        assert!(Credits::<4>::new(5).is_none());
+        let mut c = Credits::<4>::new(2).expect("a ring of two fits four positions");
+        assert_eq!(c.add_one(1, Class::RayUp), Some(1));
+        assert_eq!(c.add_one(1, Class::RayUp), Some(2));
+        assert_eq!(
+            c.add_one(2, Class::RayUp),
+            None,
+            "position 2 is outside a ring of two"
+        );
+        assert_eq!(c.add_one(0, Class::Ack), None, "acks carry no credit");
+        assert_eq!(c.get(1, Class::RayUp), 2);
+        assert_eq!(c.get(1, Class::RayDown), 0);
+        assert_eq!(c.max(), 2);
+        assert!(c.any_full(1, 3) && !c.any_full(0, 3));
+        assert!(!c.take(1, Class::RayUp, 3), "more than was sent is refused");
+        assert_eq!(c.get(1, Class::RayUp), 2, "and changes nothing");
+        assert!(c.take(1, Class::RayUp, 2));
+        assert!(c.all_zero());
+        c.add_one(0, Class::Result);
+        assert_eq!(c.clear(0, Class::Result), 1);
+        assert!(c.all_zero());
     }
 
     #[test]

@@ -43,7 +43,7 @@
 //! back-pressure.
 
 use crate::counters::Counters;
-use crate::node::flow::{self, r_imax, Class, FlowControl, CREDITS};
+use crate::node::flow::{r_imax, Class, Credits, FlowControl, CREDIT_CLASSES};
 use crate::node::msg::{
     HitRecord, Msg, Outcome, PixelSet, Reply, Resolved, Travel, NO_HOME, NO_LIGHT,
 };
@@ -115,6 +115,13 @@ pub enum WorkerError {
     Slab,
     /// A capacity is too small to make progress.
     Capacity,
+    /// The ring has more positions than the worker's counters (its `RING`).
+    Ring {
+        /// Positions in the ring.
+        size: u16,
+        /// Positions the worker counts.
+        capacity: usize,
+    },
     /// `i_max` leaves no ray room to start: it must be at least `needed`.
     Credit {
         /// `i_max` given.
@@ -134,6 +141,10 @@ impl fmt::Display for WorkerError {
                 f.write_str("the slab does not hold this position's planes and ghost planes")
             }
             WorkerError::Capacity => f.write_str("a worker capacity is too small to make progress"),
+            WorkerError::Ring { size, capacity } => write!(
+                f,
+                "a ring of {size} positions is more than the worker's counters hold ({capacity})"
+            ),
             WorkerError::Credit { i_max, needed } => write!(
                 f,
                 "i_max {i_max} leaves no ray room to start (r_imax + 1 = {needed} needed)"
@@ -197,7 +208,14 @@ pub struct Checked<'a, T>(Setup<'a, T>);
 /// One node. `PENDING` bounds each direction's continuation queue, `RECORDS` the pixel
 /// records, `OUTBOX` the messages waiting for the port.
 #[derive(Debug)]
-pub struct Worker<'a, T, const PENDING: usize, const RECORDS: usize, const OUTBOX: usize> {
+pub struct Worker<
+    'a,
+    T,
+    const PENDING: usize,
+    const RECORDS: usize,
+    const OUTBOX: usize,
+    const RING: usize = MAX_CLUSTER,
+> {
     view: &'a View,
     slab: Slab<'a, T>,
     partition: &'a Partition,
@@ -218,9 +236,9 @@ pub struct Worker<'a, T, const PENDING: usize, const RECORDS: usize, const OUTBO
     flow: FlowControl,
     shadow_lights: u8,
     /// `n_i`: per ring position and credit class, messages sent and not yet acknowledged.
-    unacked: [[u16; CREDITS]; MAX_CLUSTER],
+    unacked: Credits<RING>,
     /// Reads per ring position and credit class not yet acknowledged.
-    acks_due: [[u16; CREDITS]; MAX_CLUSTER],
+    acks_due: Credits<RING>,
     /// The sum of `acks_due`: a poll with nothing (or, while busy, less than a batch) to
     /// acknowledge skips looking through every ring position and class, which was 40% of the
     /// instructions of a cluster of 16 polled on two threads.
@@ -235,8 +253,14 @@ pub struct Worker<'a, T, const PENDING: usize, const RECORDS: usize, const OUTBO
     pub mutants: Mutants,
 }
 
-impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: usize>
-    Worker<'a, T, PENDING, RECORDS, OUTBOX>
+impl<
+        'a,
+        T: Sample,
+        const PENDING: usize,
+        const RECORDS: usize,
+        const OUTBOX: usize,
+        const RING: usize,
+    > Worker<'a, T, PENDING, RECORDS, OUTBOX, RING>
 {
     /// Whether a worker can be built from `setup`. The checks come apart from building,
     /// which [`Worker::new`] does and which cannot fail, so that a host can build a worker
@@ -267,6 +291,12 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
         }
         if PENDING == 0 || RECORDS == 0 || OUTBOX < 3 || *rays_per_poll == 0 {
             return Err(WorkerError::Capacity);
+        }
+        if usize::from(layout.size()) > RING {
+            return Err(WorkerError::Ring {
+                size: layout.size(),
+                capacity: RING,
+            });
         }
         let shadow_lights = view.effects().shadow_lights;
         let needed = r_imax(RayKind::Primary, shadow_lights) as u16 + 1;
@@ -318,8 +348,8 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
             batch: PixelSet::default(),
             flow,
             shadow_lights,
-            unacked: [[0; CREDITS]; MAX_CLUSTER],
-            acks_due: [[0; CREDITS]; MAX_CLUSTER],
+            unacked: Credits::clamped(usize::from(layout.size())),
+            acks_due: Credits::clamped(usize::from(layout.size())),
             acks_owed: 0,
             token: if place.position == starter {
                 Token::Holding
@@ -360,13 +390,7 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
 
     /// The largest `n_i` now, over destinations and classes.
     pub fn max_unacked(&self) -> u16 {
-        let size = usize::from(self.place.layout.size());
-        self.unacked[..size]
-            .iter()
-            .flatten()
-            .copied()
-            .max()
-            .unwrap_or(0)
+        self.unacked.max()
     }
 
     /// Whether this worker has sent its statistics to the host: its part is over.
@@ -477,36 +501,33 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
     // (288 bytes, a ray's 96 among them), 3.8 M instructions a frame in rings of two on SOD.
     #[inline]
     fn send(&mut self, to: usize, msg: Msg) {
-        if let Some(c) = msg.class().credit_index() {
-            if let Some(n) = self.unacked.get_mut(to).and_then(|row| row.get_mut(c)) {
-                *n = n.saturating_add(1);
-                self.stats.peak_unacked = self.stats.peak_unacked.max(u64::from(*n));
-            }
+        if let Some(n) = self.unacked.add_one(to, msg.class()) {
+            self.stats.peak_unacked = self.stats.peak_unacked.max(u64::from(n));
         }
         let node = self.place.layout.node(self.place.cluster, to as u16);
         self.enqueue(Dest::Node(node), msg);
     }
 
     fn receive(&mut self, from: Dest, msg: Msg) {
-        if let (Dest::Node(node), Some(c)) = (from, msg.class().credit_index()) {
+        if let Dest::Node(node) = from {
             let p = self.position_of(node);
-            if let Some(due) = self.acks_due.get_mut(p).and_then(|row| row.get_mut(c)) {
-                if *due < u16::MAX {
-                    *due += 1;
-                    self.acks_owed += 1;
-                }
+            let before = self.acks_due.get(p, msg.class());
+            // A count at its ceiling stays there: `acks_owed` sums what the counters hold.
+            if self
+                .acks_due
+                .add_one(p, msg.class())
+                .is_some_and(|n| n > before)
+            {
+                self.acks_owed += 1;
             }
         }
         match msg {
             Msg::Ack { from, class, count } => {
                 let p = self.position_of(from);
-                match self
-                    .unacked
-                    .get_mut(p)
-                    .and_then(|row| row.get_mut(usize::from(class)))
-                {
-                    Some(n) if *n >= count => *n -= count,
-                    _ => self.stats.protocol_errors += 1,
+                let taken = Class::from_credit_index(class)
+                    .is_some_and(|class| self.unacked.take(p, class, count));
+                if !taken {
+                    self.stats.protocol_errors += 1;
                 }
             }
             Msg::Hit(h) => self.apply_hit(&h),
@@ -548,7 +569,7 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
         // Results go home.
         if t.reply.home != NO_HOME && t.reply.home != self.node {
             let home = self.position_of(t.reply.home);
-            if self.unacked[home][0].saturating_add(r) >= i_max {
+            if self.unacked.get(home, Class::Result).saturating_add(r) >= i_max {
                 return false;
             }
         }
@@ -557,9 +578,7 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
             // A ring of one has no position ahead either way: nothing below can refuse.
             return true;
         }
-        let ring = self.unacked.get(..size).unwrap_or(&self.unacked);
-        flow::room_ahead(
-            ring,
+        self.unacked.room_ahead(
             usize::from(self.place.position),
             kind,
             own,
@@ -868,20 +887,16 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
         let mut sent = false;
         let size = usize::from(self.place.layout.size());
         for p in 0..size {
-            for c in 0..CREDITS {
-                let due = self.acks_due[p][c];
+            for (c, class) in CREDIT_CLASSES.into_iter().enumerate() {
+                let due = self.acks_due.get(p, class);
                 if due == 0 || (!idle && due < self.flow.ack_batch) || self.outbox_free() < 2 {
                     continue;
                 }
                 #[cfg(feature = "mutants")]
-                if self.mutants.acks_need_credit
-                    && self.unacked[p]
-                        .iter()
-                        .any(|&n| n.saturating_add(1) >= self.flow.i_max)
-                {
+                if self.mutants.acks_need_credit && self.unacked.any_full(p, self.flow.i_max) {
                     continue;
                 }
-                self.acks_due[p][c] = 0;
+                self.acks_due.clear(p, class);
                 self.acks_owed -= u32::from(due);
                 let node = self.place.layout.node(self.place.cluster, p as u16);
                 self.enqueue(
@@ -899,12 +914,11 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
     }
 
     fn quiet(&self) -> bool {
-        let size = usize::from(self.place.layout.size());
         self.pending_up.is_empty()
             && self.pending_down.is_empty()
             && self.outbox.is_empty()
-            && self.unacked[..size].iter().flatten().all(|&n| n == 0)
-            && self.acks_due[..size].iter().flatten().all(|&n| n == 0)
+            && self.unacked.all_zero()
+            && self.acks_due.all_zero()
     }
 
     /// Pass the token on once this worker's pixels are final and it is quiet.
@@ -1065,11 +1079,9 @@ impl<'a, T: Sample, const PENDING: usize, const RECORDS: usize, const OUTBOX: us
                     return true;
                 }
                 Generation::Centralized => {
-                    let class = Class::of_ray(ray.kind, ray.ray.dir.x)
-                        .credit_index()
-                        .unwrap_or(3);
+                    let class = Class::of_ray(ray.kind, ray.ray.dir.x);
                     if self.flow.enabled
-                        && self.unacked[owner][class].saturating_add(1) >= self.flow.i_max
+                        && self.unacked.get(owner, class).saturating_add(1) >= self.flow.i_max
                     {
                         return false;
                     }
