@@ -12,7 +12,8 @@
 
 use crate::dataset::Volume;
 use crate::fabric::sim::{self, SimConfig};
-use crate::fabric::{Category, SkipMode, VirtualTime};
+use crate::fabric::{Category, VirtualTime};
+use crate::storage::SkipMode;
 use crate::profile::MachineProfile;
 use std::fmt;
 use voxcube_kernel::node::partition::Partition;

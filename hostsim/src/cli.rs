@@ -2,10 +2,10 @@
 //! `scene`. Errors go to stderr with a non-zero exit; nothing is written unless the whole
 //! scene loaded and checked.
 
-use crate::bench;
+use crate::experiments::bench;
 use crate::budget::Profile;
-use crate::explore;
-use crate::fabric::SkipMode;
+use crate::experiments::explore;
+use crate::storage::SkipMode;
 use crate::output::{write_atomic, write_png};
 use crate::render::{preflight, render_cut, Fabric, Machine};
 use crate::report::{summary, BalanceReport, Report, ViewReport};
@@ -288,21 +288,21 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
         Command::Paper { data, out, machine } => {
             let profile = crate::profile::MachineProfile::load(&machine)?;
             let mut text = String::new();
-            let job = crate::paper::dataset(data.as_deref(), &mut text)?;
-            crate::paper::run(&job, &profile, &out, &mut text)?;
+            let job = crate::experiments::paper::dataset(data.as_deref(), &mut text)?;
+            crate::experiments::paper::run(&job, &profile, &out, &mut text)?;
             print!("{text}");
             Ok(())
         }
         Command::Accuracy { data, out } => {
             let mut notes = String::new();
-            let job = crate::paper::dataset(Some(&data), &mut notes)?;
+            let job = crate::experiments::paper::dataset(Some(&data), &mut notes)?;
             let profile = crate::profile::MachineProfile::ncube2();
-            let points = crate::accuracy::sweep(&job, &profile);
-            let table = crate::accuracy::table(&points);
+            let points = crate::experiments::accuracy::sweep(&job, &profile);
+            let table = crate::experiments::accuracy::table(&points);
             std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
             std::fs::write(out.join("accuracy.txt"), &table)
                 .map_err(|e| format!("{}: {e}", out.display()))?;
-            crate::accuracy::plot(&out.join("accuracy.svg"), &points)?;
+            crate::experiments::accuracy::plot(&out.join("accuracy.svg"), &points)?;
             println!(
                 "{notes}{table}wrote {}/accuracy.txt and accuracy.svg",
                 out.display()

@@ -8,20 +8,18 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
-pub mod accuracy;
 pub mod balance;
-pub mod bench;
 pub mod budget;
 pub mod builtin;
 pub mod cli;
 pub mod dataset;
-pub mod explore;
+pub mod experiments;
 pub mod fabric;
 pub mod formats;
 pub mod output;
-pub mod paper;
 pub mod profile;
 pub mod render;
 pub mod report;
 pub mod rng;
 pub mod scene;
+pub mod storage;

@@ -9,7 +9,8 @@ use crate::budget::{self, BudgetError, Profile};
 use crate::dataset::{Volume, VolumeData};
 use crate::fabric::sim::{self, SimConfig, SimError};
 use crate::fabric::threads;
-use crate::fabric::{Distributed, SkipMode, Skipping};
+use crate::fabric::Distributed;
+use crate::storage::{SkipMode, Skipping};
 use std::time::{Duration, Instant};
 use voxcube_kernel::counters::Counters;
 use voxcube_kernel::node::flow;
@@ -265,7 +266,7 @@ pub fn preflight(volume: &Volume, view: &View, machine: &Machine) -> Result<(), 
 /// How `machine`'s nodes skip empty space in `view`: `machine.skipping`, without depth
 /// bounds where the view has none ([`depth_bytes`]) or a node could not hold them beside
 /// everything [`preflight`] counts, and without cell leap maps where the view takes none
-/// given its bounds ([`crate::fabric::cell_leap_octants`]) or a node could not hold them
+/// given its bounds ([`crate::storage::cell_leap_octants`]) or a node could not hold them
 /// beside all that. They are accelerations, not needs: a machine that fits without them
 /// renders without them, the same pixels. Slabs `balanced` by the host may grow up to the
 /// cap balancing keeps them under ([`budget::max_owned_planes`]), so then that slab must
@@ -300,7 +301,7 @@ pub fn node_skipping(volume: &Volume, view: &View, machine: &Machine, balanced: 
     let bounds = depth_bytes(view, mode, cfg.layout.clusters());
     let depths = bounds > 0 && fits(least.with_depths(bounds), cfg.buffer());
     let with_depths = least.with_depths(if depths { bounds } else { 0 });
-    let maps = crate::fabric::cell_leap_octants(view, SkipMode { depths, ..mode });
+    let maps = crate::storage::cell_leap_octants(view, SkipMode { depths, ..mode });
     let maps = maps.count_ones() as usize;
     let held = maps > 0 && fits(with_depths.with_cell_maps(maps), cfg.buffer());
     SkipMode {

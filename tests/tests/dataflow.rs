@@ -4,7 +4,7 @@
 
 use proptest::prelude::*;
 use voxcube::fabric::sim::{self, SimConfig};
-use voxcube::fabric::SkipMode;
+use voxcube::storage::SkipMode;
 use voxcube::render::{render, render_skipping};
 use voxcube::scene::{DatasetJob, Scene};
 use voxcube_kernel::node::topology::Layout;

@@ -3,7 +3,7 @@
 //! image and every invariant intact; with it off, or with any of the mutants, the explorer
 //! catches the fault. `VOXCUBE_LONG=1` runs the long mode (over 10,000 schedules).
 
-use voxcube::explore::{configs, explore, scenes, Config};
+use voxcube::experiments::explore::{configs, explore, scenes, Config};
 use voxcube::fabric::sim::{self, SimConfig, SimError};
 use voxcube_kernel::node::flow;
 use voxcube_kernel::node::worker::Mutants;

@@ -3,7 +3,7 @@
 //! tests skip with a message — except under CI (`CI` set), where a missing folder fails.
 
 use std::path::{Path, PathBuf};
-use voxcube::fabric::SkipMode;
+use voxcube::storage::SkipMode;
 use voxcube::render::render;
 use voxcube::scene::Scene;
 
@@ -157,7 +157,7 @@ fn the_ncube2_profile_is_calibrated_to_the_papers_one_node_time() {
     use voxcube::profile::MachineProfile;
     let Some(data) = data_or_skip() else { return };
     let mut notes = String::new();
-    let job = voxcube::paper::dataset(Some(&data), &mut notes).expect("SOD");
+    let job = voxcube::experiments::paper::dataset(Some(&data), &mut notes).expect("SOD");
     assert!(notes.is_empty(), "{notes}");
     // The paper's tracer, without empty-space skipping.
     let cfg = SimConfig {
@@ -181,16 +181,16 @@ fn load_balancing_lowers_every_table_3_time_on_sod() {
     use voxcube::profile::MachineProfile;
     let Some(data) = data_or_skip() else { return };
     let mut notes = String::new();
-    let job = voxcube::paper::dataset(Some(&data), &mut notes).expect("SOD");
+    let job = voxcube::experiments::paper::dataset(Some(&data), &mut notes).expect("SOD");
     let (v, profile) = (&job.views[0].view, MachineProfile::ncube2());
     for cs in [16u32, 8, 4, 2] {
-        let cuts = voxcube::paper::balance(&job, v, &profile, cs).expect("balances");
+        let cuts = voxcube::experiments::paper::balance(&job, v, &profile, cs).expect("balances");
         for nodes in [64u32, 128] {
-            let standard = voxcube::paper::timed(&job, v, &profile, nodes / cs, cs, None)
+            let standard = voxcube::experiments::paper::timed(&job, v, &profile, nodes / cs, cs, None)
                 .expect("runs")
                 .frame;
             let balanced =
-                voxcube::paper::timed(&job, v, &profile, nodes / cs, cs, Some(cuts.clone()))
+                voxcube::experiments::paper::timed(&job, v, &profile, nodes / cs, cs, Some(cuts.clone()))
                     .expect("runs")
                     .frame;
             assert!(
@@ -214,7 +214,7 @@ fn at_128_nodes_a_small_cluster_beats_pure_dataflow_and_pure_image_partition() {
             .unwrap_or_else(|e| panic!("{e}"));
         let (job, v) = (&jobs[0], &jobs[0].views[0].view);
         [(8, 16), (64, 2), (128, 1)].map(|(m, cs)| {
-            voxcube::paper::timed(job, v, &profile, m, cs, None)
+            voxcube::experiments::paper::timed(job, v, &profile, m, cs, None)
                 .expect("runs")
                 .frame
         })

@@ -10,7 +10,7 @@
 use proptest::prelude::*;
 use voxcube::dataset::{Volume, VolumeData};
 use voxcube::fabric::sim::{self, SimConfig};
-use voxcube::fabric::{cell_leap_octants, SkipMode, Skipping};
+use voxcube::storage::{cell_leap_octants, SkipMode, Skipping};
 use voxcube::render::render_skipping;
 use voxcube::scene::Scene;
 use voxcube_kernel::optics::transfer::{ControlPoint, TransferFunction};
@@ -638,7 +638,7 @@ fn a_leap_map_built_for_another_octant_changes_the_image() {
 /// one thread or split over several, more threads than block columns too.
 #[test]
 fn every_node_skips_by_the_same_storage_however_the_build_is_threaded() {
-    use voxcube::fabric::NodeStorage;
+    use voxcube::storage::NodeStorage;
     use voxcube_kernel::node::partition::Partition;
     use voxcube_kernel::node::topology::Layout;
     let volume = blobs([37, 21, 30], Vec3::ONE, 0x7e_4d_11);
@@ -691,8 +691,8 @@ fn every_node_skips_by_the_same_storage_however_the_build_is_threaded() {
 
 /// Whether a cell holds fewer of `view`'s samples than cell leap maps need beside depth bounds.
 fn samples_below(view: &View) -> bool {
-    voxcube::fabric::samples_per_cell(view)
-        .is_some_and(|n| n < voxcube::fabric::MAP_SAMPLES_PER_CELL)
+    voxcube::storage::samples_per_cell(view)
+        .is_some_and(|n| n < voxcube::storage::MAP_SAMPLES_PER_CELL)
 }
 
 /// Cell leap maps are an acceleration, not a need: a node holds them only where its memory has
@@ -746,7 +746,7 @@ fn nodes_hold_cell_leap_maps_only_where_they_fit() {
     );
     // With depth bounds, maps only where a cell holds enough of the rays' samples: not at
     // 40×30 pixels over 60 units (0.9 samples a cell) nor at 160×120 (14.2), at 240×180 (32).
-    let few = voxcube::fabric::samples_per_cell(&parallel).expect("parallel");
+    let few = voxcube::storage::samples_per_cell(&parallel).expect("parallel");
     assert!((few - 1.0 / (1.5 * 1.5 * 0.5)).abs() < 1e-9, "{few}");
     assert_eq!(cell_leap_octants(&parallel, SkipMode::ALL), 0);
     let sized = |w: u32, h: u32| {

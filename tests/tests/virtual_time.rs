@@ -2,7 +2,7 @@
 //! node's time to categories that add up to the frame time, and get faster with more nodes.
 
 use voxcube::fabric::sim::{self, SimConfig};
-use voxcube::fabric::SkipMode;
+use voxcube::storage::SkipMode;
 use voxcube::profile::MachineProfile;
 use voxcube::render::render;
 use voxcube::scene::Scene;
@@ -63,10 +63,10 @@ fn static_load_balancing_lowers_the_time_of_an_unbalanced_cluster() {
     let job = &jobs[0];
     let v = &job.views[0].view;
     let profile = MachineProfile::ncube2();
-    let uniform = voxcube::paper::timed(job, v, &profile, 1, 4, None)
+    let uniform = voxcube::experiments::paper::timed(job, v, &profile, 1, 4, None)
         .expect("runs")
         .frame;
-    let cuts = voxcube::paper::balance(job, v, &profile, 4).expect("balances");
+    let cuts = voxcube::experiments::paper::balance(job, v, &profile, 4).expect("balances");
     assert_eq!(cuts.len(), 5);
     let run = |shift: bool| {
         let cfg = SimConfig {
@@ -88,7 +88,7 @@ fn static_load_balancing_lowers_the_time_of_an_unbalanced_cluster() {
     let (a, b) = (shifted.time.expect("timed"), loaded.time.expect("timed"));
     assert!((a.frame - b.frame - report.seconds.unwrap_or(0.0)).abs() < 1e-9);
     assert_eq!(shifted.pixels, loaded.pixels);
-    let balanced = voxcube::paper::timed(job, v, &profile, 1, 4, Some(cuts.clone()))
+    let balanced = voxcube::experiments::paper::timed(job, v, &profile, 1, 4, Some(cuts.clone()))
         .expect("runs")
         .frame;
     assert!((balanced - a.frame).abs() < 1e-9, "paper::timed shifts too");

@@ -327,7 +327,7 @@ fn serve_typed<T: Sample + Sync>(
     )?;
     // Depth bounds for this node's cluster's rows only, as its budget counts them.
     let rows = layout.cluster_rows(layout.place(node).0);
-    let skipping = super::Skipping::build_for(&slab, view, cfg.skipping, rows);
+    let skipping = crate::storage::Skipping::build_for(&slab, view, cfg.skipping, rows);
     let slab = skipping.apply(slab);
     let mut worker = super::sim::node_worker(view, slab, &partition, cfg, node, flow)?;
     let mut port = MpiPort {

@@ -105,7 +105,7 @@ pub struct SimConfig {
     /// A fault to inject: this node stops answering after this many of its own steps.
     pub stop: Option<(u16, u64)>,
     /// How the nodes skip provably empty samples (changes no pixel; off to compare).
-    pub skipping: super::SkipMode,
+    pub skipping: crate::storage::SkipMode,
     /// Test-only faults, applied to every worker.
     #[cfg(feature = "mutants")]
     pub mutants: voxcube_kernel::node::worker::Mutants,
@@ -137,7 +137,7 @@ impl SimConfig {
             flow_control: true,
             time: None,
             stop: None,
-            skipping: super::SkipMode::ALL,
+            skipping: crate::storage::SkipMode::ALL,
             #[cfg(feature = "mutants")]
             mutants: Default::default(),
         })
@@ -544,7 +544,7 @@ fn run_typed<T: Sample + Sync>(
         }
         _ => None,
     };
-    let nodes_storage = super::NodeStorage::new(
+    let nodes_storage = crate::storage::NodeStorage::new(
         &grid,
         layout,
         &partition,

@@ -247,7 +247,7 @@ fn run_typed<T: Sample + Send + Sync>(
         }
         _ => None,
     };
-    let nodes_storage = super::NodeStorage::new(
+    let nodes_storage = crate::storage::NodeStorage::new(
         &grid,
         layout,
         &partition,

@@ -137,7 +137,7 @@ pub fn timed(
         time: Some(profile.clone()),
         shift: cuts.is_some(),
         cuts,
-        skipping: crate::fabric::SkipMode::OFF,
+        skipping: crate::storage::SkipMode::OFF,
         ..base
     };
     let run = sim::run(&job.volume, view, &cfg)?;
@@ -159,7 +159,7 @@ pub fn balance(
         view,
         profile,
         size,
-        crate::fabric::SkipMode::OFF,
+        crate::storage::SkipMode::OFF,
         nx,
     )
     .map_err(|e| PaperError::Write(e.to_string()))?;

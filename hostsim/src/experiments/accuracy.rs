@@ -8,7 +8,7 @@
 //! - error against a fine reference at the same image size (Δt = 1/16, cell model): PSNR and
 //!   maximum absolute error, in 8-bit levels.
 
-use crate::fabric::SkipMode;
+use crate::storage::SkipMode;
 use crate::profile::MachineProfile;
 use crate::render::render_skipping;
 use crate::scene::DatasetJob;
@@ -167,7 +167,7 @@ pub fn sweep(job: &DatasetJob, profile: &MachineProfile) -> Vec<Point> {
     }
     // 700×500 keeps the paper's framing at twice the pixels; 1024×768 is framed as the paper
     // framed it at that size (its voxels on 748×482 pixels).
-    let large = crate::bench::Size::LARGE;
+    let large = crate::experiments::bench::Size::LARGE;
     for (w, h, dt, span) in [
         (350u32, 250u32, 0.5f32, None),
         (700, 500, 0.5, None),

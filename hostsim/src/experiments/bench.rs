@@ -9,7 +9,7 @@
 //! it.
 
 use crate::dataset::{Volume, VolumeData};
-use crate::fabric::SkipMode;
+use crate::storage::SkipMode;
 use crate::render::{render_on, Fabric, Machine, RenderError};
 use crate::scene::{Scene, SceneError};
 use std::fmt::Write;

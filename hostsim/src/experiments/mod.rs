@@ -1,0 +1,12 @@
+//! The experiments: what the project measures about itself, apart from the host's runtime.
+//! `bench` (speed against this machine's trilinear ceiling), `paper` (the paper's tables in
+//! simulated nCUBE 2 time), `accuracy` (what accuracy costs in time) and `explore`
+//! (schedules explored on the simulator for deadlocks and invariants).
+//!
+//! Invariant: an experiment only drives the runtime (scenes, fabrics, reports) through its
+//! public face; nothing in the runtime depends on an experiment.
+
+pub mod accuracy;
+pub mod bench;
+pub mod explore;
+pub mod paper;

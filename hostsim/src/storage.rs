@@ -1,0 +1,593 @@
+//! Each node's storage for one view: its slab (loaded, or shifted to it by message), and the
+//! empty-space skipping structures it builds for the view (min/max blocks, leap maps, cell
+//! masks and leaps, depth bounds), in memory it owns, split across threads for speed.
+//!
+//! Invariant: skipping changes no pixel, and a node's structures are built from the planes it
+//! stores alone, so they are the same bits however the build is split or where it runs.
+
+use std::borrow::Cow;
+use std::ops::Range;
+use voxcube_kernel::node::partition::Partition;
+use voxcube_kernel::node::topology::Layout;
+use voxcube_kernel::trace::view::View;
+use voxcube_kernel::volume::grid::Grid;
+use voxcube_kernel::volume::slab::stored_planes;
+
+/// How a node skips empty space: whether it does, whether its jumps leap over every empty
+/// block around, and whether it skips single empty cells inside blocks that are not empty
+/// (a debug option each; none changes a pixel).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SkipMode {
+    /// Skip provably empty samples with min/max blocks.
+    pub skip: bool,
+    /// Leap by chessboard distances over empty blocks (only when skipping).
+    pub leap: bool,
+    /// Skip samples in empty cells of blocks that are not empty, by one view's cell masks
+    /// (only when skipping, and in the cell model).
+    pub cells: bool,
+    /// Leap from empty cell to empty cell by distances between the cells the masks keep
+    /// (only with cell masks; `voxcube_kernel::skip::cell_leaps`).
+    pub cell_leaps: bool,
+    /// Pass over the pixels of a row that a node certainly does not start, or that
+    /// certainly miss, without setting up their rays (parallel projections only;
+    /// `voxcube_kernel::trace::starts`).
+    pub rows: bool,
+    /// Pass a primary ray at once over the samples before its pixel's depth bound (only
+    /// with cell masks, parallel projections; `voxcube_kernel::skip::depths`).
+    pub depths: bool,
+}
+
+impl SkipMode {
+    /// Every sample evaluated, every primary ray set up.
+    pub const OFF: SkipMode = SkipMode {
+        skip: false,
+        leap: false,
+        cells: false,
+        cell_leaps: false,
+        rows: false,
+        depths: false,
+    };
+    /// Empty samples skipped by whole blocks, each jump ending at its block's faces.
+    pub const BLOCKS: SkipMode = SkipMode {
+        skip: true,
+        leap: false,
+        cells: false,
+        cell_leaps: false,
+        rows: true,
+        depths: false,
+    };
+    /// Empty samples skipped by whole blocks, each jump leaping over every empty block around.
+    pub const LEAPS: SkipMode = SkipMode {
+        skip: true,
+        leap: true,
+        cells: false,
+        cell_leaps: false,
+        rows: true,
+        depths: false,
+    };
+    /// Leaps, and single empty cells skipped too (the default).
+    pub const ALL: SkipMode = SkipMode {
+        skip: true,
+        leap: true,
+        cells: true,
+        cell_leaps: true,
+        rows: true,
+        depths: true,
+    };
+
+    /// `view` as this mode renders it: without its row leaps when `rows` is off.
+    pub fn view<'v>(&self, view: &'v View) -> Cow<'v, View> {
+        if self.rows {
+            Cow::Borrowed(view)
+        } else {
+            Cow::Owned(view.clone().without_row_leaps())
+        }
+    }
+}
+
+/// The octants whose cell leap maps a node skipping as `mode` says holds for `view`: the one
+/// its primary rays take (transparency rays go on the same way), which trace nearly all
+/// samples. Any ray of another octant, as shadow rays mostly are, leaps by blocks; one in
+/// that octant, of whatever kind, leaps by the map. None without cell masks, which they
+/// are built from, and none when the primary rays take several octants: each map costs a
+/// pass over every cell, and each octant's rays are then only a share of the image (SOD
+/// seen from inside, four octants: 594.7 M instructions with their maps, 564.1 M without).
+/// None either for surfaces where depth bounds pass the primary rays over the cells before
+/// their first that shows and a cell holds fewer than [`MAP_SAMPLES_PER_CELL`] of their
+/// samples ([`samples_per_cell`]): most such rays end at a crossing soon after their bound,
+/// and the map's pass costs more than the turns it saves. Composited rays go on through the
+/// volume after their bound, and keep their maps (SOD's paper view without them: 2,559.4 →
+/// 2,724.2 M instructions).
+pub fn cell_leap_octants(view: &View, mode: SkipMode) -> u8 {
+    let by_cell = view.spec().model == voxcube_kernel::volume::grid::Model::Cell;
+    let primary = voxcube_kernel::skip::leaps::primary_octants(view);
+    let surfaces = matches!(
+        view.spec().mode,
+        voxcube_kernel::trace::view::Mode::Surfaces(_)
+    );
+    let sparse = surfaces
+        && crate::render::has_depths(view, mode)
+        && samples_per_cell(view).is_some_and(|n| n < MAP_SAMPLES_PER_CELL);
+    match mode.skip && mode.cells && mode.cell_leaps && by_cell && primary.count_ones() == 1 {
+        true if !sparse => primary,
+        _ => 0,
+    }
+}
+
+/// The samples a cell must hold, on average, for a view with depth bounds to take cell leap
+/// maps. Measured on SOD with depth bounds, alternating medians of one machine (2026-12-02):
+/// at 8 a cell (the paper's 350×250, Δt = ½) the frame took 19.5 ms without maps against
+/// 21.3 ms with them (the default scene's molecule: 14.2 against 15.8 ms); at 16 (495×354)
+/// about even (47.9 against 42.7 ms, runs overlapping); at 32 (700×500) 89.9 against 82.1 ms,
+/// at 123 (1024×768, Δt = ⅕) 160.5 against 140.0 ms.
+pub const MAP_SAMPLES_PER_CELL: f64 = 16.0;
+
+/// How many of a parallel view's lattice samples a cell holds on average, over the rays
+/// that cross it: a cell's world volume over the world area of a pixel times the step.
+/// `None` for a perspective view, whose pixels' areas grow with depth.
+pub fn samples_per_cell(view: &View) -> Option<f64> {
+    let spec = view.spec();
+    let voxcube_kernel::trace::camera::Projection::Orthographic { width } =
+        spec.camera.projection()
+    else {
+        return None;
+    };
+    let pixel = f64::from(width) / f64::from(spec.width.max(1));
+    let inv = view.inv_spacing();
+    let cell = 1.0 / (f64::from(inv.x) * f64::from(inv.y) * f64::from(inv.z));
+    Some(cell / (pixel * pixel * f64::from(spec.dt)))
+}
+
+/// A node's storage for skipping empty space in one view: its min/max blocks, their
+/// chessboard distances ahead (a map per octant the view's rays take), their cell masks, the
+/// distances between cells (a map per octant of the primary rays) and the pixels' depth
+/// bounds, each empty when that acceleration is off.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Skipping {
+    ranges: Vec<voxcube_kernel::skip::blocks::Range>,
+    /// One leap map per octant in `octants`, in octant order.
+    leaps: Vec<u8>,
+    octants: u8,
+    cells: Vec<voxcube_kernel::skip::cells::CellMask>,
+    /// One cell leap map per octant in `cell_octants`, in octant order.
+    cell_leaps: Vec<u8>,
+    cell_octants: u8,
+    /// The view's depth bounds over the slab, a bound per pixel of the rows `depth_rows` of
+    /// an image `depth_width` wide.
+    depths: Vec<f32>,
+    depth_rows: voxcube_kernel::node::topology::Rows,
+    depth_width: u32,
+}
+
+/// `all` cut into consecutive pieces of `sizes` (the last piece short if they overrun).
+fn split_sizes<E>(
+    mut all: &mut [E],
+    sizes: impl Iterator<Item = usize>,
+) -> impl Iterator<Item = &mut [E]> {
+    sizes.map(move |n| {
+        let rest = std::mem::take(&mut all);
+        let (piece, rest) = rest.split_at_mut(n.min(rest.len()));
+        all = rest;
+        piece
+    })
+}
+
+/// `0..total` cut into `n` consecutive parts whose sizes differ by at most one.
+fn even_parts(total: u32, n: u32) -> Vec<Range<u32>> {
+    let n = n.max(1);
+    let cut = |i: u32| (u64::from(i) * u64::from(total) / u64::from(n)) as u32;
+    (0..n).map(|i| cut(i)..cut(i + 1)).collect()
+}
+
+/// One part of a skipping build, saying whether it built.
+type Part<'a> = Box<dyn FnOnce() -> bool + Send + 'a>;
+
+/// Run `parts` on up to `threads` OS threads, the calling thread one of them, each taking the
+/// next part no thread has taken; whether each built (a part that panics built nothing).
+/// One thread a part put three threads on two cores for a paper view's masks and leap map,
+/// and left the calling thread waiting.
+fn run_parts(parts: Vec<Part<'_>>, threads: usize) -> Vec<bool> {
+    use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+    use std::sync::Mutex;
+    let built: Vec<AtomicBool> = parts.iter().map(|_| AtomicBool::new(false)).collect();
+    let parts: Vec<Mutex<Option<Part<'_>>>> =
+        parts.into_iter().map(|p| Mutex::new(Some(p))).collect();
+    let next = AtomicUsize::new(0);
+    let work = || loop {
+        let i = next.fetch_add(1, Ordering::Relaxed);
+        let Some(slot) = parts.get(i) else {
+            return;
+        };
+        let part = slot
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .take();
+        if let Some(part) = part {
+            let ok = std::panic::catch_unwind(std::panic::AssertUnwindSafe(part));
+            built[i].store(ok.unwrap_or(false), Ordering::Relaxed);
+        }
+    };
+    let helpers = threads.min(parts.len()).saturating_sub(1);
+    std::thread::scope(|scope| {
+        for _ in 0..helpers {
+            scope.spawn(work);
+        }
+        work();
+    });
+    built.into_iter().map(AtomicBool::into_inner).collect()
+}
+
+impl Skipping {
+    /// The blocks of `slab` (`mode.skip`), their distances for each octant of ray directions
+    /// the view takes (`mode.leap`) and cell masks (`mode.cells`, cell model only) for `view`.
+    pub fn build<T: voxcube_kernel::volume::sample::Sample + Sync>(
+        slab: &voxcube_kernel::volume::slab::Slab<'_, T>,
+        view: &View,
+        mode: SkipMode,
+    ) -> Skipping {
+        Skipping::build_on(slab, view, mode, 1)
+    }
+
+    /// [`Skipping::build`] with depth bounds for the image rows `rows` only: a node's, whose
+    /// cluster traces those (`topology::Layout::cluster_rows`).
+    pub fn build_for<T: voxcube_kernel::volume::sample::Sample + Sync>(
+        slab: &voxcube_kernel::volume::slab::Slab<'_, T>,
+        view: &View,
+        mode: SkipMode,
+        rows: voxcube_kernel::node::topology::Rows,
+    ) -> Skipping {
+        Skipping::build_rows_on(slab, view, mode, 1, rows)
+    }
+
+    /// [`Skipping::build`] on up to `threads` OS threads: the blocks and the masks split by
+    /// block columns, each octant's distances (one pass over every block) beside the masks.
+    /// The same bits: a column's blocks and masks depend on its own nodes only. A machine's
+    /// start-up is on every frame's clock, and the masks of a composited SOD view alone took a
+    /// tenth of a one-node frame. The depth bounds cover every row: the in-process fabrics
+    /// share a ring position's storage among its clusters, whose nodes read their own rows.
+    pub fn build_on<T: voxcube_kernel::volume::sample::Sample + Sync>(
+        slab: &voxcube_kernel::volume::slab::Slab<'_, T>,
+        view: &View,
+        mode: SkipMode,
+        threads: usize,
+    ) -> Skipping {
+        let all = voxcube_kernel::node::topology::Rows::ALL;
+        Skipping::build_rows_on(slab, view, mode, threads, all)
+    }
+
+    fn build_rows_on<T: voxcube_kernel::volume::sample::Sample + Sync>(
+        slab: &voxcube_kernel::volume::slab::Slab<'_, T>,
+        view: &View,
+        mode: SkipMode,
+        threads: usize,
+        rows: voxcube_kernel::node::topology::Rows,
+    ) -> Skipping {
+        use voxcube_kernel::skip::blocks::{column_len, extent, Blocks, Range};
+        use voxcube_kernel::skip::cells;
+        if !mode.skip {
+            return Skipping::default();
+        }
+        let (x0, x1, len) = extent(slab);
+        let per = column_len(slab.grid());
+        let columns = x1 - x0;
+        let n = threads.clamp(1, columns as usize) as u32;
+        let parts = even_parts(columns, n);
+        let sizes: Vec<usize> = parts.iter().map(|c| c.len() * per).collect();
+        // Every length comes from the slab: no build can fail; without blocks nothing is
+        // skipped, without distances each jump ends at its block's faces, without masks no
+        // single cell is skipped. A part that panics leaves the view without skipping.
+        //
+        // First each part of the block columns: their ranges, then their cell masks, which
+        // read only their own blocks' ranges (`Blocks::of_columns`). Built with a wait for
+        // every part's ranges between them, the two phases cost a thread start and join more
+        // and ran unevenly (measured).
+        let by_cell = mode.cells && view.spec().model == voxcube_kernel::volume::grid::Model::Cell;
+        let mut ranges = vec![Range::UNKNOWN; len];
+        let mut cells = if by_cell { vec![0; len] } else { Vec::new() };
+        let pieces = split_sizes(&mut ranges, sizes.iter().copied())
+            .zip(split_sizes(&mut cells, sizes.iter().copied()));
+        let jobs = pieces
+            .zip(parts)
+            .map(|((out, masks), cols)| -> Part<'_> {
+                let masks = by_cell.then_some(masks);
+                Box::new(move || {
+                    if Blocks::build_columns(slab, cols.clone(), out).is_err() {
+                        return false;
+                    }
+                    let Some(masks) = masks else {
+                        return true;
+                    };
+                    let own = 0..cols.len() as u32;
+                    Blocks::of_columns(slab, cols, out)
+                        .and_then(|part| cells::build_columns(slab, &part, view, own, masks))
+                        .is_ok()
+                })
+            })
+            .collect();
+        if !run_parts(jobs, threads).into_iter().all(|built| built) {
+            return Skipping::default();
+        }
+        let Ok(blocks) = Blocks::new(slab, &ranges) else {
+            return Skipping::default();
+        };
+        // Then everything that reads the whole slab's blocks or masks, in one set of parts, in
+        // this order: the depth bounds in parts of rows, a leap map for each octant the
+        // view's rays take, and a cell leap map in parts of planes for each octant of the
+        // primary rays.
+        let octants = match mode.leap {
+            true => voxcube_kernel::skip::leaps::octants(view),
+            false => 0,
+        };
+        let maps = octants.count_ones() as usize;
+        let mut leaps = vec![0; maps * len];
+        let with_masks = blocks.with_cells(&cells).ok().filter(|_| !cells.is_empty());
+        let cell_octants = match with_masks {
+            Some(_) => cell_leap_octants(view, mode),
+            None => 0,
+        };
+        let per_map = len * voxcube_kernel::skip::cell_leaps::PER_BLOCK;
+        let mut cell_leaps = vec![0; cell_octants.count_ones() as usize * per_map];
+        let (width, height) = (view.spec().width as usize, view.spec().height);
+        let bounded = with_masks
+            .as_ref()
+            .filter(|_| crate::render::has_depths(view, mode));
+        let held = rows.count(height);
+        let mut depths = match bounded {
+            Some(_) => vec![0.0; held as usize * width],
+            None => Vec::new(),
+        };
+        let mut jobs: Vec<Part<'_>> = Vec::new();
+        // Depth bounds from the masks, where the view's rays are parallel and near enough:
+        // the rows in parts, one a thread, each into its own piece of the map
+        // (`depths::build_places`: the same bits). A part passes over the other parts' blocks
+        // and cells at the cost of placing them on the rows; parts of block columns, each
+        // with a map to merge, cost more than they saved at 1024×768.
+        //
+        // They go first: on SOD's paper view they are the longest parts, and the thread that
+        // ends its part first then builds the leap map. With the map first, its thread took
+        // the second depth part after it, and on two threads the two ended 160–210 µs apart;
+        // now about 50 µs, and the set takes about 50 µs less (measured).
+        if let Some(with_masks) = bounded {
+            let n = threads.clamp(1, held.max(1) as usize) as u32;
+            let places = even_parts(held, n);
+            let sizes: Vec<usize> = places.iter().map(|p| p.len() * width).collect();
+            for (out, places) in split_sizes(&mut depths, sizes.into_iter()).zip(places) {
+                jobs.push(Box::new(move || {
+                    voxcube_kernel::skip::depths::build_places(with_masks, view, rows, places, out)
+                        .is_ok()
+                }));
+            }
+        }
+        let depth_jobs = jobs.len();
+        let chosen = (0..voxcube_kernel::skip::leaps::OCTANTS).filter(|o| octants >> o & 1 == 1);
+        for (map, octant) in leaps.chunks_mut(len).zip(chosen) {
+            let (blocks, octant) = (
+                &blocks,
+                voxcube_kernel::skip::leaps::Octant::from_index(octant),
+            );
+            jobs.push(Box::new(move || {
+                voxcube_kernel::skip::leaps::build(blocks, view, octant, map).is_ok()
+            }));
+        }
+        if let Some(with_masks) = &with_masks {
+            let chosen =
+                (0..voxcube_kernel::skip::leaps::OCTANTS).filter(|o| cell_octants >> o & 1 == 1);
+            // Each map in parts of planes, one a thread: a part is built with the planes ahead
+            // of it that its distances depend on, and keeps its own. The parts even out what
+            // each thread builds (`cell_leaps::part`).
+            use voxcube_kernel::skip::cell_leaps::with_planes_ahead;
+            use voxcube_kernel::skip::cell_leaps::{build_planes, part, plane_len, planes};
+            let (all, plane) = (planes(with_masks), plane_len(with_masks));
+            let n = threads.clamp(1, all.max(1));
+            for (map, octant) in cell_leaps.chunks_mut(per_map).zip(chosen) {
+                let octant = voxcube_kernel::skip::leaps::Octant::from_index(octant);
+                let parts: Vec<std::ops::Range<usize>> =
+                    (0..n).map(|i| part(i, n, all, octant)).collect();
+                let sizes: Vec<usize> = parts.iter().map(|p| p.len() * plane).collect();
+                let pieces = split_sizes(map, sizes.into_iter());
+                for (out, part) in pieces.zip(parts).filter(|(_, p)| !p.is_empty()) {
+                    jobs.push(Box::new(move || {
+                        let region = with_planes_ahead(part.clone(), all, octant);
+                        if region == part {
+                            return build_planes(with_masks, octant, part, out).is_ok();
+                        }
+                        let mut built = vec![0; region.len() * plane];
+                        let at = (part.start - region.start) * plane;
+                        let ok = build_planes(with_masks, octant, region, &mut built).is_ok();
+                        match built.get(at..at + out.len()) {
+                            Some(own) if ok => {
+                                out.copy_from_slice(own);
+                                true
+                            }
+                            _ => false,
+                        }
+                    }));
+                }
+            }
+        }
+        let built = run_parts(jobs, threads);
+        let (depths_built, built) = built.split_at(depth_jobs);
+        let (maps_built, cells_built) = built.split_at(maps);
+        let (leaps, octants) = match maps_built.iter().all(|&b| b) {
+            true => (leaps, octants),
+            false => (Vec::new(), 0),
+        };
+        let (cell_leaps, cell_octants) = match cells_built.iter().all(|&b| b) {
+            true if cell_octants != 0 => (cell_leaps, cell_octants),
+            _ => (Vec::new(), 0),
+        };
+        if !depths_built.iter().all(|&b| b) {
+            depths = Vec::new();
+        }
+        Skipping {
+            ranges,
+            leaps,
+            octants,
+            cells,
+            cell_leaps,
+            cell_octants,
+            depths,
+            depth_rows: rows,
+            depth_width: view.spec().width,
+        }
+    }
+
+    /// `slab`, skipping empty space with this storage (unchanged when it holds none).
+    pub fn apply<'a, T: voxcube_kernel::volume::sample::Sample>(
+        &'a self,
+        slab: voxcube_kernel::volume::slab::Slab<'a, T>,
+    ) -> voxcube_kernel::volume::slab::Slab<'a, T> {
+        if self.ranges.is_empty() {
+            return slab;
+        }
+        let Ok(blocks) = voxcube_kernel::skip::blocks::Blocks::new(&slab, &self.ranges) else {
+            return slab;
+        };
+        let blocks = match blocks.with_leaps(&self.leaps, self.octants) {
+            Ok(leaping) if self.octants != 0 => leaping,
+            _ => blocks,
+        };
+        let blocks = match blocks.with_cells(&self.cells) {
+            Ok(masked) if !self.cells.is_empty() => masked,
+            _ => blocks,
+        };
+        let blocks = match blocks.with_cell_leaps(&self.cell_leaps, self.cell_octants) {
+            Ok(leaping) if self.cell_octants != 0 => leaping,
+            _ => blocks,
+        };
+        let blocks = match self.depths.is_empty() {
+            true => blocks,
+            false => blocks.with_depths(voxcube_kernel::skip::depths::Depths::new(
+                &self.depths,
+                self.depth_width,
+                self.depth_rows,
+            )),
+        };
+        slab.with_blocks(blocks)
+    }
+}
+
+/// What every node of an in-process machine holds before its first message: its stored
+/// planes, and the skipping storage of its ring position for the view.
+#[derive(Debug)]
+pub struct NodeStorage<'d, T> {
+    grid: Grid,
+    layout: Layout,
+    ghost: u32,
+    /// Owned planes by ring position.
+    planes: Vec<Range<u32>>,
+    /// Stored planes by node id.
+    storage: Vec<&'d [T]>,
+    /// By ring position: every cluster holds the same slab there.
+    skipping: Vec<Skipping>,
+}
+
+impl<'d, T: voxcube_kernel::volume::sample::Sample + Sync> NodeStorage<'d, T> {
+    /// Each node's stored planes: its own storage after a plane shift (`shifted`, by node
+    /// id), else its slab of `partition` in `data`, which every cluster holds alike at a ring
+    /// position. Nothing is skipped until [`NodeStorage::with_skipping`].
+    pub fn new(
+        grid: &Grid,
+        layout: Layout,
+        partition: &Partition,
+        ghost: u32,
+        data: &'d [T],
+        shifted: Option<&'d [Vec<T>]>,
+    ) -> NodeStorage<'d, T> {
+        let plane = grid.plane_len();
+        let planes: Vec<Range<u32>> = (0..partition.slabs())
+            .map(|j| partition.planes(j))
+            .collect();
+        let storage = (0..layout.nodes() as u16)
+            .map(|node| match shifted {
+                Some(storages) => storages[usize::from(node)].as_slice(),
+                None => {
+                    let j = usize::from(layout.place(node).1);
+                    let s = stored_planes(grid, planes[j].clone(), ghost);
+                    &data[s.start as usize * plane..s.end as usize * plane]
+                }
+            })
+            .collect();
+        NodeStorage {
+            grid: *grid,
+            layout,
+            ghost,
+            planes,
+            storage,
+            skipping: Vec::new(),
+        }
+    }
+
+    /// The same storage, with the skipping storage of each ring position for `view` (`mode`),
+    /// built from cluster 0's node there on up to `threads` OS threads.
+    pub fn with_skipping(
+        mut self,
+        view: &View,
+        mode: SkipMode,
+        threads: usize,
+    ) -> NodeStorage<'d, T> {
+        self.skipping = (0..self.layout.size())
+            .map(|j| {
+                self.bare_slab(self.layout.node(0, j))
+                    .map(|s| Skipping::build_on(&s, view, mode, threads))
+                    .unwrap_or_default()
+            })
+            .collect();
+        self
+    }
+
+    /// Node `node`'s slab, skipping empty space as its ring position's storage says.
+    pub fn slab(
+        &self,
+        node: u16,
+    ) -> Result<voxcube_kernel::volume::slab::Slab<'_, T>, voxcube_kernel::volume::slab::SlabError>
+    {
+        let j = usize::from(self.layout.place(node).1);
+        Ok(self.skipping[j].apply(self.bare_slab(node)?))
+    }
+
+    fn bare_slab(
+        &self,
+        node: u16,
+    ) -> Result<voxcube_kernel::volume::slab::Slab<'d, T>, voxcube_kernel::volume::slab::SlabError>
+    {
+        let j = usize::from(self.layout.place(node).1);
+        voxcube_kernel::volume::slab::Slab::new(
+            self.grid,
+            self.planes[j].clone(),
+            self.ghost,
+            self.storage[usize::from(node)],
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::atomic::{AtomicU32, Ordering};
+
+    /// Every part runs exactly once, on any number of threads, and its result lands at its
+    /// own index; a part that panics built nothing and stops no other.
+    #[test]
+    fn each_part_runs_once_and_reports_in_order() {
+        for threads in [0, 1, 2, 3, 8] {
+            for n in [0usize, 1, 2, 5, 9] {
+                let runs: Vec<AtomicU32> = (0..n).map(|_| AtomicU32::new(0)).collect();
+                let parts = (0..n)
+                    .map(|i| -> Part<'_> {
+                        let runs = &runs;
+                        Box::new(move || {
+                            runs[i].fetch_add(1, Ordering::Relaxed);
+                            assert!(i != 4, "part 4 fails");
+                            i % 2 == 0
+                        })
+                    })
+                    .collect();
+                let built = run_parts(parts, threads);
+                let expected: Vec<bool> = (0..n).map(|i| i % 2 == 0 && i != 4).collect();
+                assert_eq!(built, expected, "{n} parts on {threads} threads");
+                assert!(runs.iter().all(|r| r.load(Ordering::Relaxed) == 1));
+            }
+        }
+    }
+}
