@@ -11,10 +11,11 @@
 //! on the cuts (bit-identical for any partition), only the time does.
 
 use crate::dataset::Volume;
-use crate::fabric::sim::{self, SimConfig};
+use crate::fabric::sim;
+use crate::fabric::RunConfig;
 use crate::fabric::{Category, VirtualTime};
-use crate::storage::SkipMode;
 use crate::profile::MachineProfile;
+use crate::storage::SkipMode;
 use std::fmt;
 use voxcube_kernel::node::partition::Partition;
 use voxcube_kernel::node::topology::Layout;
@@ -29,7 +30,7 @@ pub enum BalanceError {
     /// The probe view or machine could not be built.
     Setup(String),
     /// A probe run failed.
-    Probe(sim::SimError),
+    Probe(crate::fabric::RunError),
 }
 
 impl fmt::Display for BalanceError {
@@ -145,8 +146,8 @@ pub fn probe(
     cuts: Option<Vec<u32>>,
     skipping: SkipMode,
 ) -> Result<(Vec<f64>, f64), BalanceError> {
-    let base = SimConfig::machine(1, size, 1).map_err(|e| BalanceError::Setup(e.to_string()))?;
-    let cfg = SimConfig {
+    let base = RunConfig::machine(1, size, 1).map_err(|e| BalanceError::Setup(e.to_string()))?;
+    let cfg = RunConfig {
         time: Some(profile.clone()),
         cuts,
         skipping,

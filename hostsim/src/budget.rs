@@ -8,7 +8,7 @@
 //! parts, with the buffer at its real peak) is checked against the same budget; exceeding it
 //! is an error, never silent.
 
-use crate::fabric::sim::SimWorker;
+use crate::fabric::harness::NodeWorker;
 use crate::profile::{MachineProfile, BUILT_IN};
 use std::fmt;
 use std::sync::OnceLock;
@@ -60,7 +60,7 @@ impl Profile {
 
 /// The worker's fixed-capacity state in the simulator and threads fabrics, bytes.
 pub fn worker_bytes() -> usize {
-    size_of::<SimWorker<'static, u8>>()
+    size_of::<NodeWorker<'static, u8>>()
 }
 
 /// Bytes of the min/max blocks a slab storing planes `stored` of `grid` keeps, with the leap

@@ -2,14 +2,14 @@
 //! `scene`. Errors go to stderr with a non-zero exit; nothing is written unless the whole
 //! scene loaded and checked.
 
-use crate::experiments::bench;
 use crate::budget::Profile;
+use crate::experiments::bench;
 use crate::experiments::explore;
-use crate::storage::SkipMode;
 use crate::output::{write_atomic, write_png};
 use crate::render::{preflight, render_cut, Fabric, Machine};
 use crate::report::{summary, BalanceReport, Report, ViewReport};
 use crate::scene::{Scene, ViewJob, DEFAULT_SCENE};
+use crate::storage::SkipMode;
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::cell::Cell;
@@ -583,7 +583,7 @@ fn mpi_serve(
     balanced: bool,
 ) -> Result<(), Box<dyn std::error::Error>> {
     // Balanced: the node takes the host's cuts and shifts to them.
-    let cfg = crate::fabric::sim::SimConfig {
+    let cfg = crate::fabric::RunConfig {
         shift: balanced,
         skipping: crate::render::node_skipping(volume, view, machine, balanced),
         ..machine.sim_config()?
@@ -600,7 +600,7 @@ fn mpi_host(
     cuts: Option<&[u32]>,
 ) -> Result<crate::render::Rendered, Box<dyn std::error::Error>> {
     use mpi::topology::Communicator;
-    let cfg = crate::fabric::sim::SimConfig {
+    let cfg = crate::fabric::RunConfig {
         cuts: cuts.map(<[u32]>::to_vec),
         shift: cuts.is_some(),
         skipping: crate::render::node_skipping(volume, view, machine, cuts.is_some()),

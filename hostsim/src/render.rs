@@ -7,9 +7,10 @@
 
 use crate::budget::{self, BudgetError, Profile};
 use crate::dataset::{Volume, VolumeData};
-use crate::fabric::sim::{self, SimConfig, SimError};
+use crate::fabric::sim;
 use crate::fabric::threads;
 use crate::fabric::Distributed;
+use crate::fabric::{RunConfig, RunError};
 use crate::storage::{SkipMode, Skipping};
 use std::time::{Duration, Instant};
 use voxcube_kernel::counters::Counters;
@@ -96,13 +97,13 @@ impl Machine {
     }
 
     /// The simulator configuration for this machine (also the shape the other fabrics use).
-    pub fn sim_config(&self) -> Result<SimConfig, LayoutError> {
-        Ok(SimConfig {
+    pub fn sim_config(&self) -> Result<RunConfig, LayoutError> {
+        Ok(RunConfig {
             generation: self.generation,
             buffer_bytes: self.buffer_bytes,
             flow_control: self.flow_control,
             skipping: self.skipping,
-            ..SimConfig::machine(self.clusters, self.cluster_size(), self.seed)?
+            ..RunConfig::machine(self.clusters, self.cluster_size(), self.seed)?
         })
     }
 }
@@ -121,7 +122,7 @@ pub enum RenderError {
     Machine(String),
     /// The simulated run failed.
     #[error("simulation: {0}")]
-    Sim(#[from] SimError),
+    Sim(#[from] RunError),
     /// A node would not fit the machine's node memory.
     #[error("{0}")]
     Budget(#[from] BudgetError),
@@ -240,7 +241,7 @@ pub fn preflight(volume: &Volume, view: &View, machine: &Machine) -> Result<(), 
     let needed = flow::min_i_max(view.effects().shadow_lights);
     let i_max = flow::i_max_for(cfg.buffer(), size as usize);
     if machine.flow_control && size > 1 && i_max < needed {
-        return Err(RenderError::Sim(SimError::Buffer {
+        return Err(RenderError::Sim(RunError::Buffer {
             bytes: cfg.buffer(),
             size: size as usize,
             i_max,
@@ -250,7 +251,7 @@ pub fn preflight(volume: &Volume, view: &View, machine: &Machine) -> Result<(), 
     }
     let buffer_for = |s: u32| match machine.buffer_bytes {
         Some(b) => b,
-        None => flow::buffer_bytes(s as usize, sim::DEFAULT_I_MAX),
+        None => flow::buffer_bytes(s as usize, crate::fabric::DEFAULT_I_MAX),
     };
     budget::check(
         machine.profile,
@@ -368,7 +369,7 @@ pub fn render_cut(
         )),
         Fabric::Sim | Fabric::Threads => {
             // The nodes start on uniform slabs and shift planes to the cuts by message.
-            let cfg = SimConfig {
+            let cfg = RunConfig {
                 cuts: cuts.map(<[u32]>::to_vec),
                 shift: cuts.is_some(),
                 skipping: node_skipping(volume, view, machine, cuts.is_some()),

@@ -3,10 +3,11 @@
 //! a negative control shows the comparison catches a sample that moves.
 
 use proptest::prelude::*;
-use voxcube::fabric::sim::{self, SimConfig};
-use voxcube::storage::SkipMode;
+use voxcube::fabric::sim;
+use voxcube::fabric::RunConfig;
 use voxcube::render::{render, render_skipping};
 use voxcube::scene::{DatasetJob, Scene};
+use voxcube::storage::SkipMode;
 use voxcube_kernel::node::topology::Layout;
 use voxcube_kernel::node::worker::{Generation, Mutants};
 use voxcube_kernel::optics::shade::Light;
@@ -21,8 +22,8 @@ fn scene(text: &str) -> Vec<DatasetJob> {
         .unwrap_or_else(|e| panic!("{e}"))
 }
 
-fn config(size: u32, seed: u64) -> SimConfig {
-    SimConfig::cluster(size, seed).expect("layout")
+fn config(size: u32, seed: u64) -> RunConfig {
+    RunConfig::cluster(size, seed).expect("layout")
 }
 
 /// The test scenes of the issue, on the built-in molecule, small images.
@@ -42,7 +43,7 @@ fn every_test_scene_is_bit_identical_on_every_cluster_size_and_seed() {
                 let run = sim::run(
                     &job.volume,
                     &view.view,
-                    &SimConfig {
+                    &RunConfig {
                         skipping: SkipMode::OFF,
                         ..config(size, seed + 100 * v as u64)
                     },
@@ -126,7 +127,7 @@ fn uneven_partitions_and_centralized_generation_are_identical() {
         let one = render(&job.volume, &view.view).expect("renders").pixels;
         for cuts in partitions {
             for seed in [5u64, 6] {
-                let cfg = SimConfig {
+                let cfg = RunConfig {
                     layout: Layout::new(1, cuts.len() as u32 - 1).expect("layout"),
                     cuts: Some(cuts.to_vec()),
                     ..config(1, seed + v as u64)
@@ -141,7 +142,7 @@ fn uneven_partitions_and_centralized_generation_are_identical() {
                 assert_eq!(run.counters().slab_misses, 0);
             }
         }
-        let cfg = SimConfig {
+        let cfg = RunConfig {
             generation: Generation::Centralized,
             ..config(4, 77)
         };
@@ -164,7 +165,7 @@ fn negative_control_a_shortened_step_at_a_boundary_changes_the_image() {
     for (v, at_least) in [(0usize, 1usize), (2, 100)] {
         let view = &job.views[v].view;
         let one = render(&job.volume, view).expect("renders").pixels;
-        let cfg = SimConfig {
+        let cfg = RunConfig {
             mutants: Mutants {
                 shorten_step_at_boundary: true,
                 ..Mutants::default()
@@ -276,7 +277,7 @@ proptest! {
         let mut cuts = vec![0u32];
         cuts.extend((1..dims[0]).filter(|x| cut_bits & (1 << x) != 0));
         cuts.push(dims[0]);
-        let cfg = SimConfig { layout: Layout::new(1, cuts.len() as u32 - 1).expect("layout"), cuts: Some(cuts.clone()), ..config(1, seed) };
+        let cfg = RunConfig { layout: Layout::new(1, cuts.len() as u32 - 1).expect("layout"), cuts: Some(cuts.clone()), ..config(1, seed) };
         let run = sim::run(&volume, &v, &cfg).map_err(|e| TestCaseError::fail(e.to_string()))?;
         prop_assert!(run.pixels == one, "cuts {:?}: image differs", cuts);
         prop_assert_eq!(run.counters().slab_misses, 0);

@@ -4,7 +4,8 @@
 //! catches the fault. `VOXCUBE_LONG=1` runs the long mode (over 10,000 schedules).
 
 use voxcube::experiments::explore::{configs, explore, scenes, Config};
-use voxcube::fabric::sim::{self, SimConfig, SimError};
+use voxcube::fabric::sim;
+use voxcube::fabric::{RunConfig, RunError};
 use voxcube_kernel::node::flow;
 use voxcube_kernel::node::worker::Mutants;
 
@@ -69,12 +70,12 @@ fn a_deadlock_replays_from_its_seed() {
     let view = &job.views[0].view;
     let mut found = None;
     for seed in 0..50 {
-        let cfg = SimConfig {
+        let cfg = RunConfig {
             buffer_bytes: Some(400),
             flow_control: false,
-            ..SimConfig::cluster(4, seed).expect("layout")
+            ..RunConfig::cluster(4, seed).expect("layout")
         };
-        if let Err(e @ SimError::Deadlock { .. }) = sim::run(&job.volume, view, &cfg) {
+        if let Err(e @ RunError::Deadlock { .. }) = sim::run(&job.volume, view, &cfg) {
             found = Some((cfg, e.to_string()));
             break;
         }
@@ -148,14 +149,14 @@ fn a_buffer_too_small_for_any_ray_is_refused_with_the_smallest_that_works() {
     let view = &job.views[0].view;
     let needed = flow::min_i_max(view.effects().shadow_lights);
     let smallest = flow::buffer_bytes(4, needed);
-    let cfg = SimConfig {
+    let cfg = RunConfig {
         buffer_bytes: Some(smallest - 1),
-        ..SimConfig::cluster(4, 1).expect("layout")
+        ..RunConfig::cluster(4, 1).expect("layout")
     };
     let err = sim::run(&job.volume, view, &cfg).expect_err("refused");
     let msg = err.to_string();
     assert!(msg.contains(&format!("at least {smallest} bytes")), "{msg}");
-    let cfg = SimConfig {
+    let cfg = RunConfig {
         buffer_bytes: Some(smallest),
         ..cfg
     };
@@ -165,7 +166,7 @@ fn a_buffer_too_small_for_any_ray_is_refused_with_the_smallest_that_works() {
 mod buffer_limits {
     use super::*;
     use proptest::prelude::*;
-    use voxcube::fabric::sim::Scheduler;
+    use voxcube::fabric::Scheduler;
     use voxcube::render::render;
 
     proptest! {
@@ -192,11 +193,11 @@ mod buffer_limits {
                 2 => Scheduler::DelayAcks,
                 _ => Scheduler::Starve { from: 0, to: u16::from(size > 1) },
             };
-            let cfg = SimConfig {
+            let mut cfg = RunConfig {
                 buffer_bytes: Some(smallest + extra_bytes),
-                scheduler,
-                ..SimConfig::machine(clusters, size, seed).expect("layout")
+                ..RunConfig::machine(clusters, size, seed).expect("layout")
             };
+            cfg.schedule.scheduler = scheduler;
             let run = sim::run(&job.volume, v, &cfg).map_err(|e| TestCaseError::fail(e.to_string()))?;
             let reference = render(&job.volume, v).expect("renders").pixels;
             prop_assert!(run.pixels == reference, "image differs");

@@ -1,7 +1,8 @@
 //! A node that stops answering mid-render is detected, not waited for forever: the run ends
 //! with a report naming the node and the pixels lost, and the command exits non-zero.
 
-use voxcube::fabric::sim::{self, SimConfig, SimError};
+use voxcube::fabric::sim;
+use voxcube::fabric::{RunConfig, RunError};
 use voxcube::scene::Scene;
 
 #[test]
@@ -12,16 +13,14 @@ fn a_node_that_stops_is_named_with_the_pixels_lost() {
     let job = &jobs[0];
     let view = &job.views[0].view;
     for (clusters, size, node) in [(1u32, 4u32, 2u16), (2, 4, 5), (4, 1, 3)] {
-        let cfg = SimConfig {
-            stop: Some((node, 40)),
-            ..SimConfig::machine(clusters, size, 7).expect("layout")
-        };
+        let mut cfg = RunConfig::machine(clusters, size, 7).expect("layout");
+        cfg.schedule.stop = Some((node, 40));
         let start = std::time::Instant::now();
         let err = sim::run(&job.volume, view, &cfg)
             .expect_err("a stopped node cannot complete the image");
         assert!(start.elapsed().as_secs() < 30, "detected in bounded time");
         match &err {
-            SimError::Lost {
+            RunError::Lost {
                 node: n,
                 missing,
                 rows,
@@ -34,7 +33,7 @@ fn a_node_that_stops_is_named_with_the_pixels_lost() {
         }
         eprintln!("{err}");
         // Control: the same run without the fault completes.
-        let cfg = SimConfig { stop: None, ..cfg };
+        cfg.schedule.stop = None;
         sim::run(&job.volume, view, &cfg).expect("completes without the fault");
     }
 }

@@ -3,9 +3,9 @@
 //! tests skip with a message — except under CI (`CI` set), where a missing folder fails.
 
 use std::path::{Path, PathBuf};
-use voxcube::storage::SkipMode;
 use voxcube::render::render;
 use voxcube::scene::Scene;
+use voxcube::storage::SkipMode;
 
 fn data_or_skip() -> Option<PathBuf> {
     let dir = voxcube_tests::shared_data();
@@ -153,17 +153,18 @@ fn sod_renders_identically_on_one_and_sixteen_nodes() {
 
 #[test]
 fn the_ncube2_profile_is_calibrated_to_the_papers_one_node_time() {
-    use voxcube::fabric::sim::{self, SimConfig};
+    use voxcube::fabric::sim;
+    use voxcube::fabric::RunConfig;
     use voxcube::profile::MachineProfile;
     let Some(data) = data_or_skip() else { return };
     let mut notes = String::new();
     let job = voxcube::experiments::paper::dataset(Some(&data), &mut notes).expect("SOD");
     assert!(notes.is_empty(), "{notes}");
     // The paper's tracer, without empty-space skipping.
-    let cfg = SimConfig {
+    let cfg = RunConfig {
         time: Some(MachineProfile::ncube2()),
         skipping: SkipMode::OFF,
-        ..SimConfig::cluster(1, 1).expect("layout")
+        ..RunConfig::cluster(1, 1).expect("layout")
     };
     let t = sim::run(&job.volume, &job.views[0].view, &cfg)
         .expect("runs")
@@ -186,13 +187,20 @@ fn load_balancing_lowers_every_table_3_time_on_sod() {
     for cs in [16u32, 8, 4, 2] {
         let cuts = voxcube::experiments::paper::balance(&job, v, &profile, cs).expect("balances");
         for nodes in [64u32, 128] {
-            let standard = voxcube::experiments::paper::timed(&job, v, &profile, nodes / cs, cs, None)
-                .expect("runs")
-                .frame;
-            let balanced =
-                voxcube::experiments::paper::timed(&job, v, &profile, nodes / cs, cs, Some(cuts.clone()))
+            let standard =
+                voxcube::experiments::paper::timed(&job, v, &profile, nodes / cs, cs, None)
                     .expect("runs")
                     .frame;
+            let balanced = voxcube::experiments::paper::timed(
+                &job,
+                v,
+                &profile,
+                nodes / cs,
+                cs,
+                Some(cuts.clone()),
+            )
+            .expect("runs")
+            .frame;
             assert!(
                 balanced < standard,
                 "{nodes} nodes, clusters of {cs}: balanced {balanced:.2} s against {standard:.2} s"

@@ -9,10 +9,11 @@
 
 use proptest::prelude::*;
 use voxcube::dataset::{Volume, VolumeData};
-use voxcube::fabric::sim::{self, SimConfig};
-use voxcube::storage::{cell_leap_octants, SkipMode, Skipping};
+use voxcube::fabric::sim;
+use voxcube::fabric::RunConfig;
 use voxcube::render::render_skipping;
 use voxcube::scene::Scene;
+use voxcube::storage::{cell_leap_octants, SkipMode, Skipping};
 use voxcube_kernel::optics::transfer::{ControlPoint, TransferFunction};
 use voxcube_kernel::skip::scan;
 use voxcube_kernel::trace::pixel::rgba8;
@@ -78,9 +79,9 @@ fn check(text: &str, file: &str) {
                 (3, 3, SkipMode::BLOCKS),
                 (8, 4, SkipMode::LEAPS),
             ] {
-                let cfg = SimConfig {
+                let cfg = RunConfig {
                     skipping: mode,
-                    ..SimConfig::cluster(size, seed).expect("layout")
+                    ..RunConfig::cluster(size, seed).expect("layout")
                 };
                 let run = sim::run(&job.volume, &v.view, &cfg).expect("runs");
                 assert!(
@@ -135,9 +136,9 @@ fn check(text: &str, file: &str) {
             }
             for size in [2u32, 8] {
                 let runs = [SkipMode::ALL, no_rows].map(|mode| {
-                    let cfg = SimConfig {
+                    let cfg = RunConfig {
                         skipping: mode,
-                        ..SimConfig::cluster(size, 5).expect("layout")
+                        ..RunConfig::cluster(size, 5).expect("layout")
                     };
                     sim::run(&job.volume, &v.view, &cfg).expect("runs")
                 });
@@ -451,10 +452,10 @@ proptest! {
         let mut cuts = vec![0u32];
         cuts.extend((1..dims[0]).filter(|x| cut_bits & (1 << x) != 0));
         cuts.push(dims[0]);
-        let cfg = SimConfig {
+        let cfg = RunConfig {
             layout: voxcube_kernel::node::topology::Layout::new(1, cuts.len() as u32 - 1).expect("layout"),
             cuts: Some(cuts.clone()),
-            ..SimConfig::cluster(1, seed).expect("layout")
+            ..RunConfig::cluster(1, seed).expect("layout")
         };
         let run = sim::run(&volume, &view, &cfg).map_err(|e| TestCaseError::fail(e.to_string()))?;
         prop_assert!(run.pixels == off.pixels, "cuts {:?}: the image differs", cuts);

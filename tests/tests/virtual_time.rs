@@ -1,16 +1,17 @@
 //! Virtual time: timed simulated runs give the reference image, are repeatable, charge every
 //! node's time to categories that add up to the frame time, and get faster with more nodes.
 
-use voxcube::fabric::sim::{self, SimConfig};
-use voxcube::storage::SkipMode;
+use voxcube::fabric::sim;
+use voxcube::fabric::RunConfig;
 use voxcube::profile::MachineProfile;
 use voxcube::render::render;
 use voxcube::scene::Scene;
+use voxcube::storage::SkipMode;
 
-fn timed(clusters: u32, size: u32) -> SimConfig {
-    SimConfig {
+fn timed(clusters: u32, size: u32) -> RunConfig {
+    RunConfig {
         time: Some(MachineProfile::ncube2()),
-        ..SimConfig::machine(clusters, size, 1).expect("layout")
+        ..RunConfig::machine(clusters, size, 1).expect("layout")
     }
 }
 
@@ -69,12 +70,12 @@ fn static_load_balancing_lowers_the_time_of_an_unbalanced_cluster() {
     let cuts = voxcube::experiments::paper::balance(job, v, &profile, 4).expect("balances");
     assert_eq!(cuts.len(), 5);
     let run = |shift: bool| {
-        let cfg = SimConfig {
+        let cfg = RunConfig {
             time: Some(profile.clone()),
             cuts: Some(cuts.clone()),
             shift,
             skipping: SkipMode::OFF,
-            ..SimConfig::cluster(4, 1).expect("layout")
+            ..RunConfig::cluster(4, 1).expect("layout")
         };
         sim::run(&job.volume, v, &cfg).expect("runs")
     };

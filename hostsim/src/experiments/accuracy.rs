@@ -8,10 +8,10 @@
 //! - error against a fine reference at the same image size (Δt = 1/16, cell model): PSNR and
 //!   maximum absolute error, in 8-bit levels.
 
-use crate::storage::SkipMode;
 use crate::profile::MachineProfile;
 use crate::render::render_skipping;
 use crate::scene::DatasetJob;
+use crate::storage::SkipMode;
 use plotters::prelude::*;
 use std::fmt::Write as _;
 use std::path::Path;

@@ -9,9 +9,9 @@
 //! it.
 
 use crate::dataset::{Volume, VolumeData};
-use crate::storage::SkipMode;
 use crate::render::{render_on, Fabric, Machine, RenderError};
 use crate::scene::{Scene, SceneError};
+use crate::storage::SkipMode;
 use std::fmt::Write;
 use std::hint::black_box;
 use std::path::Path;

@@ -4,7 +4,8 @@
 //! deadlocked, broke an invariant or differed, and the worst buffer occupancy seen against its
 //! capacity.
 
-use crate::fabric::sim::{self, Scheduler, SimConfig, SimError};
+use crate::fabric::sim;
+use crate::fabric::{RunConfig, RunError, Scheduler};
 use crate::render::render;
 use crate::scene::{DatasetJob, Scene, SceneError};
 use std::fmt;
@@ -192,7 +193,7 @@ pub fn explore(
     job: &DatasetJob,
     configs: &[Config],
     seeds: u64,
-    adjust: &dyn Fn(&mut SimConfig),
+    adjust: &dyn Fn(&mut RunConfig),
 ) -> Findings {
     let mut findings = Findings {
         configs: configs.len(),
@@ -211,14 +212,14 @@ pub fn explore(
         let view = &job.views[c.view];
         for scheduler in schedulers(c.size) {
             for seed in 0..seeds {
-                let Ok(base) = SimConfig::machine(c.clusters, c.size, seed) else {
+                let Ok(base) = RunConfig::machine(c.clusters, c.size, seed) else {
                     continue;
                 };
-                let mut cfg = SimConfig {
-                    scheduler,
+                let mut cfg = RunConfig {
                     buffer_bytes: Some(c.buffer),
                     ..base
                 };
+                cfg.schedule.scheduler = scheduler;
                 adjust(&mut cfg);
                 findings.runs += 1;
                 let failure = match sim::run(&job.volume, &view.view, &cfg) {
@@ -236,7 +237,7 @@ pub fn explore(
                             Some("the image differs from the direct render".to_string())
                         }
                     }
-                    Err(e @ SimError::Deadlock { .. }) => {
+                    Err(e @ RunError::Deadlock { .. }) => {
                         findings.deadlocks += 1;
                         Some(e.to_string())
                     }

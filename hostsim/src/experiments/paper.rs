@@ -11,8 +11,9 @@
 //! of Table 3 every node starts on its uniform slab and shifts planes to its neighbours in
 //! slab-plane messages before rendering; the simulated time includes that shift.
 
-use crate::fabric::sim::{self, SimConfig, SimError};
+use crate::fabric::sim;
 use crate::fabric::{Category, VirtualTime};
+use crate::fabric::{RunConfig, RunError};
 use crate::output::write_png;
 use crate::profile::MachineProfile;
 use crate::scene::{DatasetJob, Scene, SceneError};
@@ -87,7 +88,7 @@ pub enum PaperError {
     Scene(#[from] SceneError),
     /// A simulated run failed.
     #[error("{0}")]
-    Sim(#[from] SimError),
+    Sim(#[from] RunError),
     /// An output could not be written.
     #[error("{0}")]
     Write(String),
@@ -127,13 +128,13 @@ pub fn timed(
     size: u32,
     cuts: Option<Vec<u32>>,
 ) -> Result<VirtualTime, PaperError> {
-    let Ok(base) = SimConfig::machine(clusters, size, 1) else {
+    let Ok(base) = RunConfig::machine(clusters, size, 1) else {
         return Err(PaperError::Write(format!(
             "no layout of {clusters} clusters of {size}"
         )));
     };
     // The paper's tracer had no acceleration: model it without empty-space skipping.
-    let cfg = SimConfig {
+    let cfg = RunConfig {
         time: Some(profile.clone()),
         shift: cuts.is_some(),
         cuts,
@@ -374,7 +375,7 @@ pub fn run(
     let image = sim::run(
         &job.volume,
         view,
-        &SimConfig::cluster(1, 1).map_err(|e| PaperError::Write(e.to_string()))?,
+        &RunConfig::cluster(1, 1).map_err(|e| PaperError::Write(e.to_string()))?,
     )?;
     let spec = view.spec();
     let bytes: Vec<u8> = image.pixels.iter().flatten().copied().collect();

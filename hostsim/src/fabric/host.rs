@@ -6,7 +6,6 @@
 //! a cluster's token arrives once; a node reports once, and only after the host asked. The
 //! host ends with every pixel of the image.
 
-use crate::fabric::sim::missing_rows;
 use voxcube_kernel::node::msg::Msg;
 use voxcube_kernel::node::stats::NodeStats;
 
@@ -137,4 +136,35 @@ impl Host {
             reports,
         ))
     }
+}
+
+/// The image rows with missing pixels, summarised as ranges.
+pub fn missing_rows(image: &[Option<[u8; 4]>], width: u32) -> String {
+    let width = width.max(1) as usize;
+    let rows: Vec<usize> = image
+        .chunks(width)
+        .enumerate()
+        .filter(|(_, r)| r.iter().any(Option::is_none))
+        .map(|(i, _)| i)
+        .collect();
+    let mut out: Vec<String> = Vec::new();
+    let mut i = 0;
+    while i < rows.len() {
+        let start = rows[i];
+        while i + 1 < rows.len() && rows[i + 1] == rows[i] + 1 {
+            i += 1;
+        }
+        out.push(if rows[i] == start {
+            start.to_string()
+        } else {
+            format!("{start}-{}", rows[i])
+        });
+        i += 1;
+    }
+    if out.len() > 12 {
+        let n = out.len();
+        out.truncate(12);
+        out.push(format!("... ({n} runs in all)"));
+    }
+    out.join(", ")
 }

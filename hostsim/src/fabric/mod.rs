@@ -1,12 +1,23 @@
 //! Fabrics: what carries kernel messages between nodes and to the host. `sim` is the
-//! deterministic single-threaded reference; `threads` runs the same workers on OS threads.
+//! deterministic single-threaded reference; `threads` runs the same workers on OS threads;
+//! `mpi` (feature) runs them as MPI ranks. What a run is ([`config`]), how it fails
+//! ([`error`]), how its nodes are set up and its result made ([`harness`]), the host
+//! ([`host`]) and plane shifting ([`shift`]) are shared by all three.
+//!
+//! Invariant: the image of a run depends on its view alone, never on its fabric.
 
+pub mod config;
+pub mod error;
+pub mod harness;
 pub mod host;
 #[cfg(feature = "mpi")]
 pub mod mpi;
 pub mod shift;
 pub mod sim;
 pub mod threads;
+
+pub use config::{RunConfig, Schedule, Scheduler, DEFAULT_I_MAX};
+pub use error::{RunError, Trace};
 
 use crate::budget::{block_bytes, worker_bytes, NodeMemory, ViewNeeds, CODE_AND_STACK};
 use std::ops::Range;
@@ -59,7 +70,7 @@ impl<'a> RunShape<'a> {
     /// which cell leap maps they hold), slabs `partition` of `grid`, samples of
     /// `sample_bytes`.
     pub fn new(
-        cfg: &sim::SimConfig,
+        cfg: &RunConfig,
         partition: &'a Partition,
         grid: &'a Grid,
         view: &View,
@@ -245,28 +256,4 @@ impl Distributed {
         }
         out
     }
-}
-
-/// Flow control for `cfg`'s receive buffers, and their capacity; refused when the buffer
-/// leaves no ray room to start, naming the smallest that works.
-pub fn flow_for(
-    cfg: &sim::SimConfig,
-    view: &View,
-) -> Result<(voxcube_kernel::node::flow::FlowControl, usize), sim::SimError> {
-    use voxcube_kernel::node::flow;
-    let size = usize::from(cfg.layout.size());
-    let capacity = cfg.buffer();
-    let mut control = flow::FlowControl::for_buffer(capacity, size);
-    control.enabled = cfg.flow_control;
-    let needed = flow::min_i_max(view.effects().shadow_lights);
-    if cfg.flow_control && size > 1 && usize::from(control.i_max) < needed {
-        return Err(sim::SimError::Buffer {
-            bytes: capacity,
-            size,
-            i_max: usize::from(control.i_max),
-            needed,
-            min_bytes: flow::buffer_bytes(size, needed),
-        });
-    }
-    Ok((control, capacity))
 }

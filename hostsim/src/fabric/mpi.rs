@@ -10,7 +10,7 @@
 //! Views run one after another; a barrier ends each, so no message of the next view reaches a
 //! host still ending this one.
 //!
-//! Balanced views (`SimConfig::shift`): the host broadcasts the cuts it chose, and every node
+//! Balanced views (`RunConfig::shift`): the host broadcasts the cuts it chose, and every node
 //! starts on its uniform slab and shifts planes to its neighbours by slab-plane messages
 //! before rendering, round `r` under its own tag ([`TAG_SHIFT`]` + r`), so a chunk sent by a
 //! node already in the next round waits in MPI's queue until its receiver gets there: no
@@ -22,11 +22,10 @@
 //! dies outright is caught by `mpirun` itself, which ends the whole job with an error. The test
 //! hook `VOXCUBE_MPI_STOP=<rank>:<milliseconds>[:exit]` makes a rank hang (or die) mid-render.
 
-use super::host::Host;
-use super::{Distributed, NodeReport};
+use super::harness::{node_worker, Plan};
+use super::shift::{self as planes, Counted, ShiftFailure, ShiftReport};
+use super::{Distributed, RunConfig, RunError};
 use crate::dataset::{Volume, VolumeData};
-use crate::fabric::shift::{self as planes, Counted, ShiftFailure, ShiftReport};
-use crate::fabric::sim::{SimConfig, SimError};
 use mpi::collective::{CommunicatorCollectives, Root};
 use mpi::datatype::Equivalence;
 use mpi::point_to_point::{Destination, Source};
@@ -68,7 +67,7 @@ struct MpiPort<'w> {
 
 impl MpiPort<'_> {
     /// Move every arrived kernel message into the class queues.
-    fn pump(&mut self) -> Result<(), SimError> {
+    fn pump(&mut self) -> Result<(), RunError> {
         let mut buf = [0u8; MAX_MSG_LEN];
         while let Some((message, status)) = self
             .world
@@ -79,7 +78,7 @@ impl MpiPort<'_> {
             let len = status.count(u8::equivalent_datatype()) as usize;
             message.matched_receive_into(&mut buf[..]);
             let msg =
-                Msg::decode(&buf[..len.min(MAX_MSG_LEN)]).map_err(|error| SimError::Decode {
+                Msg::decode(&buf[..len.min(MAX_MSG_LEN)]).map_err(|error| RunError::Decode {
                     from: from as u16,
                     error,
                 })?;
@@ -132,7 +131,7 @@ struct RoundPort<'w> {
     world: &'w SimpleCommunicator,
     tag: i32,
     next: Option<(Dest, Msg)>,
-    error: Option<SimError>,
+    error: Option<RunError>,
 }
 
 impl RoundPort<'_> {
@@ -154,7 +153,7 @@ impl RoundPort<'_> {
         match Msg::decode(&buf[..len.min(MAX_MSG_LEN)]) {
             Ok(msg) => self.next = Some((Dest::Node((from - 1) as u16), msg)),
             Err(error) => {
-                self.error = Some(SimError::Decode {
+                self.error = Some(RunError::Decode {
                     from: from as u16,
                     error,
                 })
@@ -213,7 +212,7 @@ fn shift<T: Sample>(
     (old, new): (&Partition, &Partition),
     ghost: u32,
     beat: &mut Instant,
-) -> Result<(Vec<T>, [u64; 4]), SimError> {
+) -> Result<(Vec<T>, [u64; 4]), RunError> {
     let mut storage = planes::load(grid, data, layout, old, ghost, node);
     let rounds = planes::rounds(old, new)?;
     let mut account = [0, 0, storage.len() as u64, rounds.len() as u64];
@@ -263,8 +262,8 @@ pub fn serve(
     world: &SimpleCommunicator,
     volume: &Volume,
     view: &View,
-    cfg: &SimConfig,
-) -> Result<(), SimError> {
+    cfg: &RunConfig,
+) -> Result<(), RunError> {
     match &volume.data {
         VolumeData::U8(d) => serve_typed(world, volume, d, view, cfg),
         VolumeData::U16(d) => serve_typed(world, volume, d, view, cfg),
@@ -277,19 +276,18 @@ fn serve_typed<T: Sample + Sync>(
     volume: &Volume,
     data: &[T],
     view: &View,
-    cfg: &SimConfig,
-) -> Result<(), SimError> {
-    let view = &*cfg.skipping.view(view);
+    cfg: &RunConfig,
+) -> Result<(), RunError> {
     let grid = volume.grid;
+    let plan = Plan::new(&grid, view, cfg)?;
+    let (view, flow, capacity, ghost) = (&*plan.view, plan.flow, plan.capacity, plan.ghost);
     let layout = cfg.layout;
     let rank = world.rank();
     let node = (rank - 1) as u16;
     let (nx, size) = (grid.dims()[0], usize::from(layout.size()));
     let uniform = Partition::uniform(nx, size)?;
-    let (flow, capacity) = super::flow_for(cfg, view)?;
     let position = layout.place(node).1;
     let j = usize::from(position);
-    let ghost = view.ghost_planes();
     let plane = grid.plane_len();
     let mut beat = Instant::now();
     let host = world.process_at_rank(0);
@@ -329,7 +327,7 @@ fn serve_typed<T: Sample + Sync>(
     let rows = layout.cluster_rows(layout.place(node).0);
     let skipping = crate::storage::Skipping::build_for(&slab, view, cfg.skipping, rows);
     let slab = skipping.apply(slab);
-    let mut worker = super::sim::node_worker(view, slab, &partition, cfg, node, flow)?;
+    let mut worker = node_worker(view, slab, &partition, cfg, node, flow)?;
     let mut port = MpiPort {
         world,
         local: Default::default(),
@@ -355,7 +353,7 @@ fn serve_typed<T: Sample + Sync>(
         }
         port.pump()?;
         if port.overflow {
-            return Err(SimError::Buffer {
+            return Err(RunError::Buffer {
                 bytes: capacity,
                 size: usize::from(layout.size()),
                 i_max: usize::from(flow.i_max),
@@ -380,43 +378,26 @@ pub fn host(
     world: &SimpleCommunicator,
     volume: &Volume,
     view: &View,
-    cfg: &SimConfig,
-) -> Result<Distributed, SimError> {
-    let start = Instant::now();
+    cfg: &RunConfig,
+) -> Result<Distributed, RunError> {
+    let grid = volume.grid;
+    let plan = Plan::new(&grid, view, cfg)?;
     let layout = cfg.layout;
-    let nodes = layout.nodes() as usize;
-    let pixels = view.pixel_count() as usize;
-    let (flow, capacity) = super::flow_for(cfg, view)?;
-    let mut host = Host::new(
-        pixels,
-        view.spec().width,
-        usize::from(layout.clusters()),
-        nodes,
-    );
-    let failed = |what: String| SimError::Invariant {
-        what,
-        events: 0,
-        seed: 0,
-        scheduler: crate::fabric::sim::Scheduler::Uniform,
-        trace: Default::default(),
-    };
-    let (nx, size) = (volume.grid.dims()[0], usize::from(layout.size()));
+    let nodes = plan.nodes();
+    let mut host = plan.host();
+    let failed = RunError::Host;
+    let size = usize::from(layout.size());
     // Balanced: every node takes the cuts, and shifts to them before rendering.
-    let partition = match (&cfg.cuts, cfg.shift) {
-        (Some(cuts), true) => {
-            let partition = Partition::new(cuts, nx)?;
-            if partition.slabs() != size {
-                return Err(failed(format!(
-                    "{} cuts for clusters of {size}",
-                    cuts.len()
-                )));
-            }
-            let mut cuts = cuts.clone();
-            world.process_at_rank(0).broadcast_into(&mut cuts[..]);
-            partition
+    if let (Some(cuts), true) = (&cfg.cuts, cfg.shift) {
+        if plan.partition.slabs() != size {
+            return Err(failed(format!(
+                "{} cuts for clusters of {size}",
+                cuts.len()
+            )));
         }
-        _ => Partition::uniform(nx, size)?,
-    };
+        let mut cuts = cuts.clone();
+        world.process_at_rank(0).broadcast_into(&mut cuts[..]);
+    }
     let mut accounts: Vec<Option<[u64; 4]>> = vec![None; if cfg.shift { nodes } else { 0 }];
     let mut heard = vec![Instant::now(); nodes];
     let mut buf = [0u8; MAX_MSG_LEN];
@@ -460,7 +441,7 @@ pub fn host(
             }
             any = true;
             let msg =
-                Msg::decode(&buf[..len.min(MAX_MSG_LEN)]).map_err(|error| SimError::Decode {
+                Msg::decode(&buf[..len.min(MAX_MSG_LEN)]).map_err(|error| RunError::Decode {
                     from: from as u16,
                     error,
                 })?;
@@ -475,7 +456,7 @@ pub fn host(
             }
         }
         if let Some(n) = (0..nodes).find(|&n| !host.has_report(n) && heard[n].elapsed() > TIMEOUT) {
-            return Err(SimError::Lost {
+            return Err(RunError::Lost {
                 node: n as u16,
                 waiting: 0,
                 missing: host.missing(),
@@ -511,25 +492,15 @@ pub fn host(
     });
     // Views are separated: every node waits here until the host has ended this view.
     world.barrier();
-    let grid = volume.grid;
-    let sample_bytes = volume.data.kind().bytes();
-    let shape = super::RunShape::new(cfg, &partition, &grid, view, sample_bytes);
-    let nodes: Vec<NodeReport> = reports
-        .into_iter()
-        .enumerate()
-        .map(|(n, stats)| shape.report(n as u16, stats, capacity, Duration::ZERO))
-        .collect();
-    let messages = super::sent_by_kind(&nodes);
-    Ok(Distributed {
-        pixels: image,
-        nodes,
-        messages,
-        bytes: 0,
-        events: 0,
-        buffer_capacity: capacity,
-        i_max: flow.i_max,
-        wall: start.elapsed(),
-        time: None,
+    let capacity = plan.capacity;
+    Ok(plan.finish(
+        cfg,
+        &grid,
+        volume.data.kind().bytes(),
+        image,
+        reports,
+        &|_| capacity,
+        &|_| Duration::ZERO,
         shift,
-    })
+    ))
 }

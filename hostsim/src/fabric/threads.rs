@@ -16,11 +16,11 @@
 //! Scheduling is up to the OS, so runs are not repeatable event for event. Images still are,
 //! bit for bit: nothing the image depends on depends on order.
 
+use super::harness::{NodeWorker, Plan};
 use super::host::Host;
-use super::{Distributed, NodeReport};
+use super::shift::{self as planes, Counted, ShiftFailure, ShiftReport};
+use super::{Distributed, RunConfig, RunError};
 use crate::dataset::{Volume, VolumeData};
-use crate::fabric::shift::{self as planes, Counted, ShiftFailure, ShiftReport};
-use crate::fabric::sim::{self, SimConfig, SimError, SimWorker};
 use crossbeam_queue::SegQueue;
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -194,9 +194,9 @@ impl Port for ThreadPort<'_> {
 pub fn run(
     volume: &Volume,
     view: &View,
-    cfg: &SimConfig,
+    cfg: &RunConfig,
     threads: usize,
-) -> Result<Distributed, SimError> {
+) -> Result<Distributed, RunError> {
     run_with_progress(volume, view, cfg, threads, &|_| {})
 }
 
@@ -204,10 +204,10 @@ pub fn run(
 pub fn run_with_progress(
     volume: &Volume,
     view: &View,
-    cfg: &SimConfig,
+    cfg: &RunConfig,
     threads: usize,
     progress: &dyn Fn(u64),
-) -> Result<Distributed, SimError> {
+) -> Result<Distributed, RunError> {
     match &volume.data {
         VolumeData::U8(d) => run_typed(volume, d, view, cfg, threads, progress),
         VolumeData::U16(d) => run_typed(volume, d, view, cfg, threads, progress),
@@ -219,53 +219,45 @@ fn run_typed<T: Sample + Send + Sync>(
     volume: &Volume,
     data: &[T],
     view: &View,
-    cfg: &SimConfig,
+    cfg: &RunConfig,
     threads: usize,
     progress: &dyn Fn(u64),
-) -> Result<Distributed, SimError> {
-    let view = &*cfg.skipping.view(view);
-    let start = Instant::now();
+) -> Result<Distributed, RunError> {
     let grid = volume.grid;
-    let layout = cfg.layout;
-    let size = usize::from(layout.size());
-    let partition = cfg.partition(grid.dims()[0])?;
-    let (flow, capacity) = super::flow_for(cfg, view)?;
-    let ghost = view.ghost_planes();
-    let nodes = layout.nodes() as usize;
+    let plan = Plan::new(&grid, view, cfg)?;
+    let (nodes, capacity) = (plan.nodes(), plan.capacity);
     let threads = match threads {
         0 => std::thread::available_parallelism().map_or(1, usize::from),
         t => t,
     }
     .clamp(1, nodes);
     // Balanced cuts are reached by message from uniform slabs; then each node holds its own.
-    let shifted = match (&cfg.cuts, cfg.shift) {
-        (Some(_), true) => {
-            let uniform = Partition::uniform(grid.dims()[0], size)?;
-            Some(shift(
-                &grid, data, layout, &uniform, &partition, ghost, capacity, threads,
-            )?)
-        }
-        _ => None,
+    let shifted = match plan.shift_from(&grid, cfg)? {
+        Some(uniform) => Some(shift(
+            &grid,
+            data,
+            plan.layout,
+            &uniform,
+            &plan.partition,
+            plan.ghost,
+            capacity,
+            threads,
+        )?),
+        None => None,
     };
-    let nodes_storage = crate::storage::NodeStorage::new(
+    let storage = plan.storage(
         &grid,
-        layout,
-        &partition,
-        ghost,
         data,
         shifted.as_ref().map(|(s, _)| s.as_slice()),
-    )
-    .with_skipping(view, cfg.skipping, threads);
-    let mut workers = Vec::with_capacity(nodes);
-    for node in 0..nodes as u16 {
-        let slab = nodes_storage.slab(node)?;
-        workers.push(sim::node_worker(view, slab, &partition, cfg, node, flow)?);
-    }
+        cfg,
+        threads,
+    );
+    let workers = plan.workers(&storage, cfg)?;
     let buffers: Vec<Buffer> = (0..nodes).map(|_| Buffer::new()).collect();
     let done = AtomicBool::new(false);
     let (host_tx, host_rx) = mpsc::channel::<Msg>();
     // Deal the nodes out to the threads; the calling thread takes the first share.
-    let mut shares: Vec<Vec<Box<SimWorker<'_, T>>>> = (0..threads).map(|_| Vec::new()).collect();
+    let mut shares: Vec<Vec<Box<NodeWorker<'_, T>>>> = (0..threads).map(|_| Vec::new()).collect();
     for (i, w) in workers.into_iter().enumerate() {
         shares[i % threads].push(w);
     }
@@ -278,15 +270,7 @@ fn run_typed<T: Sample + Send + Sync>(
     // hears so at once rather than after STALL.
     drop(host_tx);
     let mut busy = vec![Duration::ZERO; nodes];
-    let host = Mutex::new(HostLoop::new(
-        host_rx,
-        Host::new(
-            view.pixel_count() as usize,
-            view.spec().width,
-            usize::from(layout.clusters()),
-            nodes,
-        ),
-    ));
+    let host = Mutex::new(HostLoop::new(host_rx, plan.host()));
     let outcome = std::thread::scope(|scope| {
         let (done, host, buffers) = (&done, &host, &buffers);
         let handles: Vec<_> = others
@@ -342,28 +326,16 @@ fn run_typed<T: Sample + Send + Sync>(
         .into_inner()
         .unwrap_or_else(PoisonError::into_inner)
         .finish()?;
-    let shape = super::RunShape::new(cfg, &partition, &grid, view, size_of::<T>());
-    let nodes: Vec<NodeReport> = reports
-        .into_iter()
-        .enumerate()
-        .map(|(n, stats)| {
-            let peak = buffers[n].peak.load(Ordering::Relaxed);
-            shape.report(n as u16, stats, peak, busy[n])
-        })
-        .collect();
-    let messages = super::sent_by_kind(&nodes);
-    Ok(Distributed {
-        pixels: image,
-        nodes,
-        messages,
-        bytes: 0,
-        events: 0,
-        buffer_capacity: capacity,
-        i_max: flow.i_max,
-        wall: start.elapsed(),
-        time: None,
-        shift: shifted.map(|(_, report)| report),
-    })
+    Ok(plan.finish(
+        cfg,
+        &grid,
+        size_of::<T>(),
+        image,
+        reports,
+        &|n| buffers[n].peak.load(Ordering::Relaxed),
+        &|n| busy[n],
+        shifted.map(|(_, report)| report),
+    ))
 }
 
 /// A thread's nodes during the shift: id and storage.
@@ -550,7 +522,7 @@ fn shift_round<T: Sample>(
 
 /// A thread's nodes and their ports, polled in turn, and each node's busy time.
 struct Crew<'s, 'v, T: Sample> {
-    workers: Vec<Box<SimWorker<'v, T>>>,
+    workers: Vec<Box<NodeWorker<'v, T>>>,
     ports: Vec<ThreadPort<'s>>,
     busy: Vec<Duration>,
     /// When the rounds without progress began; `None` after one with progress.
@@ -559,7 +531,7 @@ struct Crew<'s, 'v, T: Sample> {
 
 impl<'s, 'v, T: Sample> Crew<'s, 'v, T> {
     fn new(
-        workers: Vec<Box<SimWorker<'v, T>>>,
+        workers: Vec<Box<NodeWorker<'v, T>>>,
         buffers: &'s [Buffer],
         capacity: usize,
         host: &mpsc::Sender<Msg>,
@@ -652,7 +624,7 @@ struct HostLoop {
     heard: Instant,
     /// The first break of the host's protocol, or a stall, for the calling thread to end the
     /// run with.
-    failure: Option<SimError>,
+    failure: Option<RunError>,
 }
 
 impl HostLoop {
@@ -683,7 +655,7 @@ impl HostLoop {
         }
     }
 
-    fn take(&mut self, buffers: &[Buffer], capacity: usize) -> Result<bool, SimError> {
+    fn take(&mut self, buffers: &[Buffer], capacity: usize) -> Result<bool, RunError> {
         let mut heard = false;
         loop {
             let msg = match self.rx.try_recv() {
@@ -721,20 +693,14 @@ impl HostLoop {
     }
 
     /// The image and the nodes' statistics.
-    fn finish(self) -> Result<(Vec<[u8; 4]>, Vec<NodeStats>), SimError> {
+    fn finish(self) -> Result<(Vec<[u8; 4]>, Vec<NodeStats>), RunError> {
         self.host.finish().map_err(host_failure)
     }
 }
 
 /// The host's failure as the run's error: a message that breaks its protocol, or a stall.
-fn host_failure(what: String) -> SimError {
-    SimError::Invariant {
-        what,
-        events: 0,
-        seed: 0,
-        scheduler: sim::Scheduler::Uniform,
-        trace: Default::default(),
-    }
+fn host_failure(what: String) -> RunError {
+    RunError::Host(what)
 }
 
 #[cfg(test)]

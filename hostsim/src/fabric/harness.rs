@@ -1,0 +1,332 @@
+//! One run's set-up and teardown, the same on every fabric: the view with its skipping, the
+//! partition, flow control and receive buffers, the uniform slabs a balanced run shifts from,
+//! each node's storage and worker, the host, and the run's report.
+//!
+//! Invariant: every fabric builds its nodes and its result here, so fabrics differ only in
+//! how they carry messages and keep time, and a worker is the same state machine, set up the
+//! same way, whichever fabric runs it.
+
+use super::config::RunConfig;
+use super::error::RunError;
+use super::host::Host;
+use super::shift::ShiftReport;
+use super::{Distributed, NodeReport, RunShape};
+use crate::storage::NodeStorage;
+use std::borrow::Cow;
+use std::time::{Duration, Instant};
+use voxcube_kernel::node::flow::{self, FlowControl};
+use voxcube_kernel::node::msg::PIXELS_PER_SET;
+use voxcube_kernel::node::partition::Partition;
+use voxcube_kernel::node::stats::NodeStats;
+use voxcube_kernel::node::topology::Layout;
+use voxcube_kernel::node::worker::{Place, Setup, Worker, WorkerError, RAYS_PER_POLL};
+use voxcube_kernel::trace::view::View;
+use voxcube_kernel::volume::grid::Grid;
+use voxcube_kernel::volume::sample::Sample;
+use voxcube_kernel::volume::slab::Slab;
+
+/// A node's worker on the host's fabrics: continuations per direction, pixel records, outbox,
+/// and ack counters for the largest ring.
+pub type NodeWorker<'a, T> = Worker<'a, T, 32, 64, 16>;
+
+/// A ring of one's rays a poll: a pixel set's, which a `u8` must hold (checked here, not
+/// truncated by a cast should the set grow).
+const RING_OF_ONE_RAYS: u8 = {
+    assert!(PIXELS_PER_SET <= u8::MAX as usize);
+    PIXELS_PER_SET as u8
+};
+
+/// Flow control for `cfg`'s receive buffers, and their capacity; refused when the buffer
+/// leaves no ray room to start, naming the smallest that works.
+pub fn flow_for(cfg: &RunConfig, view: &View) -> Result<(FlowControl, usize), RunError> {
+    let size = usize::from(cfg.layout.size());
+    let capacity = cfg.buffer();
+    let mut control = FlowControl::for_buffer(capacity, size);
+    control.enabled = cfg.flow_control;
+    let needed = flow::min_i_max(view.effects().shadow_lights);
+    if cfg.flow_control && size > 1 && usize::from(control.i_max) < needed {
+        return Err(RunError::Buffer {
+            bytes: capacity,
+            size,
+            i_max: usize::from(control.i_max),
+            needed,
+            min_bytes: flow::buffer_bytes(size, needed),
+        });
+    }
+    Ok((control, capacity))
+}
+
+/// Node `node`'s worker in `cfg`'s machine: `slab` is its slab of `partition`, at the ring
+/// position `node` holds.
+pub fn node_worker<'a, T: Sample>(
+    view: &'a View,
+    slab: Slab<'a, T>,
+    partition: &'a Partition,
+    cfg: &RunConfig,
+    node: u16,
+    flow: FlowControl,
+) -> Result<Box<NodeWorker<'a, T>>, WorkerError> {
+    let layout = cfg.layout;
+    let (cluster, position) = layout.place(node);
+    let place = Place {
+        layout,
+        cluster,
+        position,
+    };
+    let checked = NodeWorker::check(Setup {
+        view,
+        slab,
+        partition,
+        place,
+        generation: cfg.generation,
+        flow,
+        // A timed run charges time per poll: its nodes read their links between rays. A
+        // ring of one has no links to read and hears only from the host: a pixel set's rays
+        // a poll.
+        rays_per_poll: match (&cfg.time, layout.size()) {
+            (Some(_), _) => 1,
+            (None, 1) => RING_OF_ONE_RAYS,
+            (None, _) => RAYS_PER_POLL,
+        },
+    })?;
+    // Built where it stays: a worker built on the stack was copied into its box whole.
+    #[allow(unused_mut, reason = "mutable only to switch on test faults")]
+    let mut worker = Box::write(Box::new_uninit(), NodeWorker::new(checked));
+    #[cfg(feature = "mutants")]
+    {
+        worker.mutants = cfg.mutants;
+    }
+    Ok(worker)
+}
+
+/// What a run of one view derives before any node exists, the same on every fabric.
+#[derive(Debug)]
+pub struct Plan<'v> {
+    /// The view, with the skipping the configuration asks for.
+    pub view: Cow<'v, View>,
+    /// The slabs the nodes render on (the configured cuts, else uniform).
+    pub partition: Partition,
+    /// Flow control for the receive buffers.
+    pub flow: FlowControl,
+    /// Receive-buffer bytes per node.
+    pub capacity: usize,
+    /// Ghost planes each slab stores on either side.
+    pub ghost: u32,
+    /// The machine.
+    pub layout: Layout,
+    /// When the run began (for its wall time).
+    pub start: Instant,
+}
+
+impl<'v> Plan<'v> {
+    /// The plan of `view` over `grid` run as `cfg` says; refused when the partition does not
+    /// fit the grid or the buffers leave no ray room to start.
+    pub fn new(grid: &Grid, view: &'v View, cfg: &RunConfig) -> Result<Plan<'v>, RunError> {
+        let start = Instant::now();
+        let view = cfg.skipping.view(view);
+        let partition = cfg.partition(grid.dims()[0])?;
+        let (flow, capacity) = flow_for(cfg, &view)?;
+        let ghost = view.ghost_planes();
+        Ok(Plan {
+            view,
+            partition,
+            flow,
+            capacity,
+            ghost,
+            layout: cfg.layout,
+            start,
+        })
+    }
+
+    /// Nodes in the machine.
+    pub fn nodes(&self) -> usize {
+        self.layout.nodes() as usize
+    }
+
+    /// The uniform slabs the nodes start from when they reach balanced cuts by message;
+    /// `None` when they load their slabs directly.
+    pub fn shift_from(&self, grid: &Grid, cfg: &RunConfig) -> Result<Option<Partition>, RunError> {
+        match (&cfg.cuts, cfg.shift) {
+            (Some(_), true) => Ok(Some(Partition::uniform(
+                grid.dims()[0],
+                usize::from(self.layout.size()),
+            )?)),
+            _ => Ok(None),
+        }
+    }
+
+    /// Every node's storage: its slab of the plan's partition in `data`, or its own storage
+    /// after a shift (`shifted`, by node id), with the view's skipping structures built on up
+    /// to `threads` OS threads.
+    pub fn storage<'d, T: Sample + Sync>(
+        &self,
+        grid: &Grid,
+        data: &'d [T],
+        shifted: Option<&'d [Vec<T>]>,
+        cfg: &RunConfig,
+        threads: usize,
+    ) -> NodeStorage<'d, T> {
+        NodeStorage::new(
+            grid,
+            self.layout,
+            &self.partition,
+            self.ghost,
+            data,
+            shifted,
+        )
+        .with_skipping(&self.view, cfg.skipping, threads)
+    }
+
+    /// Every node's worker, in node-id order, over `storage`.
+    pub fn workers<'a, T: Sample + Sync>(
+        &'a self,
+        storage: &'a NodeStorage<'_, T>,
+        cfg: &RunConfig,
+    ) -> Result<Vec<Box<NodeWorker<'a, T>>>, RunError> {
+        (0..self.nodes() as u16)
+            .map(|node| {
+                let slab = storage.slab(node)?;
+                Ok(node_worker(
+                    &self.view,
+                    slab,
+                    &self.partition,
+                    cfg,
+                    node,
+                    self.flow,
+                )?)
+            })
+            .collect()
+    }
+
+    /// The host of this run: every pixel of the view, a token per cluster, a report per node.
+    pub fn host(&self) -> Host {
+        Host::new(
+            self.view.pixel_count() as usize,
+            self.view.spec().width,
+            usize::from(self.layout.clusters()),
+            self.nodes(),
+        )
+    }
+
+    /// The run's result from what the host collected: the image and each node's statistics
+    /// (by node id), with each node's buffer `peak` and `busy` time. Fabrics that count
+    /// messages, bytes, events or virtual time themselves set those after.
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "the parts of a result, named at the one call of each fabric"
+    )]
+    pub fn finish(
+        &self,
+        cfg: &RunConfig,
+        grid: &Grid,
+        sample_bytes: usize,
+        image: Vec<[u8; 4]>,
+        stats: Vec<NodeStats>,
+        peak: &dyn Fn(usize) -> usize,
+        busy: &dyn Fn(usize) -> Duration,
+        shift: Option<ShiftReport>,
+    ) -> Distributed {
+        let shape = RunShape::new(cfg, &self.partition, grid, &self.view, sample_bytes);
+        let nodes: Vec<NodeReport> = stats
+            .into_iter()
+            .enumerate()
+            .map(|(n, stats)| shape.report(n as u16, stats, peak(n), busy(n)))
+            .collect();
+        let messages = super::sent_by_kind(&nodes);
+        Distributed {
+            pixels: image,
+            nodes,
+            messages,
+            bytes: 0,
+            events: 0,
+            buffer_capacity: self.capacity,
+            i_max: self.flow.i_max,
+            wall: self.start.elapsed(),
+            time: None,
+            shift,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dataset::VolumeData;
+    use voxcube_kernel::node::worker::Generation;
+
+    #[test]
+    fn a_worker_that_may_generate_no_ray_a_poll_is_refused_and_one_is_enough() {
+        let jobs = crate::scene::Scene::default_scene()
+            .and_then(crate::scene::Scene::load)
+            .unwrap();
+        let (volume, view) = (&jobs[0].volume, &jobs[0].views[0].view);
+        let VolumeData::U8(data) = &volume.data else {
+            panic!("the default scene is u8");
+        };
+        let partition = Partition::uniform(volume.grid.dims()[0], 1).unwrap();
+        let cfg = RunConfig::cluster(1, 0).unwrap();
+        let (flow, _) = flow_for(&cfg, view).unwrap();
+        let setup = |rays_per_poll| Setup {
+            view,
+            slab: Slab::new(volume.grid, partition.planes(0), view.ghost_planes(), data).unwrap(),
+            partition: &partition,
+            place: Place {
+                layout: cfg.layout,
+                cluster: 0,
+                position: 0,
+            },
+            generation: Generation::Distributed,
+            flow,
+            rays_per_poll,
+        };
+        assert_eq!(
+            NodeWorker::check(setup(0)).map(|_| ()),
+            Err(WorkerError::Capacity)
+        );
+        assert!(NodeWorker::check(setup(1)).is_ok());
+    }
+
+    #[test]
+    fn a_ring_larger_than_the_workers_counters_is_refused() {
+        let jobs = crate::scene::Scene::default_scene()
+            .and_then(crate::scene::Scene::load)
+            .unwrap();
+        let (volume, view) = (&jobs[0].volume, &jobs[0].views[0].view);
+        let VolumeData::U8(data) = &volume.data else {
+            panic!("the default scene is u8");
+        };
+        let partition = Partition::uniform(volume.grid.dims()[0], 2).unwrap();
+        let cfg = RunConfig::cluster(2, 0).unwrap();
+        let (flow, _) = flow_for(&cfg, view).unwrap();
+        let planes = partition.planes(0);
+        let stored = voxcube_kernel::volume::slab::stored_planes(
+            &volume.grid,
+            planes.clone(),
+            view.ghost_planes(),
+        );
+        let plane = volume.grid.plane_len();
+        let part = &data[stored.start as usize * plane..stored.end as usize * plane];
+        let setup = || Setup {
+            view,
+            slab: Slab::new(volume.grid, planes.clone(), view.ghost_planes(), part).unwrap(),
+            partition: &partition,
+            place: Place {
+                layout: cfg.layout,
+                cluster: 0,
+                position: 0,
+            },
+            generation: Generation::Distributed,
+            flow,
+            rays_per_poll: 1,
+        };
+        type OneSlot<'a> = Worker<'a, u8, 32, 64, 16, 1>;
+        assert_eq!(
+            OneSlot::check(setup()).map(|_| ()),
+            Err(WorkerError::Ring {
+                size: 2,
+                capacity: 1
+            })
+        );
+        assert!(Worker::<'_, u8, 32, 64, 16, 2>::check(setup()).is_ok());
+    }
+}
