@@ -470,14 +470,14 @@ impl Skipping {
 /// What every node of an in-process machine holds before its first message: its stored
 /// planes, and the skipping storage of its ring position for the view.
 #[derive(Debug)]
-pub struct NodeStorage<'d, T> {
+pub struct NodeStorage<'d, T: Clone> {
     grid: Grid,
     layout: Layout,
     ghost: u32,
     /// Owned planes by ring position.
     planes: Vec<Range<u32>>,
     /// Stored planes by node id.
-    storage: Vec<&'d [T]>,
+    storage: Vec<Cow<'d, [T]>>,
     /// By ring position: every cluster holds the same slab there.
     skipping: Vec<Skipping>,
 }
@@ -492,22 +492,22 @@ impl<'d, T: voxcube_kernel::volume::sample::Sample + Sync> NodeStorage<'d, T> {
         partition: &Partition,
         ghost: u32,
         data: &'d [T],
-        shifted: Option<&'d [Vec<T>]>,
+        shifted: Option<Vec<Vec<T>>>,
     ) -> NodeStorage<'d, T> {
         let plane = grid.plane_len();
         let planes: Vec<Range<u32>> = (0..partition.slabs())
             .map(|j| partition.planes(j))
             .collect();
-        let storage = (0..layout.nodes() as u16)
-            .map(|node| match shifted {
-                Some(storages) => storages[usize::from(node)].as_slice(),
-                None => {
+        let storage = match shifted {
+            Some(storages) => storages.into_iter().map(Cow::Owned).collect(),
+            None => (0..layout.nodes() as u16)
+                .map(|node| {
                     let j = usize::from(layout.place(node).1);
                     let s = stored_planes(grid, planes[j].clone(), ghost);
-                    &data[s.start as usize * plane..s.end as usize * plane]
-                }
-            })
-            .collect();
+                    Cow::Borrowed(&data[s.start as usize * plane..s.end as usize * plane])
+                })
+                .collect(),
+        };
         NodeStorage {
             grid: *grid,
             layout,
@@ -549,14 +549,14 @@ impl<'d, T: voxcube_kernel::volume::sample::Sample + Sync> NodeStorage<'d, T> {
     fn bare_slab(
         &self,
         node: u16,
-    ) -> Result<voxcube_kernel::volume::slab::Slab<'d, T>, voxcube_kernel::volume::slab::SlabError>
+    ) -> Result<voxcube_kernel::volume::slab::Slab<'_, T>, voxcube_kernel::volume::slab::SlabError>
     {
         let j = usize::from(self.layout.place(node).1);
         voxcube_kernel::volume::slab::Slab::new(
             self.grid,
             self.planes[j].clone(),
             self.ghost,
-            self.storage[usize::from(node)],
+            &self.storage[usize::from(node)],
         )
     }
 }

@@ -84,10 +84,18 @@ fn every_node_of_every_cluster_ends_with_its_new_slab() {
         {
             // Threads 0: the simulator's driver; otherwise the threads fabric's, on so many
             // OS threads.
+            let job = shift::ShiftJob {
+                grid: &grid,
+                layout,
+                old: old.clone(),
+                new: &new,
+                ghost,
+                capacity,
+            };
             let (storages, report) = if threads == 0 {
-                shift::run(&grid, &data, layout, &old, &new, ghost, capacity, None)
+                shift::run(&job, &data, None)
             } else {
-                threads::shift(&grid, &data, layout, &old, &new, ghost, capacity, threads)
+                threads::shift(&job, &data, threads)
             }
             .expect("shifts");
             assert!(report.messages > 0 && report.rounds >= 1, "{report:?}");

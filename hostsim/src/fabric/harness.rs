@@ -9,7 +9,7 @@
 use super::config::RunConfig;
 use super::error::RunError;
 use super::host::Host;
-use super::shift::ShiftReport;
+use super::shift::{ShiftJob, ShiftReport};
 use super::{Distributed, NodeReport, RunShape};
 use crate::storage::NodeStorage;
 use std::borrow::Cow;
@@ -143,30 +143,34 @@ impl<'v> Plan<'v> {
         self.layout.nodes() as usize
     }
 
-    /// The uniform slabs the nodes start from when they reach balanced cuts by message;
-    /// `None` when they load their slabs directly.
-    pub fn shift_from(&self, grid: &Grid, cfg: &RunConfig) -> Result<Option<Partition>, RunError> {
-        match (&cfg.cuts, cfg.shift) {
-            (Some(_), true) => Ok(Some(Partition::uniform(
-                grid.dims()[0],
-                usize::from(self.layout.size()),
-            )?)),
-            _ => Ok(None),
-        }
-    }
-
-    /// Every node's storage: its slab of the plan's partition in `data`, or its own storage
-    /// after a shift (`shifted`, by node id), with the view's skipping structures built on up
-    /// to `threads` OS threads.
-    pub fn storage<'d, T: Sample + Sync>(
+    /// Every node's storage, with the view's skipping structures built on up to `threads` OS
+    /// threads: its slab of the plan's partition in `data`, or, when the configuration asks
+    /// the nodes to reach balanced cuts by message, what the fabric's `shift` left it after
+    /// moving planes from uniform slabs (and the shift's report).
+    pub fn load<'d, T: Sample + Sync>(
         &self,
-        grid: &Grid,
+        grid: &'d Grid,
         data: &'d [T],
-        shifted: Option<&'d [Vec<T>]>,
         cfg: &RunConfig,
         threads: usize,
-    ) -> NodeStorage<'d, T> {
-        NodeStorage::new(
+        shift: impl FnOnce(&ShiftJob<'_>) -> Result<(Vec<Vec<T>>, ShiftReport), RunError>,
+    ) -> Result<(NodeStorage<'d, T>, Option<ShiftReport>), RunError> {
+        let (shifted, report) = match (&cfg.cuts, cfg.shift) {
+            (Some(_), true) => {
+                let job = ShiftJob {
+                    grid,
+                    layout: self.layout,
+                    old: Partition::uniform(grid.dims()[0], usize::from(self.layout.size()))?,
+                    new: &self.partition,
+                    ghost: self.ghost,
+                    capacity: self.capacity,
+                };
+                let (storages, report) = shift(&job)?;
+                (Some(storages), Some(report))
+            }
+            _ => (None, None),
+        };
+        let storage = NodeStorage::new(
             grid,
             self.layout,
             &self.partition,
@@ -174,7 +178,8 @@ impl<'v> Plan<'v> {
             data,
             shifted,
         )
-        .with_skipping(&self.view, cfg.skipping, threads)
+        .with_skipping(&self.view, cfg.skipping, threads);
+        Ok((storage, report))
     }
 
     /// Every node's worker, in node-id order, over `storage`.
@@ -254,8 +259,8 @@ mod tests {
     use crate::dataset::VolumeData;
     use voxcube_kernel::node::worker::Generation;
 
-    #[test]
-    fn a_worker_that_may_generate_no_ray_a_poll_is_refused_and_one_is_enough() {
+    /// Ring position 0's set-up in a ring of `size` over the default scene, handed to `check`.
+    fn at_position_0(size: u32, rays_per_poll: u8, check: impl FnOnce(Setup<'_, u8>)) {
         let jobs = crate::scene::Scene::default_scene()
             .and_then(crate::scene::Scene::load)
             .unwrap();
@@ -263,12 +268,18 @@ mod tests {
         let VolumeData::U8(data) = &volume.data else {
             panic!("the default scene is u8");
         };
-        let partition = Partition::uniform(volume.grid.dims()[0], 1).unwrap();
-        let cfg = RunConfig::cluster(1, 0).unwrap();
+        let grid = volume.grid;
+        let partition = Partition::uniform(grid.dims()[0], size as usize).unwrap();
+        let cfg = RunConfig::cluster(size, 0).unwrap();
         let (flow, _) = flow_for(&cfg, view).unwrap();
-        let setup = |rays_per_poll| Setup {
+        let planes = partition.planes(0);
+        let stored =
+            voxcube_kernel::volume::slab::stored_planes(&grid, planes.clone(), view.ghost_planes());
+        let plane = grid.plane_len();
+        let part = &data[stored.start as usize * plane..stored.end as usize * plane];
+        check(Setup {
             view,
-            slab: Slab::new(volume.grid, partition.planes(0), view.ghost_planes(), data).unwrap(),
+            slab: Slab::new(grid, planes, view.ghost_planes(), part).unwrap(),
             partition: &partition,
             place: Place {
                 layout: cfg.layout,
@@ -278,55 +289,33 @@ mod tests {
             generation: Generation::Distributed,
             flow,
             rays_per_poll,
-        };
-        assert_eq!(
-            NodeWorker::check(setup(0)).map(|_| ()),
-            Err(WorkerError::Capacity)
-        );
-        assert!(NodeWorker::check(setup(1)).is_ok());
+        });
+    }
+
+    #[test]
+    fn a_worker_that_may_generate_no_ray_a_poll_is_refused_and_one_is_enough() {
+        at_position_0(1, 0, |setup| {
+            assert_eq!(
+                NodeWorker::check(setup).map(|_| ()),
+                Err(WorkerError::Capacity)
+            );
+        });
+        at_position_0(1, 1, |setup| assert!(NodeWorker::check(setup).is_ok()));
     }
 
     #[test]
     fn a_ring_larger_than_the_workers_counters_is_refused() {
-        let jobs = crate::scene::Scene::default_scene()
-            .and_then(crate::scene::Scene::load)
-            .unwrap();
-        let (volume, view) = (&jobs[0].volume, &jobs[0].views[0].view);
-        let VolumeData::U8(data) = &volume.data else {
-            panic!("the default scene is u8");
-        };
-        let partition = Partition::uniform(volume.grid.dims()[0], 2).unwrap();
-        let cfg = RunConfig::cluster(2, 0).unwrap();
-        let (flow, _) = flow_for(&cfg, view).unwrap();
-        let planes = partition.planes(0);
-        let stored = voxcube_kernel::volume::slab::stored_planes(
-            &volume.grid,
-            planes.clone(),
-            view.ghost_planes(),
-        );
-        let plane = volume.grid.plane_len();
-        let part = &data[stored.start as usize * plane..stored.end as usize * plane];
-        let setup = || Setup {
-            view,
-            slab: Slab::new(volume.grid, planes.clone(), view.ghost_planes(), part).unwrap(),
-            partition: &partition,
-            place: Place {
-                layout: cfg.layout,
-                cluster: 0,
-                position: 0,
-            },
-            generation: Generation::Distributed,
-            flow,
-            rays_per_poll: 1,
-        };
-        type OneSlot<'a> = Worker<'a, u8, 32, 64, 16, 1>;
-        assert_eq!(
-            OneSlot::check(setup()).map(|_| ()),
-            Err(WorkerError::Ring {
-                size: 2,
-                capacity: 1
-            })
-        );
-        assert!(Worker::<'_, u8, 32, 64, 16, 2>::check(setup()).is_ok());
+        at_position_0(2, 1, |setup| {
+            assert_eq!(
+                Worker::<'_, u8, 32, 64, 16, 1>::check(setup).map(|_| ()),
+                Err(WorkerError::Ring {
+                    size: 2,
+                    capacity: 1
+                })
+            );
+        });
+        at_position_0(2, 1, |setup| {
+            assert!(Worker::<'_, u8, 32, 64, 16, 2>::check(setup).is_ok());
+        });
     }
 }

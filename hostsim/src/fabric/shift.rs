@@ -241,24 +241,41 @@ pub fn keep<T>(grid: &Grid, storage: &mut Vec<T>, stored: &std::ops::Range<u32>)
     storage.truncate(stored.len() * grid.plane_len());
 }
 
-/// Shift every node of `layout` from the `old` cuts to the `new` ones, in rounds of shifts
-/// between neighbours ([`next_step`]). `data` is the whole volume, from which each node
-/// loads its old slab at the start; `capacity` is each receive buffer's bytes. Returns each
-/// node's storage (its new stored planes, plane-major), in node-id order, and the report.
-#[allow(
-    clippy::too_many_arguments,
-    reason = "one call site: the machine's shape"
-)]
+/// A shift of every node's planes from the `old` cuts to the `new` ones, whichever fabric
+/// carries it.
+#[derive(Clone, Debug)]
+pub struct ShiftJob<'a> {
+    /// The volume's grid.
+    pub grid: &'a Grid,
+    /// The machine.
+    pub layout: Layout,
+    /// The cuts the nodes load their slabs of (uniform).
+    pub old: Partition,
+    /// The cuts they shift to.
+    pub new: &'a Partition,
+    /// Ghost planes each slab stores on either side.
+    pub ghost: u32,
+    /// Each receive buffer's bytes.
+    pub capacity: usize,
+}
+
+/// Carry out `job` in one thread, in rounds of shifts between neighbours ([`next_step`]).
+/// `data` is the whole volume, from which each node loads its old slab at the start; a timed
+/// run charges its messages on `profile`. Returns each node's storage (its new stored planes,
+/// plane-major), in node-id order, and the report.
 pub fn run<T: Sample>(
-    grid: &Grid,
+    job: &ShiftJob<'_>,
     data: &[T],
-    layout: Layout,
-    old: &Partition,
-    new: &Partition,
-    ghost: u32,
-    capacity: usize,
     profile: Option<&MachineProfile>,
 ) -> Result<(Vec<Vec<T>>, ShiftReport), ShiftFailure> {
+    let ShiftJob {
+        grid,
+        layout,
+        ref old,
+        new,
+        ghost,
+        capacity,
+    } = *job;
     let nodes = layout.nodes() as usize;
     // Each node loads its slab of the old cuts; from here on it has only its own storage.
     let mut storages: Vec<Vec<T>> = (0..nodes as u16)

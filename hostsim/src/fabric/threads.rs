@@ -18,7 +18,7 @@
 
 use super::harness::{NodeWorker, Plan};
 use super::host::Host;
-use super::shift::{self as planes, Counted, ShiftFailure, ShiftReport};
+use super::shift::{self as planes, Counted, ShiftFailure, ShiftJob, ShiftReport};
 use super::{Distributed, RunConfig, RunError};
 use crate::dataset::{Volume, VolumeData};
 use crossbeam_queue::SegQueue;
@@ -231,27 +231,9 @@ fn run_typed<T: Sample + Send + Sync>(
         t => t,
     }
     .clamp(1, nodes);
-    // Balanced cuts are reached by message from uniform slabs; then each node holds its own.
-    let shifted = match plan.shift_from(&grid, cfg)? {
-        Some(uniform) => Some(shift(
-            &grid,
-            data,
-            plan.layout,
-            &uniform,
-            &plan.partition,
-            plan.ghost,
-            capacity,
-            threads,
-        )?),
-        None => None,
-    };
-    let storage = plan.storage(
-        &grid,
-        data,
-        shifted.as_ref().map(|(s, _)| s.as_slice()),
-        cfg,
-        threads,
-    );
+    let (storage, shifted) = plan.load(&grid, data, cfg, threads, |job| {
+        Ok(shift(job, data, threads)?)
+    })?;
     let workers = plan.workers(&storage, cfg)?;
     let buffers: Vec<Buffer> = (0..nodes).map(|_| Buffer::new()).collect();
     let done = AtomicBool::new(false);
@@ -334,35 +316,26 @@ fn run_typed<T: Sample + Send + Sync>(
         reports,
         &|n| buffers[n].peak.load(Ordering::Relaxed),
         &|n| busy[n],
-        shifted.map(|(_, report)| report),
+        shifted,
     ))
 }
 
 /// A thread's nodes during the shift: id and storage.
 type Share<T> = Vec<(u16, Vec<T>)>;
 
-/// Shift every node of `layout` from the `old` cuts to the `new` ones by slab-plane messages
-/// between `threads` OS threads, over receive buffers of `capacity` bytes, in rounds between
-/// neighbours. Each node loads its slab of `old` from `data` and from then on has only its
-/// own storage. A round ends when every thread's nodes are done, so no chunk of the next
+/// Carry out `job` by slab-plane messages between `threads` OS threads, in rounds between
+/// neighbours. Each node loads its slab of the old cuts from `data` and from then on has only
+/// its own storage. A round ends when every thread's nodes are done, so no chunk of the next
 /// round reaches a node still taking this one. Returns each node's storage (its new stored
 /// planes) in node-id order and the report, which has no simulated time: this fabric is
 /// timed by the clock. Nothing hangs: a thread that sees no progress for [`STALL`] fails.
-#[allow(
-    clippy::too_many_arguments,
-    reason = "the simulator's shift::run, plus the threads"
-)]
 pub fn shift<T: Sample + Send + Sync>(
-    grid: &Grid,
+    job: &ShiftJob<'_>,
     data: &[T],
-    layout: Layout,
-    old: &Partition,
-    new: &Partition,
-    ghost: u32,
-    capacity: usize,
     threads: usize,
 ) -> Result<(Vec<Vec<T>>, ShiftReport), ShiftFailure> {
-    let steps = planes::rounds(old, new)?;
+    let (grid, layout, ghost, capacity) = (job.grid, job.layout, job.ghost, job.capacity);
+    let steps = planes::rounds(&job.old, job.new)?;
     let nodes = layout.nodes() as usize;
     let threads = threads.clamp(1, nodes);
     let buffers: Vec<Buffer> = (0..nodes).map(|_| Buffer::new()).collect();
@@ -370,7 +343,7 @@ pub fn shift<T: Sample + Send + Sync>(
     let (host, _unused) = mpsc::channel::<Msg>();
     let mut shares: Vec<Share<T>> = (0..threads).map(|_| Vec::new()).collect();
     for node in 0..nodes as u16 {
-        let storage = planes::load(grid, data, layout, old, ghost, node);
+        let storage = planes::load(grid, data, layout, &job.old, ghost, node);
         shares[usize::from(node) % threads].push((node, storage));
     }
     let arrived = AtomicUsize::new(0);

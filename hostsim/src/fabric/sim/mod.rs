@@ -68,27 +68,9 @@ fn run_typed<T: Sample + Sync>(
 ) -> Result<Distributed, RunError> {
     let grid = volume.grid;
     let plan = Plan::new(&grid, view, cfg)?;
-    // Balanced cuts are reached by message from uniform slabs; then each node holds its own.
-    let shifted = match plan.shift_from(&grid, cfg)? {
-        Some(uniform) => Some(super::shift::run(
-            &grid,
-            data,
-            plan.layout,
-            &uniform,
-            &plan.partition,
-            plan.ghost,
-            plan.capacity,
-            cfg.time.as_ref(),
-        )?),
-        None => None,
-    };
-    let storage = plan.storage(
-        &grid,
-        data,
-        shifted.as_ref().map(|(s, _)| s.as_slice()),
-        cfg,
-        1,
-    );
+    let (storage, shift) = plan.load(&grid, data, cfg, 1, |job| {
+        Ok(super::shift::run(job, data, cfg.time.as_ref())?)
+    })?;
     let mut sim = Sim::new(&plan, plan.workers(&storage, cfg)?, cfg);
     sim.run(progress)?;
     let Sim {
@@ -104,7 +86,6 @@ fn run_typed<T: Sample + Sync>(
     let (image, stats) = host
         .finish()
         .map_err(|what| fail(cfg, what, events, &log))?;
-    let shift = shifted.map(|(_, report)| report);
     let peaks = &net.peak;
     let mut run = plan.finish(
         cfg,
