@@ -90,14 +90,12 @@ impl SkipMode {
 /// samples. Any ray of another octant, as shadow rays mostly are, leaps by blocks; one in
 /// that octant, of whatever kind, leaps by the map. None without cell masks, which they
 /// are built from, and none when the primary rays take several octants: each map costs a
-/// pass over every cell, and each octant's rays are then only a share of the image (SOD
-/// seen from inside, four octants: 594.7 M instructions with their maps, 564.1 M without).
+/// pass over every cell, and each octant's rays are then only a share of the image.
 /// None either for surfaces where depth bounds pass the primary rays over the cells before
 /// their first that shows and a cell holds fewer than [`MAP_SAMPLES_PER_CELL`] of their
 /// samples ([`samples_per_cell`]): most such rays end at a crossing soon after their bound,
 /// and the map's pass costs more than the turns it saves. Composited rays go on through the
-/// volume after their bound, and keep their maps (SOD's paper view without them: 2,559.4 →
-/// 2,724.2 M instructions).
+/// volume after their bound, and keep their maps.
 pub fn cell_leap_octants(view: &View, mode: SkipMode) -> u8 {
     let by_cell = view.spec().model == voxcube_kernel::volume::grid::Model::Cell;
     let primary = voxcube_kernel::skip::leaps::primary_octants(view);
@@ -115,11 +113,9 @@ pub fn cell_leap_octants(view: &View, mode: SkipMode) -> u8 {
 }
 
 /// The samples a cell must hold, on average, for a view with depth bounds to take cell leap
-/// maps. Measured on SOD with depth bounds, alternating medians of one machine (2026-12-02):
-/// at 8 a cell (the paper's 350×250, Δt = ½) the frame took 19.5 ms without maps against
-/// 21.3 ms with them (the default scene's molecule: 14.2 against 15.8 ms); at 16 (495×354)
-/// about even (47.9 against 42.7 ms, runs overlapping); at 32 (700×500) 89.9 against 82.1 ms,
-/// at 123 (1024×768, Δt = ⅕) 160.5 against 140.0 ms.
+/// maps: below it the map's pass over every cell costs more than the turns it saves. Timed
+/// on SOD over image sizes (docs/speed-log.md), the two are about even at 16 a cell; the
+/// paper's view holds 8.
 pub const MAP_SAMPLES_PER_CELL: f64 = 16.0;
 
 /// How many of a parallel view's lattice samples a cell holds on average, over the rays
@@ -280,7 +276,7 @@ impl Skipping {
         // First each part of the block columns: their ranges, then their cell masks, which
         // read only their own blocks' ranges (`Blocks::of_columns`). Built with a wait for
         // every part's ranges between them, the two phases cost a thread start and join more
-        // and ran unevenly (measured).
+        // and run unevenly.
         let by_cell = mode.cells && view.spec().model == voxcube_kernel::volume::grid::Model::Cell;
         let mut ranges = vec![Range::UNKNOWN; len];
         let mut cells = if by_cell { vec![0; len] } else { Vec::new() };
@@ -344,9 +340,8 @@ impl Skipping {
         // with a map to merge, cost more than they saved at 1024×768.
         //
         // They go first: on SOD's paper view they are the longest parts, and the thread that
-        // ends its part first then builds the leap map. With the map first, its thread took
-        // the second depth part after it, and on two threads the two ended 160–210 µs apart;
-        // now about 50 µs, and the set takes about 50 µs less (measured).
+        // ends its part first then builds the leap map; with the map first, its thread would
+        // take the second depth part after it and end well after the other.
         if let Some(with_masks) = bounded {
             let n = threads.clamp(1, held.max(1) as usize) as u32;
             let places = even_parts(held, n);

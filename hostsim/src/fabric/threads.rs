@@ -48,12 +48,10 @@ const BURST: u32 = 16;
 const SPIN: Duration = Duration::from_millis(1);
 
 /// A node's received messages by class, first in first out within a class. Lock-free, so
-/// that no sender or receiver waits for another on a ring's message path. Behind a mutex, a
-/// SOD surfaces frame on one ring of two nodes took 23.8 ms against 22.5 ms, and where the
-/// machine's other tenants took more, 37.0 against 30.6 ms (one ring of 16: 130 against
-/// 109 ms; medians of 11 alternating processes): a thread whose core is taken while it holds
-/// a lock holds up every thread that needs it. A queue allocates a block per 31 messages,
-/// not one a message.
+/// that no sender or receiver waits for another on a ring's message path: behind a lock, a
+/// thread whose core is taken while it holds the lock holds up every thread that needs it,
+/// which a shared machine does often. A queue allocates a block per 31 messages, not one a
+/// message.
 #[derive(Default)]
 struct Inbox {
     by_class: [SegQueue<(Dest, Msg)>; 7],
@@ -133,9 +131,8 @@ impl ThreadPort<'_> {
     }
 
     /// The part of [`ThreadPort::fetch`] that moves messages, out of line, so that the two
-    /// checks before it inline: most polls find nothing queued. As one function called about
-    /// seven times a poll, `fetch` took 17.8 M instructions of a 690 M one-node SOD frame;
-    /// inlined, about 7 M.
+    /// checks before it inline: most polls find nothing queued, and `fetch` is called about
+    /// seven times a poll.
     #[inline(never)]
     fn take(&mut self, i: usize, me: &Buffer) {
         let mut moved = 0;
@@ -271,10 +268,8 @@ fn run_typed<T: Sample + Send + Sync>(
             })
             .collect();
         // The host runs between the rounds of the threads' own nodes, not on a thread of its
-        // own: two worker threads and a host that slept and woke every 100 µs shared two
-        // cores, and each wake-up took its core from a worker. The first worker thread was
-        // then busy about 1.8 ms longer than the second in a 14 ms SOD surfaces frame, and
-        // 20–30 ms longer in a 165 ms composited one (measured).
+        // own: a host thread that sleeps and wakes takes a core from a worker at each wake-up,
+        // and the workers then end unevenly.
         let result = loop {
             let progressed = own.round();
             let mut at = host.lock().unwrap_or_else(PoisonError::into_inner);
@@ -541,8 +536,8 @@ impl<'s, 'v, T: Sample> Crew<'s, 'v, T> {
     /// Each node polled while it has work, up to [`BURST`] times; whether any had work.
     fn round(&mut self) -> bool {
         let mut progressed = false;
-        // The clock is read once per burst: a poll is one to four rays, and reading the clock
-        // around each took 4% of a frame. Each burst's time runs from the previous read.
+        // The clock is read once per burst: a poll is one to four rays, too little work to
+        // read the clock around. Each burst's time runs from the previous read.
         let mut t = Instant::now();
         let nodes = self.workers.iter_mut().zip(&mut self.ports);
         for ((w, port), spent) in nodes.zip(&mut self.busy) {
@@ -563,9 +558,8 @@ impl<'s, 'v, T: Sample> Crew<'s, 'v, T> {
     /// After a round: nothing if something happened, else a yield, and once nothing has
     /// happened for [`SPIN`] a short sleep, so that a thread idle for long leaves its core to
     /// the others. A frame's last messages (the tokens, the request for statistics and the
-    /// answers) cross threads within microseconds of each other: sleeping after 64 idle
-    /// rounds instead, a thread slept through them two to four times, and a SOD surfaces
-    /// frame ended 0.2 ms after its last ray instead of 0.04 ms (measured).
+    /// answers) cross threads within microseconds of each other, and a thread that slept
+    /// sooner would sleep through them and end the frame late.
     fn rest(&mut self, progressed: bool) {
         if progressed {
             self.idle_since = None;
@@ -588,9 +582,8 @@ impl<'s, 'v, T: Sample> Crew<'s, 'v, T> {
 
 /// The host's side of a run: pixels and tokens in, then statistics. Shared by the threads:
 /// each polls it after its own round when no other thread is at it (the calling thread waits
-/// its turn), so the host's work falls on both cores. Polled by the calling thread alone, it
-/// left that thread's node about 0.25 ms behind the other's in a SOD surfaces frame, and the
-/// other thread idle for as long at the end (measured).
+/// its turn), so the host's work falls on every core rather than delaying one thread's
+/// nodes while the others wait idle at the end.
 struct HostLoop {
     rx: mpsc::Receiver<Msg>,
     host: Host,
@@ -612,8 +605,8 @@ impl HostLoop {
 
     /// Take every message waiting, and ask every node for its statistics once every token
     /// is in; whether any came. Polled, never waited on: a receiver blocked in `recv` is
-    /// woken by every send, a futex call and a context switch per pixel message, which
-    /// cost a measured fifth of a one-node frame. The clock is read once a poll, not once a
+    /// woken by every send, a futex call and a context switch per pixel message. The clock
+    /// is read once a poll, not once a
     /// message. A failure is kept in `failure`, and nothing more is taken after it.
     fn poll(&mut self, buffers: &[Buffer], capacity: usize) -> bool {
         if self.failure.is_some() {

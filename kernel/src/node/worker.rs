@@ -240,8 +240,8 @@ pub struct Worker<
     /// Reads per ring position and credit class not yet acknowledged.
     acks_due: Credits<RING>,
     /// The sum of `acks_due`: a poll with nothing (or, while busy, less than a batch) to
-    /// acknowledge skips looking through every ring position and class, which was 40% of the
-    /// instructions of a cluster of 16 polled on two threads.
+    /// acknowledge skips looking through every ring position and class, which otherwise
+    /// dominates the polls of a large ring.
     acks_owed: u32,
     token: Token,
     token_upward: bool,
@@ -498,7 +498,7 @@ impl<
 
     /// Send to the node at ring position `to`, counting the credit it takes.
     // Inlined, as `enqueue` is: a message handed down by value was copied whole at each call
-    // (288 bytes, a ray's 96 among them), 3.8 M instructions a frame in rings of two on SOD.
+    // (288 bytes, a ray's 96 among them).
     #[inline]
     fn send(&mut self, to: usize, msg: Msg) {
         if let Some(n) = self.unacked.add_one(to, msg.class()) {

@@ -309,7 +309,7 @@ impl<'a> Blocks<'a> {
     #[inline]
     pub fn reaches(&self, from: (u32, u32, u32), to: (u32, u32, u32), reach: u32) -> bool {
         // `t` in `Octant::span(axis, f, reach)`, without its saturating ends: every leap's
-        // landing asks, and the saturation cost 1% of a SOD surfaces frame.
+        // landing asks, so the saturation is paid once a leap.
         let ahead = |axis: usize, f: u32, t: u32| match self.toward.down(axis) {
             true => t <= f && f - t <= reach,
             false => t >= f && t - f <= reach,

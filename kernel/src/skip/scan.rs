@@ -12,8 +12,8 @@
 //!
 //! Why scan at all: on a noisy volume the empty cells between the cells a ray must read come
 //! a few at a time (SOD at iso 50: 7.5% of cells are not empty, 26% of blocks), and a jump
-//! over a box of them cost about 300 instructions and a turn of the marcher's loop for
-//! about four samples. Four samples here cost about 150. Where a ray takes many samples per
+//! over a box of them costs a turn of the marcher's loop and about twice what scanning the
+//! same four samples here does. Where a ray takes many samples per
 //! cell, a box holds many more samples than a scan step, and jumping wins: [`pays`] tells
 //! the two apart.
 
@@ -32,13 +32,10 @@ pub const STEPS: u32 = 8;
 
 /// The least distance in cells that a ray's step moves along its fastest axis for a scan to
 /// pay: below it a cell holds more than five samples of the ray, and jumping over a box of
-/// empty cells ([`crate::skip::cells::empty_box`]) is cheaper. Measured on SOD at 350×250 with the
-/// paper's view, whose rays step `0.71·Δt` cells along X and Z (instructions, one node,
-/// scanning against jumping): surfaces at Δt = 0.25, 439 M against 419 M; at 0.3, 409 M
-/// against 404 M; at 0.35, 382 M against 393 M; at ½, 342 M against 372 M. Composited at
-/// Δt = 0.2, 6,428 M against 6,379 M; at 0.25, 5,207 M against 5,241 M; at 0.3, 4,407 M
-/// against 4,491 M. So surfaces cross over near 0.23 cells a step and composited near 0.16;
-/// the threshold lies between.
+/// empty cells ([`crate::skip::cells::empty_box`]) is cheaper. Counted in instructions on
+/// SOD's paper view over a sweep of Δt (docs/speed-log.md), scanning and jumping cross over
+/// near 0.23 cells a step for surfaces and near 0.16 for compositing; the threshold lies
+/// between.
 pub const MIN_STEP: f32 = 0.2;
 
 /// Cells per block edge, as the lanes count them.
@@ -109,9 +106,7 @@ fn quarter_floor(c: Vec4) -> Vec4 {
 
 /// How many of the samples after sample `k` of `ray` on `lattice` lie, one after the other, in
 /// cells `masks` call empty, in the slab's owned planes and on the lattice: at most
-/// `4 · STEPS`. Out of line: inlined into the marcher it left the loop fewer registers
-/// (SOD surfaces 340.4 M instructions against 338.3 M, 1024×768 surfaces 2,601 M against
-/// 2,584 M).
+/// `4 · STEPS`. Out of line: inlined into the marcher it leaves the loop fewer registers.
 #[inline(never)]
 pub fn empty_run(ray: &Ray, lattice: &Lattice, k: u32, masks: &Masks<'_>) -> u32 {
     let o = ray.origin;

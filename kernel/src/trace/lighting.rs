@@ -83,7 +83,7 @@ pub fn lighting<T: Sample>(
 /// [`lighting`]'s `.color` with every light fully visible, and counted alike: the same terms
 /// summed in the same order, a visibility of 1 multiplying each exactly. It keeps no
 /// [`Lighting`] (directions, distances, shadow mask), which compositing never reads and which
-/// cost about 80 of a lit sample's 750 instructions.
+/// is a tenth of a lit sample's work.
 pub fn unshadowed_color<T: Sample>(
     view: &View,
     slab: &Slab<'_, T>,

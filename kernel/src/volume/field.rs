@@ -229,8 +229,8 @@ fn interpolate<T: Sample>(slab: &Slab<'_, T>, site: &Site, counters: &mut Counte
     } = site.frac;
     // The four lerps along x, one per lane: each lane rounds exactly as the scalar `lerp`
     // (glam never fuses), and all four lanes hold data. Left to itself the compiler packs two
-    // lanes and leaves stale values in the others, which can be subnormal and stall the
-    // multiply (a measured 40% of the whole render). The lanes are built from the loaded
+    // lanes and leaves stale values in the others, which can be subnormal and stall every
+    // multiply that follows. The lanes are built from the loaded
     // values directly: going through an array on the stack costs a store-forwarding stall.
     let (low, high) = match slab.cell((x0, x1), (y0, y1), (z0, z1)) {
         Some([c000, c100, c010, c110, c001, c101, c011, c111]) => (
