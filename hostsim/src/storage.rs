@@ -258,8 +258,9 @@ impl Skipping {
         threads: usize,
         rows: voxcube_kernel::node::topology::Rows,
     ) -> Skipping {
-        use voxcube_kernel::skip::blocks::{column_len, extent, Blocks, Range};
+        use voxcube_kernel::skip::blocks::{column_len, Blocks, Range};
         use voxcube_kernel::skip::cells;
+        use voxcube_kernel::skip::minmax::extent;
         if !mode.skip {
             return Skipping::default();
         }
@@ -287,14 +288,15 @@ impl Skipping {
             .map(|((out, masks), cols)| -> Part<'_> {
                 let masks = by_cell.then_some(masks);
                 Box::new(move || {
-                    if Blocks::build_columns(slab, cols.clone(), out).is_err() {
+                    if voxcube_kernel::skip::minmax::build_columns(slab, cols.clone(), out).is_err()
+                    {
                         return false;
                     }
                     let Some(masks) = masks else {
                         return true;
                     };
                     let own = 0..cols.len() as u32;
-                    Blocks::of_columns(slab, cols, out)
+                    Blocks::of_columns(slab.grid(), slab.stored(), cols, out)
                         .and_then(|part| cells::build_columns(slab, &part, view, own, masks))
                         .is_ok()
                 })
@@ -303,7 +305,7 @@ impl Skipping {
         if !run_parts(jobs, threads).into_iter().all(|built| built) {
             return Skipping::default();
         }
-        let Ok(blocks) = Blocks::new(slab, &ranges) else {
+        let Ok(blocks) = Blocks::new(slab.grid(), slab.stored(), &ranges) else {
             return Skipping::default();
         };
         // Then everything that reads the whole slab's blocks or masks, in one set of parts, in
@@ -354,11 +356,11 @@ impl Skipping {
             }
         }
         let depth_jobs = jobs.len();
-        let chosen = (0..voxcube_kernel::skip::leaps::OCTANTS).filter(|o| octants >> o & 1 == 1);
+        let chosen = (0..voxcube_kernel::skip::octant::OCTANTS).filter(|o| octants >> o & 1 == 1);
         for (map, octant) in leaps.chunks_mut(len).zip(chosen) {
             let (blocks, octant) = (
                 &blocks,
-                voxcube_kernel::skip::leaps::Octant::from_index(octant),
+                voxcube_kernel::skip::octant::Octant::from_index(octant),
             );
             jobs.push(Box::new(move || {
                 voxcube_kernel::skip::leaps::build(blocks, view, octant, map).is_ok()
@@ -366,7 +368,7 @@ impl Skipping {
         }
         if let Some(with_masks) = &with_masks {
             let chosen =
-                (0..voxcube_kernel::skip::leaps::OCTANTS).filter(|o| cell_octants >> o & 1 == 1);
+                (0..voxcube_kernel::skip::octant::OCTANTS).filter(|o| cell_octants >> o & 1 == 1);
             // Each map in parts of planes, one a thread: a part is built with the planes ahead
             // of it that its distances depend on, and keeps its own. The parts even out what
             // each thread builds (`cell_leaps::part`).
@@ -375,7 +377,7 @@ impl Skipping {
             let (all, plane) = (planes(with_masks), plane_len(with_masks));
             let n = threads.clamp(1, all.max(1));
             for (map, octant) in cell_leaps.chunks_mut(per_map).zip(chosen) {
-                let octant = voxcube_kernel::skip::leaps::Octant::from_index(octant);
+                let octant = voxcube_kernel::skip::octant::Octant::from_index(octant);
                 let parts: Vec<std::ops::Range<usize>> =
                     (0..n).map(|i| part(i, n, all, octant)).collect();
                 let sizes: Vec<usize> = parts.iter().map(|p| p.len() * plane).collect();
@@ -435,7 +437,9 @@ impl Skipping {
         if self.ranges.is_empty() {
             return slab;
         }
-        let Ok(blocks) = voxcube_kernel::skip::blocks::Blocks::new(&slab, &self.ranges) else {
+        let Ok(blocks) =
+            voxcube_kernel::skip::blocks::Blocks::new(slab.grid(), slab.stored(), &self.ranges)
+        else {
             return slab;
         };
         let blocks = match blocks.with_leaps(&self.leaps, self.octants) {

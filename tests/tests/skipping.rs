@@ -544,13 +544,14 @@ fn skipping_built_on_threads_is_the_same_storage() {
 
 /// `volume`'s whole slab (of blobs, bytes) and its blocks' ranges.
 fn whole_slab_blocks(volume: &Volume) -> (Slab<'_, u8>, Vec<voxcube_kernel::skip::blocks::Range>) {
-    use voxcube_kernel::skip::blocks::{extent, Blocks, Range};
+    use voxcube_kernel::skip::blocks::Range;
+    use voxcube_kernel::skip::minmax::extent;
     let VolumeData::U8(data) = &volume.data else {
         unreachable!("blobs are bytes")
     };
     let slab = Slab::whole(volume.grid, data.as_slice()).expect("slab");
     let mut ranges = vec![Range::UNKNOWN; extent(&slab).2];
-    Blocks::build(&slab, &mut ranges).expect("storage");
+    voxcube_kernel::skip::minmax::build(&slab, &mut ranges).expect("storage");
     (slab, ranges)
 }
 
@@ -563,12 +564,13 @@ fn trace_with_octant_maps(
     built_for: &dyn Fn(usize) -> usize,
 ) -> Vec<[u8; 4]> {
     use voxcube_kernel::skip::blocks::Blocks;
-    use voxcube_kernel::skip::leaps::{self, Octant};
+    use voxcube_kernel::skip::leaps;
+    use voxcube_kernel::skip::octant::Octant;
     let (slab, ranges) = whole_slab_blocks(volume);
-    let blocks = Blocks::new(&slab, &ranges).expect("storage");
+    let blocks = Blocks::new(slab.grid(), slab.stored(), &ranges).expect("storage");
     let len = ranges.len();
     let mut maps = vec![0u8; len * label.count_ones() as usize];
-    let octants = (0..leaps::OCTANTS).filter(|o| label >> o & 1 == 1);
+    let octants = (0..voxcube_kernel::skip::octant::OCTANTS).filter(|o| label >> o & 1 == 1);
     for (map, octant) in maps.chunks_mut(len).zip(octants) {
         leaps::build(&blocks, view, Octant::from_index(built_for(octant)), map).expect("storage");
     }
@@ -827,10 +829,10 @@ fn a_cell_leap_map_built_in_parts_of_planes_is_the_whole_map() {
     use voxcube_kernel::skip::blocks::Blocks;
     use voxcube_kernel::skip::cell_leaps::with_planes_ahead;
     use voxcube_kernel::skip::cell_leaps::{build, build_planes, part, plane_len, planes};
-    use voxcube_kernel::skip::leaps::Octant;
+    use voxcube_kernel::skip::octant::Octant;
     let volume = blobs([10, 9, 150], Vec3::ONE, 0x7e);
     let (slab, ranges) = whole_slab_blocks(&volume);
-    let blocks = Blocks::new(&slab, &ranges).expect("storage");
+    let blocks = Blocks::new(slab.grid(), slab.stored(), &ranges).expect("storage");
     let cam = voxcube_tests::ortho(Vec3::new(60.0, 10.0, 90.0), Vec3::splat(5.0), Vec3::Y, 30.0);
     let view = voxcube_tests::view(
         voxcube_tests::spec(

@@ -13,23 +13,23 @@ pub const PLANE_CHUNK: usize = 256;
 /// The kinds of message.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MsgKind {
-    /// [`Msg::Ray`].
+    /// [`Msg::Ray`](crate::node::msg::Msg::Ray).
     Ray = 0,
-    /// [`Msg::Hit`].
+    /// [`Msg::Hit`](crate::node::msg::Msg::Hit).
     Hit = 1,
-    /// [`Msg::Resolved`].
+    /// [`Msg::Resolved`](crate::node::msg::Msg::Resolved).
     Resolved = 2,
-    /// [`Msg::Ack`].
+    /// [`Msg::Ack`](crate::node::msg::Msg::Ack).
     Ack = 3,
-    /// [`Msg::Token`].
+    /// [`Msg::Token`](crate::node::msg::Msg::Token).
     Token = 4,
-    /// [`Msg::Pixels`].
+    /// [`Msg::Pixels`](crate::node::msg::Msg::Pixels).
     Pixels = 5,
-    /// [`Msg::Stats`].
+    /// [`Msg::Stats`](crate::node::msg::Msg::Stats).
     Stats = 6,
-    /// [`Msg::Planes`].
+    /// [`Msg::Planes`](crate::node::msg::Msg::Planes).
     Planes = 7,
-    /// [`Msg::Collect`].
+    /// [`Msg::Collect`](crate::node::msg::Msg::Collect).
     Collect = 8,
 }
 

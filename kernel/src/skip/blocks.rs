@@ -15,22 +15,30 @@
 //! block ahead at once, and one view's cell masks ([`crate::skip::cells`]), so that an empty cell
 //! inside a block that is not empty is skipped too.
 
-use crate::skip::cells::CellMask;
-use crate::skip::leaps::Octant;
-use crate::volume::field::Site;
+use crate::skip::bounds::Depths;
+use crate::skip::octant::Octant;
+use crate::volume::grid::Grid;
 use crate::volume::grid::Model;
 pub use crate::volume::sample::Range;
-use crate::volume::sample::Sample;
-use crate::volume::slab::Slab;
 use core::fmt;
 use glam::Vec3;
 
 /// Cells per block edge.
 pub const BLOCK: u32 = 4;
 
+/// Cells in a block.
+pub const PER_BLOCK: usize = (BLOCK * BLOCK * BLOCK) as usize;
+
+/// One bit per cell of a block: bit `x + 4·y + 16·z` for the cell at offset `(x, y, z)` from
+/// the block's low corner.
+pub type CellMask = u64;
+
+/// Every cell may show: what a block says without a mask.
+pub const ALL: CellMask = CellMask::MAX;
+
 /// Y nodes of a line of blocks gathered at a time by [`Blocks::build`] (sixteen blocks), on
 /// the stack: the kernel's memory stays fixed for any grid.
-const GATHER: usize = 16 * BLOCK as usize;
+pub(crate) const GATHER: usize = 16 * BLOCK as usize;
 
 /// Why blocks cannot be built.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -116,7 +124,7 @@ pub struct Blocks<'a> {
     cell_leaps: Option<&'a [u8]>,
     /// One view's depth bounds ([`crate::skip::depths`]), a bound per pixel of the rows held, when
     /// its primary rays may pass over the samples before them.
-    depths: Option<crate::skip::depths::Depths<'a>>,
+    depths: Option<Depths<'a>>,
     x0: u32,
     x1: u32,
     ny: u32,
@@ -133,26 +141,19 @@ pub fn face_shift(model: Model) -> f32 {
 }
 
 /// Blocks along an axis of `n` nodes (`n − 1` cells, at least one block).
-fn count(n: u32) -> u32 {
+pub(crate) fn count(n: u32) -> u32 {
     n.saturating_sub(1).div_ceil(BLOCK).max(1)
 }
 
 /// The nodes of block `b` along an axis of `n` nodes: its cells' corners, so neighbouring
 /// blocks share a plane of nodes.
-fn nodes(b: u32, n: u32) -> core::ops::Range<u32> {
+pub(crate) fn nodes(b: u32, n: u32) -> core::ops::Range<u32> {
     b * BLOCK..((b + 1) * BLOCK).min(n.saturating_sub(1)) + 1
 }
 
-/// The global block columns a slab's stored planes touch, and the storage they need.
-pub fn extent<T: Sample>(slab: &Slab<'_, T>) -> (u32, u32, usize) {
-    extent_for(slab.grid(), slab.stored())
-}
-
-/// [`extent`] for stored planes `stored` of `grid`, before any slab exists (for budgets).
-pub fn extent_for(
-    grid: &crate::volume::grid::Grid,
-    stored: core::ops::Range<u32>,
-) -> (u32, u32, usize) {
+/// The global block columns the stored planes `stored` of `grid` touch, and the storage
+/// their blocks need (also before any slab exists, for budgets).
+pub fn extent_for(grid: &Grid, stored: core::ops::Range<u32>) -> (u32, u32, usize) {
     let [nx, ny, nz] = grid.dims();
     let x0 = (stored.start / BLOCK).min(count(nx) - 1);
     let x1 = (stored.end.saturating_sub(1) / BLOCK + 1)
@@ -167,13 +168,16 @@ pub fn extent_for(
 
 /// Blocks in one block column of `grid` (one block along X, every Y and Z): the unit in
 /// which a build may be split.
-pub fn column_len(grid: &crate::volume::grid::Grid) -> usize {
+pub fn column_len(grid: &Grid) -> usize {
     let [_, ny, nz] = grid.dims();
     count(ny) as usize * count(nz) as usize
 }
 
 /// `Ok` when `columns` are block columns of a slab with `slab_columns` of them.
-fn check_columns(columns: &core::ops::Range<u32>, slab_columns: u32) -> Result<(), BlocksError> {
+pub(crate) fn check_columns(
+    columns: &core::ops::Range<u32>,
+    slab_columns: u32,
+) -> Result<(), BlocksError> {
     match columns.start <= columns.end && columns.end <= slab_columns {
         true => Ok(()),
         false => Err(BlocksError::Columns {
@@ -185,99 +189,19 @@ fn check_columns(columns: &core::ops::Range<u32>, slab_columns: u32) -> Result<(
 }
 
 impl<'a> Blocks<'a> {
-    /// The blocks in `data`, filled for `slab` by [`Blocks::build`].
-    pub fn new<T: Sample>(
-        slab: &Slab<'_, T>,
+    /// The blocks in `data`, filled by [`crate::skip::minmax::build`] for a slab storing the
+    /// planes `stored` of `grid`.
+    pub fn new(
+        grid: &Grid,
+        stored: core::ops::Range<u32>,
         data: &'a [Range],
     ) -> Result<Blocks<'a>, BlocksError> {
-        let (x0, x1, _) = extent(slab);
-        Blocks::of_columns(slab, 0..x1 - x0, data)
-    }
-
-    /// Fill `out` (exactly [`extent`]'s length) with `slab`'s blocks.
-    pub fn build<T: Sample>(slab: &Slab<'_, T>, out: &mut [Range]) -> Result<(), BlocksError> {
-        let (x0, x1, _) = extent(slab);
-        Blocks::build_columns(slab, 0..x1 - x0, out)
-    }
-
-    /// Fill `out` with the blocks of `slab`'s block columns `columns` (counted from its first;
-    /// [`column_len`] blocks each, the storage order's slowest axis), as [`Blocks::build`]
-    /// fills their part of its storage: a build split by columns gives the same bits.
-    pub fn build_columns<T: Sample>(
-        slab: &Slab<'_, T>,
-        columns: core::ops::Range<u32>,
-        out: &mut [Range],
-    ) -> Result<(), BlocksError> {
-        let (x0, x1, _) = extent(slab);
-        check_columns(&columns, x1 - x0)?;
-        BlocksError::check_storage(columns.len() * column_len(slab.grid()), out.len())?;
-        let x0 = x0 + columns.start;
-        let [nx, ny, nz] = slab.grid().dims();
-        let bz = count(nz) as usize;
-        // The blocks of one line along Y (one block in X and in Z, every Y) lie side by side in
-        // `out`, and the line's nodes on one Y row side by side in storage. So the line's
-        // least and greatest value at each Y node are gathered over its rows first, in
-        // straight passes along the rows that the compiler vectorises, and then each block
-        // takes those of its own Y nodes. Gathering block by block instead, five values of a
-        // row at a time, took 2.7 times the instructions. The passes compare samples as
-        // stored, many to a vector register for bytes, and convert only each block's two
-        // extremes: `to_f32` keeps the samples' order.
-        let stored = slab.stored();
-        for (k, line) in out.chunks_exact_mut(count(ny) as usize).enumerate() {
-            // A block at the slab's end takes the range of the nodes it stores: every sample
-            // the slab owns reads stored nodes only, and no other sample asks its blocks.
-            let xs = nodes(x0 + (k / bz) as u32, nx);
-            let xs = xs.start.max(stored.start)..xs.end.min(stored.end);
-            let zs = nodes((k % bz) as u32, nz);
-            for (c, blocks) in line.chunks_mut(GATHER / BLOCK as usize).enumerate() {
-                // Nodes y0..y1: these blocks' own, and the plane they share with the next.
-                let y0 = c * GATHER;
-                let y1 = (y0 + GATHER + 1).min(ny as usize);
-                // The first row's values start both, so no sample type needs extremes of
-                // its own.
-                let (mut lo, mut hi) = ([T::default(); GATHER + 1], [T::default(); GATHER + 1]);
-                let mut first = true;
-                // A block without a stored plane is unknown.
-                let mut complete = !xs.is_empty();
-                for x in xs.clone() {
-                    for z in zs.clone() {
-                        let Some(values) = slab.row(x, z).and_then(|row| row.get(y0..y1)) else {
-                            complete = false;
-                            continue;
-                        };
-                        for ((l, h), &v) in lo.iter_mut().zip(&mut hi).zip(values) {
-                            (*l, *h) = match first {
-                                true => (v, v),
-                                false => (l.lesser(v), h.greater(v)),
-                            };
-                        }
-                        first = false;
-                    }
-                }
-                // Only nodes y0..y1 were read.
-                let read = ..y1 - y0;
-                let (lo, hi) = (lo.get(read).unwrap_or(&[]), hi.get(read).unwrap_or(&[]));
-                for (by, r) in (c * GATHER / BLOCK as usize..).zip(blocks.iter_mut()) {
-                    let ys = nodes(by as u32, ny);
-                    let ys = ys.start as usize - y0..ys.end as usize - y0;
-                    *r = match (complete, lo.get(ys.clone()), hi.get(ys)) {
-                        (true, Some(lo), Some(hi)) => Range {
-                            min: lo.iter().map(|v| v.to_f32()).fold(f32::INFINITY, f32::min),
-                            max: hi
-                                .iter()
-                                .map(|v| v.to_f32())
-                                .fold(f32::NEG_INFINITY, f32::max),
-                        },
-                        _ => Range::UNKNOWN,
-                    };
-                }
-            }
-        }
-        Ok(())
+        let (x0, x1, _) = extent_for(grid, stored.clone());
+        Blocks::of_columns(grid, stored, 0..x1 - x0, data)
     }
 
     /// The global block coordinates of the cell or node a sample reads, whose low corner is
-    /// `lo` ([`Site::lo`]): what [`Blocks::at`] reads. Monotone along a ray, as the corners
+    /// `lo` ([`Site::lo`](crate::volume::field::Site::lo)): what [`Blocks::at`] reads. Monotone along a ray, as the corners
     /// are.
     #[inline]
     pub fn block_of(&self, lo: [u32; 3]) -> (u32, u32, u32) {
@@ -317,12 +241,13 @@ impl<'a> Blocks<'a> {
         ahead(0, from.0, to.0) && ahead(1, from.1, to.1) && ahead(2, from.2, to.2)
     }
 
-    /// The range of the block holding `site` (unknown outside the slab's columns).
+    /// The range of the block holding the cell (or node) whose low corner is `lo`
+    /// ([`Site::lo`](crate::volume::field::Site::lo); unknown outside the slab's columns).
     #[inline]
-    pub fn at(&self, site: &Site) -> Range {
+    pub fn at(&self, lo: [u32; 3]) -> Range {
         // The cell (cell model) or node (voxel model) the point reads, then its block; a node
         // on a block's upper face belongs to both blocks, and both include it.
-        self.range(self.block_of(site.lo))
+        self.range(self.block_of(lo))
     }
 
     /// The range of block `(bx, by, bz)` (global block coordinates; unknown outside).
@@ -358,19 +283,21 @@ impl<'a> Blocks<'a> {
         Ok(&self.data[columns.start as usize * len..columns.end as usize * len])
     }
 
-    /// The blocks of block columns `columns` of `slab` (counted from its first) in `data`,
-    /// filled for them by [`Blocks::build_columns`]: a part of the slab's blocks, whose first
+    /// The blocks of block columns `columns` (counted from the first) of a slab storing the
+    /// planes `stored` of `grid`, in `data`, filled for them by
+    /// [`crate::skip::minmax::build_columns`]: a part of the slab's blocks, whose first
     /// column is the first of `columns`, for work on those columns alone (their cell masks,
     /// built right after their ranges, with no wait for the other columns').
-    pub fn of_columns<T: Sample>(
-        slab: &Slab<'_, T>,
+    pub fn of_columns(
+        grid: &Grid,
+        stored: core::ops::Range<u32>,
         columns: core::ops::Range<u32>,
         data: &'a [Range],
     ) -> Result<Blocks<'a>, BlocksError> {
-        let (x0, x1, _) = extent(slab);
+        let (x0, x1, _) = extent_for(grid, stored);
         check_columns(&columns, x1 - x0)?;
-        BlocksError::check_storage(columns.len() * column_len(slab.grid()), data.len())?;
-        let [_, ny, nz] = slab.grid().dims();
+        BlocksError::check_storage(columns.len() * column_len(grid), data.len())?;
+        let [_, ny, nz] = grid.dims();
         Ok(Blocks {
             data,
             maps: &[],
@@ -428,11 +355,7 @@ impl<'a> Blocks<'a> {
         };
         let len = self.data.len();
         let leaps = of(self.maps, self.octants, len);
-        let cell_leaps = of(
-            self.cell_maps,
-            self.cell_octants,
-            len * crate::skip::cell_leaps::PER_BLOCK,
-        );
+        let cell_leaps = of(self.cell_maps, self.cell_octants, len * PER_BLOCK);
         Blocks {
             toward: octant,
             leaps,
@@ -445,7 +368,7 @@ impl<'a> Blocks<'a> {
     /// `octants`, in octant order ([`crate::skip::cell_leaps::build`] from the cell masks of the view
     /// being traced, like a leap map). An octant left out leaps by blocks and scans cells.
     pub fn with_cell_leaps(self, maps: &'a [u8], octants: u8) -> Result<Blocks<'a>, BlocksError> {
-        let per_map = self.data.len() * crate::skip::cell_leaps::PER_BLOCK;
+        let per_map = self.data.len() * PER_BLOCK;
         BlocksError::check_storage(per_map * octants.count_ones() as usize, maps.len())?;
         Ok(Blocks {
             cell_maps: maps,
@@ -455,15 +378,16 @@ impl<'a> Blocks<'a> {
         .toward(self.toward))
     }
 
-    /// The cell leap map of [`Blocks::toward`]'s octant, when the blocks carry one.
+    /// The cell leap map of [`Blocks::toward`]'s octant, when the blocks carry one (read it
+    /// with [`crate::skip::cell_leaps::CellLeaps::of`]).
     #[inline]
-    pub fn cell_leaps(&self) -> Option<crate::skip::cell_leaps::CellLeaps<'a>> {
-        crate::skip::cell_leaps::CellLeaps::new(self, self.cell_leaps?).ok()
+    pub fn cell_leap_map(&self) -> Option<&'a [u8]> {
+        self.cell_leaps
     }
 
     /// The same blocks, with the depth bounds `depths` ([`crate::skip::depths::build`] from these
     /// blocks' masks for the view being traced, like a leap map).
-    pub fn with_depths(self, depths: crate::skip::depths::Depths<'a>) -> Blocks<'a> {
+    pub fn with_depths(self, depths: Depths<'a>) -> Blocks<'a> {
         Blocks {
             depths: Some(depths),
             ..self
@@ -472,7 +396,7 @@ impl<'a> Blocks<'a> {
 
     /// The depth bounds, when the blocks carry them.
     #[inline]
-    pub fn depths(&self) -> Option<crate::skip::depths::Depths<'a>> {
+    pub fn depths(&self) -> Option<Depths<'a>> {
         self.depths
     }
 
@@ -499,16 +423,13 @@ impl<'a> Blocks<'a> {
             return Entry {
                 range: Range::UNKNOWN,
                 leap: self.leaps.map(|_| 0),
-                cells: crate::skip::cells::ALL,
+                cells: ALL,
             };
         };
         Entry {
             range: self.data.get(i).copied().unwrap_or(Range::UNKNOWN),
             leap: self.leaps.map(|l| l.get(i).copied().unwrap_or(0)),
-            cells: self
-                .cells
-                .and_then(|c| c.get(i).copied())
-                .unwrap_or(crate::skip::cells::ALL),
+            cells: self.cells.and_then(|c| c.get(i).copied()).unwrap_or(ALL),
         }
     }
 
@@ -523,7 +444,7 @@ impl<'a> Blocks<'a> {
     pub fn cells(&self, block: (u32, u32, u32)) -> CellMask {
         self.cells
             .and_then(|cells| cells.get(self.index(block)?).copied())
-            .unwrap_or(crate::skip::cells::ALL)
+            .unwrap_or(ALL)
     }
 
     /// Block `(bx, by, bz)`'s chessboard distance to the nearest block ahead, for rays of
@@ -544,8 +465,11 @@ impl<'a> Blocks<'a> {
 mod tests {
     use super::*;
     use crate::counters::Counters;
+    use crate::skip::minmax::extent;
     use crate::volume::field;
     use crate::volume::grid::Grid;
+    use crate::volume::sample::Sample;
+    use crate::volume::slab::Slab;
 
     #[test]
     fn every_field_value_a_slab_owns_lies_in_its_block() {
@@ -569,8 +493,8 @@ mod tests {
             let slab = Slab::new(grid, owned, ghost, part).unwrap();
             let mut storage = [Range::UNKNOWN; 3 * 2 * 2];
             let (_, _, n) = extent(&slab);
-            Blocks::build(&slab, &mut storage[..n]).unwrap();
-            let blocks = Blocks::new(&slab, &storage[..n]).unwrap();
+            crate::skip::minmax::build(&slab, &mut storage[..n]).unwrap();
+            let blocks = Blocks::new(slab.grid(), slab.stored(), &storage[..n]).unwrap();
             for i in 0..400 {
                 let p = Vec3::new(
                     (i % 17) as f32 * 0.5,
@@ -583,7 +507,7 @@ mod tests {
                         continue;
                     }
                     let v = field::value(&slab, model, p, &mut c);
-                    let r = blocks.at(&site);
+                    let r = blocks.at(site.lo);
                     assert!(r.min <= v && v <= r.max, "{p} {model:?}: {v} outside {r:?}");
                     checked += 1;
                 }
@@ -623,8 +547,8 @@ mod tests {
     fn check<T: Sample>(slab: &Slab<'_, T>) -> [usize; 2] {
         let mut storage = [Range::UNKNOWN; 256];
         let (x0, x1, n) = extent(slab);
-        Blocks::build(slab, &mut storage[..n]).unwrap();
-        let blocks = Blocks::new(slab, &storage[..n]).unwrap();
+        crate::skip::minmax::build(slab, &mut storage[..n]).unwrap();
+        let blocks = Blocks::new(slab.grid(), slab.stored(), &storage[..n]).unwrap();
         // Built in two parts, cut at every column: the same bits.
         let (cols, len) = (x1 - x0, column_len(slab.grid()));
         let bits = |r: &[Range]| {
@@ -637,8 +561,8 @@ mod tests {
         for cut in 0..=cols {
             let mut split = [Range { min: 7.0, max: 7.0 }; 256];
             let (a, b) = split[..n].split_at_mut(cut as usize * len);
-            Blocks::build_columns(slab, 0..cut, a).unwrap();
-            Blocks::build_columns(slab, cut..cols, b).unwrap();
+            crate::skip::minmax::build_columns(slab, 0..cut, a).unwrap();
+            crate::skip::minmax::build_columns(slab, cut..cols, b).unwrap();
             assert!(bits(&split[..n]), "cut at column {cut} of {cols}");
         }
         let (_, by, bz) = blocks.shape();
@@ -711,9 +635,9 @@ mod tests {
         assert_eq!((x0, x1), (0, 2));
         let mut storage = [Range::UNKNOWN; 2];
         assert_eq!(n, 2);
-        Blocks::build(&slab, &mut storage).unwrap();
-        let blocks = Blocks::new(&slab, &storage).unwrap();
-        let at = |x: f32| blocks.at(&field::locate(&grid, Model::Cell, Vec3::new(x, 0.0, 0.0)));
+        crate::skip::minmax::build(&slab, &mut storage).unwrap();
+        let blocks = Blocks::new(slab.grid(), slab.stored(), &storage).unwrap();
+        let at = |x: f32| blocks.at(field::locate(&grid, Model::Cell, Vec3::new(x, 0.0, 0.0)).lo);
         assert_eq!(
             at(3.0),
             Range {
@@ -729,7 +653,7 @@ mod tests {
             }
         );
         assert_eq!(at(9.0), Range::UNKNOWN);
-        assert!(Blocks::build(&slab, &mut [Range::UNKNOWN; 3]).is_err());
+        assert!(crate::skip::minmax::build(&slab, &mut [Range::UNKNOWN; 3]).is_err());
     }
 
     #[test]
@@ -740,8 +664,8 @@ mod tests {
         let slab = Slab::new(grid, 5..9, 1, &data[4 * plane..10 * plane]).unwrap();
         let (x0, x1, n) = extent(&slab);
         let mut storage = [Range::UNKNOWN; 12];
-        Blocks::build(&slab, &mut storage[..n]).unwrap();
-        let bare = Blocks::new(&slab, &storage[..n]).unwrap();
+        crate::skip::minmax::build(&slab, &mut storage[..n]).unwrap();
+        let bare = Blocks::new(slab.grid(), slab.stored(), &storage[..n]).unwrap();
         let leaps: [u8; 12] = core::array::from_fn(|i| i as u8 * 3);
         let masks: [CellMask; 12] = core::array::from_fn(|i| (i as u64) << 17 | 5);
         let full = bare
@@ -783,7 +707,10 @@ mod tests {
             end: 4,
             columns: 3,
         };
-        assert_eq!(Blocks::build_columns(&slab, 3..4, &mut one), Err(past));
+        assert_eq!(
+            crate::skip::minmax::build_columns(&slab, 3..4, &mut one),
+            Err(past)
+        );
         let mut said = heapless::String::<80>::new();
         fmt::Write::write_fmt(&mut said, format_args!("{past}")).unwrap();
         assert_eq!(said, "block columns 3..4 asked for, the slab has 3");
@@ -791,20 +718,20 @@ mod tests {
             clippy::reversed_empty_ranges,
             reason = "the reversed range is the bad input"
         )]
-        let reversed = Blocks::build_columns(&slab, 2..1, &mut one);
+        let reversed = crate::skip::minmax::build_columns(&slab, 2..1, &mut one);
         assert!(matches!(reversed, Err(BlocksError::Columns { .. })));
         assert_eq!(
-            Blocks::build_columns(&slab, 1..3, &mut one),
+            crate::skip::minmax::build_columns(&slab, 1..3, &mut one),
             Err(BlocksError::Storage {
                 needed: 2,
                 given: 1
             })
         );
-        Blocks::build_columns(&slab, 2..3, &mut one).unwrap();
+        crate::skip::minmax::build_columns(&slab, 2..3, &mut one).unwrap();
         assert_eq!(one[0], Range { min: 5.0, max: 5.0 });
         let mut all = [Range::UNKNOWN; 3];
-        Blocks::build(&slab, &mut all).unwrap();
-        let blocks = Blocks::new(&slab, &all).unwrap();
+        crate::skip::minmax::build(&slab, &mut all).unwrap();
+        let blocks = Blocks::new(slab.grid(), slab.stored(), &all).unwrap();
         assert_eq!(blocks.columns(1..3).map(<[Range]>::len), Ok(2));
         assert!(matches!(
             blocks.columns(0..4),

@@ -18,10 +18,10 @@
 //! a byte per cell, 64 per block.
 
 use crate::skip::blocks::{Blocks, BlocksError, BLOCK};
-use crate::skip::leaps::Octant;
+use crate::skip::octant::Octant;
 
 /// Bytes of one octant's map per block: a byte per cell.
-pub const PER_BLOCK: usize = (BLOCK * BLOCK * BLOCK) as usize;
+pub use crate::skip::blocks::PER_BLOCK;
 
 /// The greatest distance a map holds: a cell further from every obstacle holds this. Each
 /// doubling of it costs the build another pass over every cell, and a leap of 32 cells
@@ -42,6 +42,12 @@ pub struct CellLeaps<'a> {
 }
 
 impl<'a> CellLeaps<'a> {
+    /// The map `blocks` carry for their octant's rays, when they carry one.
+    #[inline]
+    pub fn of(blocks: &Blocks<'a>) -> Option<CellLeaps<'a>> {
+        CellLeaps::new(blocks, blocks.cell_leap_map()?).ok()
+    }
+
     /// The map of `blocks` in `map` (one octant's part of [`build`]'s storage), for the rays
     /// of the octant `blocks` serve.
     pub fn new(blocks: &Blocks<'_>, map: &'a [u8]) -> Result<CellLeaps<'a>, BlocksError> {

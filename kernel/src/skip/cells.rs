@@ -14,17 +14,11 @@
 //! remembered verdicts) and no other memory than the masks.
 
 use crate::skip::blocks::{Blocks, BlocksError, Range, BLOCK};
-use crate::skip::leaps::Octant;
+pub use crate::skip::blocks::{CellMask, ALL};
+use crate::skip::octant::Octant;
 use crate::trace::view::{Mode, View};
 use crate::volume::sample::Sample;
 use crate::volume::slab::Slab;
-
-/// One bit per cell of a block: bit `x + 4·y + 16·z` for the cell at offset `(x, y, z)` from
-/// the block's low corner.
-pub type CellMask = u64;
-
-/// Every cell may show: what a block says without a mask.
-pub const ALL: CellMask = CellMask::MAX;
 
 const EDGE: usize = BLOCK as usize;
 /// Nodes per block edge: the cells' corners.
@@ -393,9 +387,9 @@ mod tests {
             let iso = 40.0 + (round % 5) as f32 * 30.0;
             for slab in [whole, partial] {
                 let mut ranges = [Range::UNKNOWN; 3 * 3 * 3];
-                let (_, _, len) = crate::skip::blocks::extent(&slab);
-                Blocks::build(&slab, &mut ranges[..len]).unwrap();
-                let blocks = Blocks::new(&slab, &ranges[..len]).unwrap();
+                let (_, _, len) = crate::skip::minmax::extent(&slab);
+                crate::skip::minmax::build(&slab, &mut ranges[..len]).unwrap();
+                let blocks = Blocks::new(slab.grid(), slab.stored(), &ranges[..len]).unwrap();
                 for view in views(&grid, &[iso, iso + 50.0], iso - 20.0) {
                     let mut masks = [0; 3 * 3 * 3];
                     build(&slab, &blocks, &view, &mut masks[..len]).unwrap();
@@ -520,8 +514,8 @@ mod tests {
         let data = [7u8; 125];
         let slab = Slab::whole(grid, &data).unwrap();
         let mut ranges = [Range::UNKNOWN; 1];
-        Blocks::build(&slab, &mut ranges).unwrap();
-        let blocks = Blocks::new(&slab, &ranges).unwrap();
+        crate::skip::minmax::build(&slab, &mut ranges).unwrap();
+        let blocks = Blocks::new(slab.grid(), slab.stored(), &ranges).unwrap();
         assert_eq!(blocks.cells((0, 0, 0)), ALL);
         let [surfaces, ..] = views(&grid, &[100.0], 50.0);
         let mut masks = [ALL; 1];

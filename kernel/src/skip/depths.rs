@@ -30,6 +30,7 @@
 
 use crate::node::topology::Rows;
 use crate::skip::blocks::{Blocks, BLOCK};
+pub use crate::skip::bounds::Depths;
 use crate::skip::cells::{CellMask, ALL};
 use crate::trace::camera::Projection;
 use crate::trace::view::View;
@@ -82,35 +83,6 @@ impl core::fmt::Display for DepthsError {
 }
 
 impl core::error::Error for DepthsError {}
-
-/// One view's depth bounds over a slab, for reading: a bound per pixel of the rows it holds,
-/// row-major.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Depths<'a> {
-    map: &'a [f32],
-    width: u32,
-    rows: Rows,
-}
-
-impl<'a> Depths<'a> {
-    /// The bounds [`build`] wrote into `map` for the rows `rows` of an image `width` pixels
-    /// wide.
-    pub fn new(map: &'a [f32], width: u32, rows: Rows) -> Depths<'a> {
-        Depths { map, width, rows }
-    }
-
-    /// Pixel `pixel`'s bound: no sample of its primary ray at a parameter below it lies in an
-    /// obstacle. Minus infinity (nothing to pass over) for a pixel outside the rows held.
-    #[inline]
-    pub fn bound(&self, pixel: u32) -> f32 {
-        let width = self.width.max(1);
-        let Some(row) = self.rows.index(pixel / width) else {
-            return f32::NEG_INFINITY;
-        };
-        let at = row as usize * width as usize + (pixel % width) as usize;
-        self.map.get(at).copied().unwrap_or(f32::NEG_INFINITY)
-    }
-}
 
 /// The linear map from index space to a view's image coordinates and ray parameter.
 #[derive(Clone, Copy, Debug)]
@@ -493,8 +465,8 @@ mod tests {
                 }
             };
             let ranges = [Range::UNKNOWN; 4 * 4 * 4];
-            let (_, _, len) = crate::skip::blocks::extent(&slab);
-            let blocks = Blocks::new(&slab, &ranges[..len]).unwrap();
+            let (_, _, len) = crate::skip::minmax::extent(&slab);
+            let blocks = Blocks::new(slab.grid(), slab.stored(), &ranges[..len]).unwrap();
             let density = next() % 64;
             let mut masks = [0u64; 4 * 4 * 4];
             for m in masks.iter_mut().take(len) {
@@ -684,7 +656,7 @@ mod tests {
         let slab = Slab::whole(grid, &data).unwrap();
         let ranges = [Range::UNKNOWN; 8];
         let masks = [u64::MAX; 8];
-        let blocks = Blocks::new(&slab, &ranges).unwrap();
+        let blocks = Blocks::new(slab.grid(), slab.stored(), &ranges).unwrap();
         let with_masks = blocks.with_cells(&masks).unwrap();
         let view = |eye: Vec3, projection| {
             let camera = Camera::look_at(eye, Vec3::splat(4.0), Vec3::Y, projection).unwrap();

@@ -6,14 +6,18 @@
 //! host builds once per view and node: [`leaps`] (chessboard distances between blocks per
 //! octant of ray directions), [`cells`] (each block's cells the view cannot skip),
 //! [`cell_leaps`] (distances between those cells), [`depths`] (each pixel's ray parameter
-//! before its first cell that shows), and [`starts`] (row leaps of distributed generation).
+//! before its first cell that shows, read through [`bounds`]); [`octant`] keys the maps that
+//! look ahead of a ray, and [`minmax`] builds the blocks from a slab's samples.
 //!
 //! Invariant: a structure only ever claims a sample empty when the view's classification of
 //! every value the sample could take is empty; skipping is a bound, never an approximation.
 
 pub mod blocks;
+pub mod bounds;
 pub mod cell_leaps;
 pub mod cells;
 pub mod depths;
 pub mod leaps;
+pub mod minmax;
+pub mod octant;
 pub mod scan;

@@ -201,15 +201,16 @@ mod tests {
             let stored = crate::volume::slab::stored_planes(&grid, owned.clone(), 1);
             let len = (stored.end - stored.start) as usize * grid.plane_len();
             let slab = Slab::new(grid, owned.clone(), 1, &data[..len]).expect("a valid slab");
-            let (_, _, blocks_len) = crate::skip::blocks::extent(&slab);
+            let (_, _, blocks_len) = crate::skip::minmax::extent(&slab);
             let mut ranges = [BlockRange::UNKNOWN; 64];
             let mut masks = [0u64; 64];
             for m in masks.iter_mut() {
                 // A tenth of the bits set: runs of empty cells, short and long, as in noise.
                 *m = (0..64).fold(0, |m, b| m | u64::from(unit() < 0.1) << b);
             }
-            Blocks::build(&slab, &mut ranges[..blocks_len]).expect("storage of the extent");
-            let blocks = Blocks::new(&slab, &ranges[..blocks_len])
+            crate::skip::minmax::build(&slab, &mut ranges[..blocks_len])
+                .expect("storage of the extent");
+            let blocks = Blocks::new(slab.grid(), slab.stored(), &ranges[..blocks_len])
                 .and_then(|b| b.with_cells(&masks[..blocks_len]))
                 .expect("blocks of the slab");
             let slab = slab.with_blocks(blocks);

@@ -75,11 +75,11 @@ pub fn march<T: Sample>(
     // The blocks as this ray reads them: the leap map of its direction's octant.
     let blocks = slab
         .blocks()
-        .map(|b| b.toward(crate::skip::leaps::Octant::of(ray.ray.dir)));
+        .map(|b| b.toward(crate::skip::octant::Octant::of(ray.ray.dir)));
     // Where the view has a cell leap map for this octant, a ray leaps from cell to cell by
     // it, and asks no block; its leaps' exits are estimated with `exits`.
     let cell_leaps = match &blocks {
-        Some(blocks) if by_cell => blocks.cell_leaps(),
+        Some(blocks) if by_cell => CellLeaps::of(blocks),
         _ => None,
     };
     // Else a run through empty cells scans the samples after it where that pays for this ray
