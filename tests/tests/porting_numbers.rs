@@ -1,34 +1,34 @@
-//! The figures PORTING.md quotes, recomputed so the document cannot drift from the code.
+//! The figures docs/porting.md quotes, recomputed so the document cannot drift from the code.
 
 use voxcube_kernel::node::flow;
 
 #[test]
 fn porting_md_memory_map_figures_hold() {
-    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../PORTING.md"))
-        .expect("PORTING.md");
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/porting.md"))
+        .expect("docs/porting.md");
     let buffer = flow::buffer_bytes(16, 8);
     assert!(
         text.contains(&format!("{buffer} bytes")),
-        "PORTING.md must quote the 16-node, i_max 8 receive buffer: {buffer} bytes"
+        "docs/porting.md must quote the 16-node, i_max 8 receive buffer: {buffer} bytes"
     );
     let worker = voxcube::budget::worker_bytes();
     assert!(
         text.contains(&format!("{worker} bytes")),
-        "PORTING.md must quote the simulator worker's size: {worker} bytes"
+        "docs/porting.md must quote the simulator worker's size: {worker} bytes"
     );
     // The board example's worker: queues of 8, 16 records, an outbox of 8, a ring of 2.
     let board = size_of::<voxcube_kernel::node::worker::Worker<'static, u8, 8, 16, 8, 2>>();
     let board = format!("{},{:03}", board / 1000, board % 1000);
     assert!(
         text.contains(&format!("{board} in the board example's")),
-        "PORTING.md must quote the board example worker's size: {board}"
+        "docs/porting.md must quote the board example worker's size: {board}"
     );
 }
 
 #[test]
 fn porting_md_slab_figure_holds() {
-    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../PORTING.md"))
-        .expect("PORTING.md");
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/porting.md"))
+        .expect("docs/porting.md");
     let grid = voxcube_kernel::volume::grid::Grid::new([97, 97, 116], voxcube_kernel::Vec3::ONE)
         .expect("grid");
     // The paper's view: a parallel projection without shadows, so one leap map.
@@ -53,6 +53,6 @@ fn porting_md_slab_figure_holds() {
     );
     assert!(
         text.contains(&figure),
-        "PORTING.md must quote SOD's largest 16-node slab: {figure}"
+        "docs/porting.md must quote SOD's largest 16-node slab: {figure}"
     );
 }

@@ -7,8 +7,8 @@
 //! refused: the worker keeps the message and, once its outbox is full, stops. Flow control
 //! exists to make this never happen.
 //!
-//! The parts: [`network`] (messages in flight, buffers, mailboxes), [`schedule`] (the seeded
-//! pick of the next event), [`clock`] (virtual time on a machine profile) and [`checks`] (the
+//! The parts: `network` (messages in flight, buffers, mailboxes), `schedule` (the seeded
+//! pick of the next event), `clock` (virtual time on a machine profile) and `checks` (the
 //! invariants after every event and at the end, and the last events a failure shows).
 //!
 //! The run ends when the host holds every cluster's token and every worker's statistics.
