@@ -16,6 +16,7 @@ use std::cell::Cell;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 use voxcube_kernel::node::worker::Generation;
+use voxcube_kernel::trace::view::{Accuracy, View, ViewSpec};
 
 /// The version, and whether this build carries the kernel's test-only faults: a product build
 /// says `test faults: none`, which CI checks on the release binary.
@@ -106,6 +107,11 @@ pub enum Command {
         /// changes no pixel, only the time).
         #[arg(long)]
         no_depths: bool,
+        /// The accuracy tier of every view, overriding each view's `accuracy`: exact (the
+        /// reference image) or fast (the approximations production ray casters make, each
+        /// named in the report).
+        #[arg(long, value_enum)]
+        accuracy: Option<AccuracyArg>,
         /// Balance every view's slabs first, as the paper does: one cluster traces a probe
         /// of about 32x32 primary rays, timed by the --machine profile, and the slab sizes
         /// follow the workers' times. The nodes start on uniform slabs and shift planes to
@@ -212,6 +218,15 @@ pub enum ProfileArg {
     Ncube2,
     /// A modern cluster node: 1 GiB per node.
     Modern,
+}
+
+/// `--accuracy` values.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum AccuracyArg {
+    /// Every sample exact: the reference image.
+    Exact,
+    /// The fast tier's approximations.
+    Fast,
 }
 
 /// `--generation` values.
@@ -375,6 +390,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             no_cell_leaps,
             no_row_leaps,
             no_depths,
+            accuracy,
             balance,
         } => {
             let (scene, name) = match &scene {
@@ -385,7 +401,23 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 ),
             };
             // Everything is loaded and checked before the first image is written.
-            let jobs = scene.load()?;
+            let mut jobs = scene.load()?;
+            if let Some(tier) = accuracy {
+                let tier = match tier {
+                    AccuracyArg::Exact => Accuracy::Exact,
+                    AccuracyArg::Fast => Accuracy::Fast,
+                };
+                for job in &mut jobs {
+                    for v in &mut job.views {
+                        let spec = ViewSpec {
+                            accuracy: tier,
+                            ..v.view.spec().clone()
+                        };
+                        v.view = View::new(spec, &job.volume.grid)
+                            .map_err(|e| format!("{}/{}: {e}", job.name, v.name))?;
+                    }
+                }
+            }
             let mut plan = Vec::new();
             for job in &jobs {
                 for v in &job.views {
@@ -519,7 +551,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
 /// with `--machine`, each slab kept within the node memory of `machine`'s profile.
 fn balance_view(
     volume: &crate::dataset::Volume,
-    view: &voxcube_kernel::trace::view::View,
+    view: &View,
     machine: &Machine,
     profile: ProfileArg,
 ) -> Result<BalanceReport, String> {

@@ -183,6 +183,10 @@ pub struct ViewReport {
     pub seed: Option<u64>,
     /// What the view called for.
     pub effects: EffectsReport,
+    /// The accuracy tier: "exact" or "fast".
+    pub accuracy: &'static str,
+    /// The approximations the tier made in this view (none in the exact tier).
+    pub approximations: Vec<&'static str>,
     /// Rays by type.
     pub rays: Rays,
     /// Work done.
@@ -318,6 +322,8 @@ impl ViewReport {
                 shadow_lights: e.shadow_lights,
                 transparency: e.transparency,
             },
+            accuracy: view.spec().accuracy.name(),
+            approximations: view.approximations().iter().map(|a| a.name()).collect(),
             rays: Rays::from(c),
             operations: Operations::from(c),
             traffic,

@@ -14,7 +14,7 @@ use voxcube_kernel::optics::shade::{Light, Shading, MAX_LIGHTS};
 use voxcube_kernel::optics::surface::{IsoSurface, MAX_SURFACES};
 use voxcube_kernel::optics::transfer::{ControlPoint, TransferFunction};
 use voxcube_kernel::trace::camera::{Camera, Projection};
-use voxcube_kernel::trace::view::{Mode, View, ViewSpec, DEFAULT_CUTOFF};
+use voxcube_kernel::trace::view::{Accuracy, Mode, View, ViewSpec, DEFAULT_CUTOFF};
 use voxcube_kernel::volume::grid::{Grid, Model};
 use voxcube_kernel::Vec3;
 
@@ -121,6 +121,14 @@ enum ModelToml {
 
 #[derive(Debug, Clone, Copy, Default, Deserialize, PartialEq, Eq)]
 #[serde(rename_all = "lowercase")]
+enum AccuracyToml {
+    #[default]
+    Exact,
+    Fast,
+}
+
+#[derive(Debug, Clone, Copy, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
 enum ModeToml {
     #[default]
     Surfaces,
@@ -174,6 +182,8 @@ struct ViewToml {
     gradient_distance: f32,
     #[serde(default)]
     mode: ModeToml,
+    #[serde(default)]
+    accuracy: AccuracyToml,
     #[serde(default = "d_true")]
     shading: bool,
     #[serde(default)]
@@ -952,6 +962,10 @@ fn build_view(v: &ViewToml, grid: &Grid) -> Result<View, (String, String)> {
             }
         }
     }
+    let accuracy = match v.accuracy {
+        AccuracyToml::Exact => Accuracy::Exact,
+        AccuracyToml::Fast => Accuracy::Fast,
+    };
     let spec = ViewSpec {
         width: v.width,
         height: v.height,
@@ -966,6 +980,7 @@ fn build_view(v: &ViewToml, grid: &Grid) -> Result<View, (String, String)> {
         cutoff: v.cutoff,
         max_depth: v.max_depth,
         refine_steps: v.refine_steps,
+        accuracy,
     };
     View::new(spec, grid).map_err(|e| (String::new(), e.to_string()))
 }

@@ -23,6 +23,21 @@ fn raw_scene(file: &str, extra: &str) -> String {
     format!("[[datasets]]\nname = \"d\"\npath = \"{file}\"\nformat = \"raw\"\n{extra}\n[[datasets.views]]\n[[datasets.views.surfaces]]\niso = 1.0\n")
 }
 
+// ------------------------------------------------------------------ views
+
+#[test]
+fn an_unknown_accuracy_tier_names_the_key_and_the_tiers() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let m = error_of(
+        dir.path(),
+        "[[datasets]]\nname = \"m\"\nbuiltin = \"molecule\"\n[[datasets.views]]\naccuracy = \"fastest\"\n",
+    );
+    assert_names(
+        &m,
+        &["scene.toml", "accuracy", "fastest", "`exact` or `fast`"],
+    );
+}
+
 // ------------------------------------------------------------------ datasets
 
 #[test]

@@ -168,6 +168,7 @@ fn main() {
         cutoff: 1.0 / 512.0,
         max_depth: 4,
         refine_steps: 2,
+        accuracy: voxcube_kernel::trace::view::Accuracy::Exact,
     };
     let view: &'static View = match View::new(spec, &grid) {
         Ok(v) => VIEW.init(v),

@@ -33,6 +33,7 @@ pub fn spec(
         cutoff: 1.0 / 512.0,
         max_depth: 2,
         refine_steps: 2,
+        accuracy: crate::trace::view::Accuracy::Exact,
     }
 }
 

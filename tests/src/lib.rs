@@ -85,6 +85,7 @@ pub fn spec(
         cutoff: 0.0,
         max_depth: 8,
         refine_steps: 2,
+        accuracy: voxcube_kernel::trace::view::Accuracy::Exact,
     }
 }
 

@@ -4,6 +4,7 @@
 //! Invariant: every function here is a pure function of its inputs, evaluated in one fixed
 //! order, so the same sample gives the same bits on every node.
 
+pub mod classify;
 pub mod shade;
 pub mod surface;
 pub mod transfer;

@@ -160,6 +160,15 @@ impl TransferFunction {
         (self.color_at(span), self.opacity_at(span))
     }
 
+    /// The values of the first and last control points: outside them the function is
+    /// constant.
+    pub fn domain(&self) -> (f32, f32) {
+        match (self.points.first(), self.points.last()) {
+            (Some(f), Some(l)) => (f.value, l.value),
+            _ => (0.0, 0.0),
+        }
+    }
+
     /// The opacity of [`TransferFunction::eval`] alone (equal to it in every bit).
     pub fn opacity(&self, v: f32) -> f32 {
         self.opacity_at(self.span(v))

@@ -51,6 +51,13 @@ impl Lattice {
         self.t_entry + k as f32 * self.dt
     }
 
+    /// Whether sample `k` stands for a whole Δt segment: another sample follows it inside
+    /// the span. An integer rule on `k` and the lattice, the same on every node.
+    #[inline]
+    pub fn is_full(&self, k: u32) -> bool {
+        k < self.last && !(self.t(k + 1) > self.t_exit)
+    }
+
     /// World length of the segment sample `k` stands for (zero past the exit).
     #[inline]
     pub fn segment(&self, k: u32) -> f32 {

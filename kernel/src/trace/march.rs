@@ -213,13 +213,34 @@ pub fn march<T: Sample>(
             Mode::Composite(tf) => {
                 // Most samples of a composited view are transparent: their colour is not
                 // looked at.
-                let span = tf.span(v);
-                let alpha = corrected_opacity(
-                    tf.opacity_at(span),
-                    ray.lattice.segment(ray.k) / view.cell_edge(),
-                );
+                let (alpha, base) = match view.classified() {
+                    // The fast tier: a whole segment's entry, or the entry's opacity
+                    // corrected for the last, shorter one.
+                    Some(table) if ray.lattice.is_full(ray.k) => {
+                        let (color, alpha) = table.full(v);
+                        (alpha, color)
+                    }
+                    Some(table) => {
+                        let (color, opacity) = table.per_edge(v);
+                        let len = ray.lattice.segment(ray.k) / view.cell_edge();
+                        (corrected_opacity(opacity, len), color)
+                    }
+                    None => {
+                        let span = tf.span(v);
+                        let alpha = corrected_opacity(
+                            tf.opacity_at(span),
+                            ray.lattice.segment(ray.k) / view.cell_edge(),
+                        );
+                        // Looked up only where it shows.
+                        let color = if alpha > 0.0 {
+                            tf.color_at(span)
+                        } else {
+                            Vec3::ZERO
+                        };
+                        (alpha, color)
+                    }
+                };
                 if alpha > 0.0 {
-                    let base = tf.color_at(span);
                     // Compositing casts no shadows: every light is fully visible.
                     let color = unshadowed_color(
                         view,

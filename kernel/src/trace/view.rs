@@ -7,6 +7,7 @@
 //! with finite iso values, colours in `[0, 1]` and transparency in `[0, 1]`; cutoff in
 //! `[0, 1)`; depth at most [`MAX_DEPTH`]; refinement at most [`MAX_REFINE_STEPS`] steps.
 
+use crate::optics::classify::Classified;
 use crate::optics::shade::{Light, Shading, MAX_LIGHTS};
 use crate::optics::surface::{IsoSurface, MAX_SURFACES};
 use crate::optics::transfer::TransferFunction;
@@ -28,6 +29,45 @@ pub const MAX_REFINE_STEPS: u8 = 16;
 /// The default cutoff: stop when what is behind could change the pixel by less than half an
 /// 8-bit level.
 pub const DEFAULT_CUTOFF: f32 = 1.0 / 512.0;
+
+/// How exactly a view's samples are evaluated. Each tier is bit-identical for every node
+/// count, cluster size, partition and schedule; they differ from each other.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Accuracy {
+    /// The image definition every test pins: every sample exact.
+    #[default]
+    Exact,
+    /// The approximations production ray casters make, each named by
+    /// [`View::approximations`].
+    Fast,
+}
+
+impl Accuracy {
+    /// The tier's name in scene files and reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Accuracy::Exact => "exact",
+            Accuracy::Fast => "fast",
+        }
+    }
+}
+
+/// An approximation the fast tier makes, where a view calls for it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Approximation {
+    /// Compositing reads a pre-classified table of the transfer function and its opacity
+    /// for a whole Δt segment ([`crate::optics::classify`]) at the nearest of its entries.
+    PreClassified,
+}
+
+impl Approximation {
+    /// What reports call it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Approximation::PreClassified => "pre-classified transfer function",
+        }
+    }
+}
 
 /// What a view renders.
 #[derive(Clone, Debug, PartialEq)]
@@ -68,6 +108,8 @@ pub struct ViewSpec {
     pub max_depth: u8,
     /// Field evaluations to refine each surface crossing.
     pub refine_steps: u8,
+    /// The accuracy tier.
+    pub accuracy: Accuracy,
 }
 
 /// Why a view is unusable; each names the scene key at fault.
@@ -159,6 +201,8 @@ pub struct View {
     min_iso: f32,
     /// How far first samples move along an image row (parallel projections only).
     row_leaps: Option<RowLeaps>,
+    /// The pre-classified transfer function (fast tier, compositing).
+    classified: Option<Classified>,
 }
 
 impl View {
@@ -238,7 +282,12 @@ impl View {
             grid.inv_spacing(),
             (box_lo, box_hi),
         );
+        let classified = match (&spec.mode, spec.accuracy) {
+            (Mode::Composite(tf), Accuracy::Fast) => Some(Classified::new(tf, spec.dt)),
+            _ => None,
+        };
         Ok(View {
+            classified,
             dt_world: spec.dt * cell_edge,
             cell_edge,
             inv_spacing: grid.inv_spacing(),
@@ -261,8 +310,39 @@ impl View {
         match &self.spec.mode {
             // Below every iso value is below the least of them (NaN is below none).
             Mode::Surfaces(_) => self.below_surfaces(r.max),
-            Mode::Composite(tf) => !(tf.max_opacity(r.min, r.max) > 0.0),
+            Mode::Composite(tf) => match &self.classified {
+                Some(table) => table.empty(r.min, r.max),
+                None => !(tf.max_opacity(r.min, r.max) > 0.0),
+            },
         }
+    }
+
+    /// The same view with its pre-classified table built for segments of `dt` cell edges
+    /// rather than its own: a test-only fault, for the negative control that a table for
+    /// another step changes the image.
+    #[cfg(feature = "mutants")]
+    pub fn with_stale_table(mut self, dt: f32) -> View {
+        if let (Mode::Composite(tf), Some(_)) = (&self.spec.mode, &self.classified) {
+            self.classified = Some(Classified::new(tf, dt));
+        }
+        self
+    }
+
+    /// The pre-classified transfer function, when the view composites in the fast tier.
+    #[inline]
+    pub fn classified(&self) -> Option<&Classified> {
+        self.classified.as_ref()
+    }
+
+    /// The approximations this view's tier makes here (none in the exact tier, and none
+    /// where the view calls for nothing a fast-tier approximation replaces).
+    pub fn approximations(&self) -> Vec<Approximation, 4> {
+        let mut out = Vec::new();
+        if self.classified.is_some() {
+            // Room for every approximation the tier knows.
+            let _ = out.push(Approximation::PreClassified);
+        }
+        out
     }
 
     /// Whether value `v` lies below every iso value, outside every surface (false for NaN,
