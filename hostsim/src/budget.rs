@@ -58,9 +58,11 @@ impl Profile {
     }
 }
 
-/// The worker's fixed-capacity state in the simulator and threads fabrics, bytes.
+/// The worker's fixed-capacity state in the simulator and threads fabrics, and the view it
+/// traces, bytes. The view keeps room for the fast tier's classification table in either
+/// tier, so a tier never changes what a node must hold.
 pub fn worker_bytes() -> usize {
-    size_of::<NodeWorker<'static, u8>>()
+    size_of::<NodeWorker<'static, u8>>() + size_of::<voxcube_kernel::trace::view::View>()
 }
 
 /// Bytes of the min/max blocks a slab storing planes `stored` of `grid` keeps, with the leap
