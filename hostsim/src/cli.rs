@@ -149,9 +149,9 @@ pub enum Command {
         #[arg(long, default_value = "ncube2")]
         machine: String,
     },
-    /// What accuracy costs in time: dt, voxel vs cell model, gradient distance and image size
-    /// swept on SOD; wall time, simulated nCUBE 2 time, samples, and error against a fine
-    /// reference (PSNR, max error); a table and a plot.
+    /// What accuracy costs in time: dt, voxel vs cell model, gradient distance, image size and
+    /// the accuracy tiers swept on SOD; wall time, simulated nCUBE 2 time, samples, and error
+    /// against a fine exact reference (PSNR, 99th-percentile and max error); a table and a plot.
     Accuracy {
         /// The folder holding SOD; the built-in substitute if absent.
         #[arg(long, default_value = "../shared/data")]
