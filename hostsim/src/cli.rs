@@ -610,7 +610,7 @@ fn mpi_start(
 fn mpi_serve(
     world: &mpi::topology::SimpleCommunicator,
     volume: &crate::dataset::Volume,
-    view: &voxcube_kernel::trace::view::View,
+    view: &View,
     machine: &Machine,
     balanced: bool,
 ) -> Result<(), Box<dyn std::error::Error>> {
@@ -627,7 +627,7 @@ fn mpi_serve(
 fn mpi_host(
     world: &mpi::topology::SimpleCommunicator,
     volume: &crate::dataset::Volume,
-    view: &voxcube_kernel::trace::view::View,
+    view: &View,
     machine: &Machine,
     cuts: Option<&[u32]>,
 ) -> Result<crate::render::Rendered, Box<dyn std::error::Error>> {

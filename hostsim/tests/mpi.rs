@@ -183,3 +183,57 @@ fn a_rank_that_hangs_or_dies_ends_the_run_within_seconds() {
         );
     }
 }
+
+#[test]
+fn mpi_fast_tier_images_equal_the_simulator_s() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let tests = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/tests/scenes.toml");
+    let mut scenes = vec![tests.display().to_string()];
+    scenes.extend(scenes_with_data());
+    for scene in scenes {
+        let render = |fabric: &str, name: &str| {
+            let report = dir.path().join(format!("{name}.json"));
+            let out = dir.path().join(name).display().to_string();
+            let report_arg = report.display().to_string();
+            let args = [
+                "render",
+                &scene,
+                "--accuracy",
+                "fast",
+                "--nodes",
+                "4",
+                "--clusters",
+                "2",
+                "-q",
+                "--fabric",
+                fabric,
+                "-o",
+                &out,
+                "--report",
+                &report_arg,
+            ];
+            let status = if fabric == "mpi" {
+                mpirun(5, &args, None)
+            } else {
+                Command::new(env!("CARGO_BIN_EXE_voxcube"))
+                    .args(args)
+                    .output()
+                    .expect("runs")
+            };
+            assert!(
+                status.status.success(),
+                "{scene} on {fabric}: {}",
+                String::from_utf8_lossy(&status.stderr)
+            );
+            sha_of(&report)
+        };
+        let (mpi, sim) = (render("mpi", "mpi-fast"), render("sim", "sim-fast"));
+        assert!(!mpi.is_empty());
+        assert_eq!(mpi, sim, "{scene}: the fast tier's images differ on MPI");
+    }
+}
+
+/// SOD's scene, where the shared data is there.
+fn scenes_with_data() -> Vec<String> {
+    scenes().into_iter().filter(|s| !s.is_empty()).collect()
+}
