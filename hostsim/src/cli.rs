@@ -139,9 +139,13 @@ pub enum Command {
     /// The paper's Tables 1-4 in simulated nCUBE 2 time, beside the paper's numbers, with
     /// speedup and efficiency plots and the image.
     Paper {
-        /// The folder holding SOD (sod-97x97x116.u8.binary); the built-in substitute if absent.
+        /// SOD: the folder holding sod-97x97x116.u8.binary, or that file. A missing SOD is an
+        /// error.
+        #[arg(long, default_value = "../shared/data")]
+        data: PathBuf,
+        /// Render the built-in molecule of SOD's size instead of SOD.
         #[arg(long)]
-        data: Option<PathBuf>,
+        substitute: bool,
         /// Folder for tables, plots and the image.
         #[arg(short, long, default_value = "out/paper")]
         out: PathBuf,
@@ -153,9 +157,13 @@ pub enum Command {
     /// the accuracy tiers swept on SOD; wall time, simulated nCUBE 2 time, samples, and error
     /// against a fine exact reference (PSNR, 99th-percentile and max error); a table and a plot.
     Accuracy {
-        /// The folder holding SOD; the built-in substitute if absent.
+        /// SOD: the folder holding sod-97x97x116.u8.binary, or that file. A missing SOD is an
+        /// error.
         #[arg(long, default_value = "../shared/data")]
         data: PathBuf,
+        /// Sweep the built-in molecule of SOD's size instead of SOD.
+        #[arg(long)]
+        substitute: bool,
         /// Folder for the table and the plot.
         #[arg(short, long, default_value = "out/accuracy")]
         out: PathBuf,
@@ -218,6 +226,14 @@ pub enum ProfileArg {
     Ncube2,
     /// A modern cluster node: 1 GiB per node.
     Modern,
+}
+
+/// Where `paper` and `accuracy` take their volume: SOD at `data`, or the substitute.
+fn source(data: &std::path::Path, substitute: bool) -> crate::experiments::paper::Source<'_> {
+    match substitute {
+        true => crate::experiments::paper::Source::Substitute,
+        false => crate::experiments::paper::Source::Sod(data),
+    }
 }
 
 /// `--accuracy` values.
@@ -300,17 +316,26 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             print!("{DEFAULT_SCENE}");
             Ok(())
         }
-        Command::Paper { data, out, machine } => {
+        Command::Paper {
+            data,
+            substitute,
+            out,
+            machine,
+        } => {
             let profile = crate::profile::MachineProfile::load(&machine)?;
             let mut text = String::new();
-            let job = crate::experiments::paper::dataset(data.as_deref(), &mut text)?;
+            let job = crate::experiments::paper::dataset(source(&data, substitute), &mut text)?;
             crate::experiments::paper::run(&job, &profile, &out, &mut text)?;
             print!("{text}");
             Ok(())
         }
-        Command::Accuracy { data, out } => {
+        Command::Accuracy {
+            data,
+            substitute,
+            out,
+        } => {
             let mut notes = String::new();
-            let job = crate::experiments::paper::dataset(Some(&data), &mut notes)?;
+            let job = crate::experiments::paper::dataset(source(&data, substitute), &mut notes)?;
             let profile = crate::profile::MachineProfile::ncube2();
             let points = crate::experiments::accuracy::sweep(&job, &profile);
             let table = crate::experiments::accuracy::table(&points);

@@ -300,3 +300,30 @@ fn a_view_asks_for_balancing_in_the_scene() {
         Some(5)
     );
 }
+
+#[test]
+fn paper_and_accuracy_without_sod_fail_naming_the_path_unless_told_to_substitute() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let missing = dir.path().join("no-such-folder");
+    for command in ["paper", "accuracy"] {
+        let out = voxcube()
+            .args([command, "--data"])
+            .arg(&missing)
+            .arg("-o")
+            .arg(dir.path().join(command))
+            .output()
+            .expect("runs");
+        assert!(!out.status.success(), "{command} without SOD exited 0");
+        let err = String::from_utf8_lossy(&out.stderr);
+        for part in ["no-such-folder", "SOD not found", "--substitute"] {
+            assert!(
+                err.contains(part),
+                "{command}: {err:?} does not mention {part:?}"
+            );
+        }
+        assert!(
+            !dir.path().join(command).exists(),
+            "{command} wrote output before failing"
+        );
+    }
+}

@@ -152,13 +152,29 @@ fn sod_renders_identically_on_one_and_sixteen_nodes() {
 }
 
 #[test]
+fn the_experiments_take_sod_as_its_folder_or_its_file() {
+    use voxcube::experiments::paper::{dataset, Source, SOD_FILE};
+    let Some(data) = data_or_skip() else { return };
+    let mut notes = String::new();
+    let folder = dataset(Source::Sod(&data), &mut notes).expect("SOD's folder");
+    let file = dataset(Source::Sod(&data.join(SOD_FILE)), &mut notes).expect("SOD's file");
+    assert_eq!(folder.volume.grid.dims(), [97, 97, 116]);
+    assert_eq!(file.volume.stats().mean, folder.volume.stats().mean);
+    assert!(notes.is_empty(), "{notes}");
+}
+
+#[test]
 fn the_ncube2_profile_is_calibrated_to_the_papers_one_node_time() {
     use voxcube::fabric::sim;
     use voxcube::fabric::RunConfig;
     use voxcube::profile::MachineProfile;
     let Some(data) = data_or_skip() else { return };
     let mut notes = String::new();
-    let job = voxcube::experiments::paper::dataset(Some(&data), &mut notes).expect("SOD");
+    let job = voxcube::experiments::paper::dataset(
+        voxcube::experiments::paper::Source::Sod(&data),
+        &mut notes,
+    )
+    .expect("SOD");
     assert!(notes.is_empty(), "{notes}");
     // The paper's tracer, without empty-space skipping.
     let cfg = RunConfig {
@@ -182,7 +198,11 @@ fn load_balancing_lowers_every_table_3_time_on_sod() {
     use voxcube::profile::MachineProfile;
     let Some(data) = data_or_skip() else { return };
     let mut notes = String::new();
-    let job = voxcube::experiments::paper::dataset(Some(&data), &mut notes).expect("SOD");
+    let job = voxcube::experiments::paper::dataset(
+        voxcube::experiments::paper::Source::Sod(&data),
+        &mut notes,
+    )
+    .expect("SOD");
     let (v, profile) = (&job.views[0].view, MachineProfile::ncube2());
     for cs in [16u32, 8, 4, 2] {
         let cuts = voxcube::experiments::paper::balance(&job, v, &profile, cs).expect("balances");

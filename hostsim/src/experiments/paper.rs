@@ -92,18 +92,46 @@ pub enum PaperError {
     /// An output could not be written.
     #[error("{0}")]
     Write(String),
+    /// SOD is not where the command was told to read it.
+    #[error("{}: SOD not found: expected {SOD_FILE}, or a folder holding it (--substitute renders the built-in molecule instead)", .0.display())]
+    NoSod(std::path::PathBuf),
 }
 
-/// The dataset: SOD from `data` if it is there, else the built-in substitute (with a note).
-pub fn dataset(data: Option<&Path>, notes: &mut String) -> Result<DatasetJob, PaperError> {
-    let sod = data.map(|d| d.join("sod-97x97x116.u8.binary"));
-    let source = match &sod {
-        Some(p) if p.is_file() => format!(
-            "path = \"{}\"\nformat = \"raw\"\ndims = [97, 97, 116]\ntype = \"u8\"\nheader_bytes = 12",
-            p.display().to_string().replace('\\', "/")
-        ),
-        _ => {
-            let _ = writeln!(notes, "SOD not found: using the built-in molecule of the same size and character");
+/// SOD's file name in the shared data folder.
+pub const SOD_FILE: &str = "sod-97x97x116.u8.binary";
+
+/// Where the experiments take their volume from.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Source<'a> {
+    /// SOD: its file, or a folder holding [`SOD_FILE`]; an error if it is not there.
+    Sod(&'a Path),
+    /// The built-in molecule of SOD's size and character, asked for by name.
+    Substitute,
+}
+
+/// The dataset: SOD from `source` (a missing file is an error), or the built-in substitute
+/// when asked for (with a note).
+pub fn dataset(source: Source<'_>, notes: &mut String) -> Result<DatasetJob, PaperError> {
+    let source = match source {
+        Source::Sod(path) => {
+            let file = if path.is_dir() {
+                path.join(SOD_FILE)
+            } else {
+                path.to_path_buf()
+            };
+            if !file.is_file() {
+                return Err(PaperError::NoSod(path.to_path_buf()));
+            }
+            format!(
+                "path = \"{}\"\nformat = \"raw\"\ndims = [97, 97, 116]\ntype = \"u8\"\nheader_bytes = 12",
+                file.display().to_string().replace('\\', "/")
+            )
+        }
+        Source::Substitute => {
+            let _ = writeln!(
+                notes,
+                "--substitute: using the built-in molecule of SOD's size and character"
+            );
             "builtin = \"molecule\"".to_string()
         }
     };
