@@ -153,7 +153,7 @@ pub enum Command {
         #[arg(long, default_value = "ncube2")]
         machine: String,
     },
-    /// What accuracy costs in time: dt, voxel vs cell model, gradient distance, image size and
+    /// What accuracy costs in time: dt, voxel vs cell model, image size and
     /// the accuracy tiers swept on SOD; wall time, simulated nCUBE 2 time, samples, and error
     /// against a fine exact reference (PSNR, 99th-percentile and max error); a table and a plot.
     Accuracy {
