@@ -1,6 +1,9 @@
 //! Flow control: the classes messages travel in, the ack counters that bound every receive
 //! buffer, and the arithmetic linking a buffer's bytes to `i_max`.
 //!
+//! Invariant: with flow control on, `n_i ≤ i_max` for every destination and class at all
+//! times, so no receive buffer holds more than [`buffer_bytes`] and no send is refused.
+//!
 //! For each destination `i` and each credit class, a worker counts `n_i`: messages sent and
 //! not yet acknowledged. It sends only while `n_i < i_max`, and starts a ray only if
 //! `n_i + r_imax < i_max` for every `i` and class the ray may reach, so a started ray never

@@ -4,6 +4,9 @@
 //! bytes: a tag byte, then the fields in order. Decoding any byte string returns a message or
 //! a [`DecodeError`], never panics: lengths, tags and enumerations are checked, counts are
 //! bounded, and float fields may hold any bits (the tracer is robust to NaN).
+//!
+//! Invariant: `decode(encode(m)) == m` for every message, and every encoding is exactly its
+//! kind's length.
 
 use crate::counters::Counters;
 use crate::node::flow::Class;

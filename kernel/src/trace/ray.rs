@@ -4,6 +4,8 @@
 //! unit direction scaled by `1/spacing`. Clipping handles axis-parallel rays (a zero direction
 //! component never divides), rays lying on a face or an edge (the box is closed), grazing rays
 //! (an interval of zero length is a hit), and non-finite input (no hit, never NaN).
+//!
+//! Invariant: a clipped span is finite and ordered (`t_near ≤ t_far`) or there is none.
 
 use glam::{Vec3, Vec4};
 

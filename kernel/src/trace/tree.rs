@@ -8,6 +8,9 @@
 //!   scene order;
 //! - what a ray sees at a surface of opacity `a` is `c·a + behind·(1 − a)`, applied from the
 //!   deepest hit outward, `behind` of the deepest being the background.
+//!
+//! Invariant: the same parts give the same bits, whatever node traced them and in whatever
+//! order they arrived.
 
 use glam::Vec3;
 
