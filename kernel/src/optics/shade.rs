@@ -162,9 +162,11 @@ pub fn face_viewer(n: Vec3, view_dir: Vec3) -> Vec3 {
 
 /// The light `light_dir` (unit, toward the light) of colour `light_color` reflects off a
 /// point of colour `base` with unit normal `n`, seen along `view_dir`: Lambert plus Phong,
-/// before shadowing. Zero when the light is behind the surface.
+/// before shadowing. Zero when the light is behind the surface. With `highlights` (the fast
+/// tier) the highlight is read from that table instead of `powf`.
 pub fn direct(
     s: &Shading,
+    highlights: Option<&Highlights>,
     base: Vec3,
     n: Vec3,
     view_dir: Vec3,
@@ -178,12 +180,46 @@ pub fn direct(
     let reflected = n * (2.0 * n_dot_l) - light_dir;
     let r_dot_v = reflected.dot(-view_dir);
     let diffuse = base * (s.diffuse * n_dot_l);
-    let specular = if r_dot_v > 0.0 && !highlight_vanishes(diffuse, s, r_dot_v) {
-        s.specular * libm::powf(r_dot_v, s.shininess)
-    } else {
-        0.0
+    let specular = match highlights {
+        Some(table) if r_dot_v > 0.0 => table.at(r_dot_v),
+        None if r_dot_v > 0.0 && !highlight_vanishes(diffuse, s, r_dot_v) => {
+            s.specular * libm::powf(r_dot_v, s.shininess)
+        }
+        _ => 0.0,
     };
     light_color * (diffuse + Vec3::splat(specular))
+}
+
+/// Intervals of the fast tier's highlight table over cosines in `[0, 1]`.
+pub const HIGHLIGHT_STEPS: usize = 1024;
+
+/// The fast tier's highlights: `specular · x^shininess` tabulated at [`HIGHLIGHT_STEPS`] + 1
+/// evenly spaced cosines `x` in `[0, 1]` and read by linear interpolation, as production
+/// ray casters shade from tables. Built from the shading alone, the same bits on every node.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Highlights {
+    table: [f32; HIGHLIGHT_STEPS + 1],
+}
+
+impl Highlights {
+    /// The table of `s`'s highlight.
+    pub fn new(s: &Shading) -> Highlights {
+        let mut table = [0.0; HIGHLIGHT_STEPS + 1];
+        for (i, t) in table.iter_mut().enumerate() {
+            *t = s.specular * libm::powf(i as f32 / HIGHLIGHT_STEPS as f32, s.shininess);
+        }
+        Highlights { table }
+    }
+
+    /// The highlight at cosine `x` (above 0; 1 and beyond, and NaN, read the last entry).
+    #[inline]
+    pub fn at(&self, x: f32) -> f32 {
+        let f = x.min(1.0) * HIGHLIGHT_STEPS as f32;
+        // `as` floors a non-negative value (and saturates a negative one to 0).
+        let i = (f as usize).min(HIGHLIGHT_STEPS - 1);
+        let (a, b) = (self.table[i], self.table[i + 1]);
+        a + (b - a) * (f - i as f32)
+    }
 }
 
 /// The greatest whole exponent [`highlight_vanishes`] raises a cosine to.
@@ -238,6 +274,26 @@ mod tests {
     use super::*;
 
     #[test]
+    fn the_highlight_table_is_within_a_hundredth_of_a_level_of_powf() {
+        let s = Shading::default();
+        let table = Highlights::new(&s);
+        assert_eq!(table.at(1.0), s.specular);
+        assert_eq!(table.at(2.0), s.specular, "beyond 1 reads the last entry");
+        assert_eq!(
+            table.at(f32::NAN),
+            s.specular,
+            "NaN reads the last entry, never NaN"
+        );
+        let mut worst = 0.0f32;
+        for i in 1..=20_000 {
+            let x = i as f32 / 20_000.0;
+            let exact = s.specular * libm::powf(x, s.shininess);
+            worst = worst.max((table.at(x) - exact).abs());
+        }
+        assert!(worst < 1e-2 / 255.0, "worst error {worst}");
+    }
+
+    #[test]
     fn degenerate_gradients_fall_back_to_facing_the_viewer() {
         let view = Vec3::new(0.0, 0.0, -1.0);
         assert_eq!(normal(Vec3::ZERO, view), (Vec3::Z, true));
@@ -253,9 +309,9 @@ mod tests {
     #[test]
     fn lights_behind_the_surface_add_nothing() {
         let s = Shading::default();
-        let d = direct(&s, Vec3::ONE, Vec3::Z, -Vec3::Z, -Vec3::Z, Vec3::ONE);
+        let d = direct(&s, None, Vec3::ONE, Vec3::Z, -Vec3::Z, -Vec3::Z, Vec3::ONE);
         assert_eq!(d, Vec3::ZERO);
-        let d = direct(&s, Vec3::ONE, Vec3::Z, -Vec3::Z, Vec3::Z, Vec3::ONE);
+        let d = direct(&s, None, Vec3::ONE, Vec3::Z, -Vec3::Z, Vec3::Z, Vec3::ONE);
         assert!((d - Vec3::splat(s.diffuse + s.specular)).length() < 1e-6);
     }
 
@@ -362,7 +418,7 @@ mod tests {
             };
             let color = Vec3::new(unit(), 1.0, 2.0 * unit());
             let (ours, model) = (
-                direct(&s, base, n, view, light, color),
+                direct(&s, None, base, n, view, light, color),
                 phong(&s, base, n, view, light, color),
             );
             assert_eq!(

@@ -71,7 +71,15 @@ pub fn lighting<T: Sample>(
             continue;
         };
         out.to_light[l] = toward;
-        out.direct[l] = shade::direct(shading, base, n, view_dir, toward.0, light.color);
+        out.direct[l] = shade::direct(
+            shading,
+            view.highlights(),
+            base,
+            n,
+            view_dir,
+            toward.0,
+            light.color,
+        );
         if light.shadows && out.direct[l] != Vec3::ZERO {
             out.shadow_mask |= 1 << l;
         }
@@ -102,7 +110,15 @@ pub fn unshadowed_color<T: Sample>(
     for light in &spec.lights {
         // An unlit light adds its zero term, as `tree::surface_color` does.
         color += light.toward(world).map_or(Vec3::ZERO, |toward| {
-            shade::direct(shading, base, n, view_dir, toward.0, light.color)
+            shade::direct(
+                shading,
+                view.highlights(),
+                base,
+                n,
+                view_dir,
+                toward.0,
+                light.color,
+            )
         });
     }
     color

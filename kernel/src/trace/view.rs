@@ -8,7 +8,7 @@
 //! `[0, 1)`; depth at most [`MAX_DEPTH`]; refinement at most [`MAX_REFINE_STEPS`] steps.
 
 use crate::optics::classify::Classified;
-use crate::optics::shade::{Light, Shading, MAX_LIGHTS};
+use crate::optics::shade::{Highlights, Light, Shading, MAX_LIGHTS};
 use crate::optics::surface::{IsoSurface, MAX_SURFACES};
 use crate::optics::transfer::TransferFunction;
 use crate::trace::camera::Camera;
@@ -58,6 +58,9 @@ pub enum Approximation {
     /// Compositing reads a pre-classified table of the transfer function and its opacity
     /// for a whole Δt segment ([`crate::optics::classify`]) at the nearest of its entries.
     PreClassified,
+    /// Phong's highlight is read from a table of cosines by linear interpolation
+    /// ([`crate::optics::shade::Highlights`]) instead of `powf`.
+    HighlightTable,
 }
 
 impl Approximation {
@@ -65,6 +68,7 @@ impl Approximation {
     pub fn name(self) -> &'static str {
         match self {
             Approximation::PreClassified => "pre-classified transfer function",
+            Approximation::HighlightTable => "highlight by table",
         }
     }
 }
@@ -203,6 +207,8 @@ pub struct View {
     row_leaps: Option<RowLeaps>,
     /// The pre-classified transfer function (fast tier, compositing).
     classified: Option<Classified>,
+    /// The highlight table (fast tier, shaded views with a highlight).
+    highlights: Option<Highlights>,
 }
 
 impl View {
@@ -286,8 +292,13 @@ impl View {
             (Mode::Composite(tf), Accuracy::Fast) => Some(Classified::new(tf, spec.dt)),
             _ => None,
         };
+        let highlights = match (&spec.shading, spec.accuracy) {
+            (Some(s), Accuracy::Fast) if s.specular > 0.0 => Some(Highlights::new(s)),
+            _ => None,
+        };
         Ok(View {
             classified,
+            highlights,
             dt_world: spec.dt * cell_edge,
             cell_edge,
             inv_spacing: grid.inv_spacing(),
@@ -328,6 +339,12 @@ impl View {
         self
     }
 
+    /// The highlight table, when the view is shaded with a highlight in the fast tier.
+    #[inline]
+    pub fn highlights(&self) -> Option<&Highlights> {
+        self.highlights.as_ref()
+    }
+
     /// The pre-classified transfer function, when the view composites in the fast tier.
     #[inline]
     pub fn classified(&self) -> Option<&Classified> {
@@ -338,9 +355,12 @@ impl View {
     /// where the view calls for nothing a fast-tier approximation replaces).
     pub fn approximations(&self) -> Vec<Approximation, 4> {
         let mut out = Vec::new();
+        // Room for every approximation the tier knows.
         if self.classified.is_some() {
-            // Room for every approximation the tier knows.
             let _ = out.push(Approximation::PreClassified);
+        }
+        if self.highlights.is_some() {
+            let _ = out.push(Approximation::HighlightTable);
         }
         out
     }
