@@ -26,9 +26,8 @@ use voxcube_kernel::volume::slab::{Slab, SlabError};
 /// The name of the benchmarked view in the fast tier (the composited view's twin).
 pub const FAST_VIEW: &str = "composite-fast";
 
-/// The views benchmarked: the paper's view as a shaded surface and composited, and composited
-/// in the fast tier (surfaces have no fast-tier approximation yet: they are the exact image).
-const VIEWS: &str = r#"
+/// The paper's view as a shaded surface.
+const SURFACES_VIEW: &str = r#"
 [[datasets.views]]
 name = "surfaces"
 width = WIDTH
@@ -44,36 +43,17 @@ color = [0.95, 0.78, 0.45]
 type = "directional"
 direction = [0.4, -0.5, 1.0]
 frame = "camera"
+"#;
 
+/// The paper's view composited, named NAME, in the accuracy tier TIER.
+const COMPOSITE_VIEW: &str = r#"
 [[datasets.views]]
-name = "composite"
+name = "NAME"
 width = WIDTH
 height = HEIGHT
 dt = DT
 mode = "composite"
-[datasets.views.camera]
-azimuth = 45.0
-width = SPAN
-[[datasets.views.transfer]]
-value = 10.0
-color = [0.2, 0.3, 0.8]
-opacity = 0.0
-[[datasets.views.transfer]]
-value = 60.0
-color = [0.9, 0.7, 0.3]
-opacity = 0.15
-[[datasets.views.transfer]]
-value = 200.0
-color = [1.0, 0.2, 0.1]
-opacity = 0.8
-
-[[datasets.views]]
-name = "composite-fast"
-width = WIDTH
-height = HEIGHT
-dt = DT
-mode = "composite"
-accuracy = "fast"
+accuracy = "TIER"
 [datasets.views.camera]
 azimuth = 45.0
 width = SPAN
@@ -90,6 +70,18 @@ value = 200.0
 color = [1.0, 0.2, 0.1]
 opacity = 0.8
 "#;
+
+/// The views benchmarked: the paper's view as a shaded surface and composited, and
+/// composited in the fast tier, each with its placeholders for the size still in.
+fn views() -> String {
+    let composite =
+        |name: &str, tier: &str| COMPOSITE_VIEW.replace("NAME", name).replace("TIER", tier);
+    format!(
+        "{SURFACES_VIEW}{}{}",
+        composite("composite", "exact"),
+        composite(FAST_VIEW, "fast")
+    )
+}
 
 /// An image size and step benchmarked.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -459,7 +451,7 @@ pub fn run(
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get() as u32);
     let mut rows = Vec::new();
     for &size in sizes {
-        let views = VIEWS
+        let views = views()
             .replace("SPAN", &format!("{:.1}", size.span))
             .replace("WIDTH", &size.width.to_string())
             .replace("HEIGHT", &size.height.to_string())
