@@ -7,7 +7,7 @@
 
 use crate::builtin;
 use crate::dataset::Volume;
-use crate::formats::{self, raw::RawLayout, Endian, FileType, LoadError};
+use crate::formats::{self, raw::RawLayout, Endian, FileType, Format, LoadError};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use voxcube_kernel::optics::shade::{Light, Shading, MAX_LIGHTS};
@@ -76,6 +76,10 @@ enum FormatToml {
     Raw,
     Nrrd,
     Den,
+    Nifti,
+    MetaImage,
+    Vtk,
+    Dicom,
 }
 
 #[derive(Debug, Clone, Copy, Deserialize)]
@@ -315,10 +319,9 @@ pub enum Source {
     Builtin(String),
     /// A raw file.
     Raw(PathBuf, RawLayout),
-    /// A NRRD file (`.nrrd` or `.nhdr`).
-    Nrrd(PathBuf, Option<Vec3>),
-    /// A Levoy `.den` file.
-    Den(PathBuf, Option<Vec3>),
+    /// A file whose header describes it (or a DICOM folder), in a known format, with the
+    /// scene's spacing if it gives one.
+    File(PathBuf, Format, Option<Vec3>),
 }
 
 /// A checked scene, datasets not yet loaded.
@@ -506,7 +509,7 @@ fn view_name(v: &ViewToml, index: usize) -> String {
 fn describe(source: &Source) -> String {
     match source {
         Source::Builtin(n) => format!("builtin:{n}"),
-        Source::Raw(p, _) | Source::Nrrd(p, _) | Source::Den(p, _) => p.display().to_string(),
+        Source::Raw(p, _) | Source::File(p, _, _) => p.display().to_string(),
     }
 }
 
@@ -568,19 +571,32 @@ fn source_of(d: &DatasetToml, base: &Path) -> Result<Source, (String, String)> {
         }
         (None, Some(p)) => {
             let path = base.join(p);
-            let ext = p
-                .extension()
-                .and_then(|e| e.to_str())
-                .unwrap_or("")
-                .to_ascii_lowercase();
-            let format = match (&d.format, ext.as_str()) {
-                (Some(f), _) => f,
-                (None, "nrrd" | "nhdr") => &FormatToml::Nrrd,
-                (None, "den") => &FormatToml::Den,
-                (None, _) => &FormatToml::Raw,
+            let raw_keys = raw_only.iter().any(|(_, set)| *set);
+            let format = match &d.format {
+                Some(FormatToml::Raw) => Format::Raw,
+                Some(FormatToml::Nrrd) => Format::Nrrd,
+                Some(FormatToml::Den) => Format::Den,
+                Some(FormatToml::Nifti) => Format::Nifti,
+                Some(FormatToml::MetaImage) => Format::MetaImage,
+                Some(FormatToml::Vtk) => Format::Vtk,
+                Some(FormatToml::Dicom) => Format::Dicom,
+                None => match Format::from_extension(&path) {
+                    Some(f) => f,
+                    None if raw_keys => Format::Raw,
+                    None => Format::sniff(&path).ok_or_else(|| {
+                        (
+                            "format".to_string(),
+                            format!(
+                                "cannot tell the format of {} from its name or first bytes: give format ({}), or dims and type for a raw file",
+                                path.display(),
+                                Format::NAMES
+                            ),
+                        )
+                    })?,
+                },
             };
             match format {
-                FormatToml::Raw => {
+                Format::Raw => {
                     let dims = d.dims.ok_or((
                         "dims".to_string(),
                         "a raw dataset needs dims = [nx, ny, nz]".to_string(),
@@ -629,10 +645,7 @@ fn source_of(d: &DatasetToml, base: &Path) -> Result<Source, (String, String)> {
                             "applies to raw files; this file's header gives it".into(),
                         ));
                     }
-                    Ok(match other {
-                        FormatToml::Nrrd => Source::Nrrd(path, spacing),
-                        _ => Source::Den(path, spacing),
-                    })
+                    Ok(Source::File(path, other, spacing))
                 }
             }
         }
@@ -649,8 +662,7 @@ fn load_source(source: &Source) -> Result<Volume, SourceError> {
         Source::Builtin(name) => builtin::volume(name)
             .ok_or_else(|| SourceError::Builtin(format!("unknown built-in \"{name}\""))),
         Source::Raw(p, layout) => formats::raw::load(p, layout).map_err(SourceError::Load),
-        Source::Nrrd(p, s) => formats::nrrd::load(p, *s).map_err(SourceError::Load),
-        Source::Den(p, s) => formats::den::load(p, *s).map_err(SourceError::Load),
+        Source::File(p, f, s) => formats::load(p, *f, *s).map_err(SourceError::Load),
     }
 }
 

@@ -1,10 +1,16 @@
-//! Reading datasets from files: raw, NRRD and the Levoy `.den` format, and the errors they
-//! report. Each loader reads the whole file, checks its size exactly (a truncated file and
-//! trailing bytes are both errors), decodes the samples and returns them plane-major.
+//! Reading datasets from files — raw, NRRD, Levoy `.den`, NIfTI-1, MetaImage, VTK (legacy
+//! and XML image data) and DICOM series — and the errors they report. Each loader checks the
+//! sample count exactly (a truncated file and trailing bytes are both errors), applies the
+//! file's value scaling, and returns the samples plane-major in index space with the file's
+//! spacing; orientation and origin are not applied (docs/datasets.md says which fields).
 
 pub mod den;
+pub mod dicom;
+pub mod metaimage;
+pub mod nifti;
 pub mod nrrd;
 pub mod raw;
+pub mod vtk;
 
 use crate::dataset::{to_plane_major, Volume, VolumeData};
 use std::fmt;
@@ -25,6 +31,12 @@ pub enum FileType {
     I16,
     /// 32-bit IEEE float.
     F32,
+    /// Signed 32-bit (converted to f32, rounded to nearest beyond 2^24).
+    I32,
+    /// Unsigned 32-bit (converted to f32, rounded to nearest beyond 2^24).
+    U32,
+    /// 64-bit IEEE float (converted to f32, rounded to nearest).
+    F64,
 }
 
 impl FileType {
@@ -33,9 +45,129 @@ impl FileType {
         match self {
             FileType::U8 | FileType::I8 => 1,
             FileType::U16 | FileType::I16 => 2,
-            FileType::F32 => 4,
+            FileType::F32 | FileType::I32 | FileType::U32 => 4,
+            FileType::F64 => 8,
         }
     }
+
+    /// Whether converting to voxcube's samples keeps every value exactly.
+    pub fn exact(self) -> bool {
+        !matches!(self, FileType::I32 | FileType::U32 | FileType::F64)
+    }
+}
+
+/// The file formats voxcube reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    /// Headerless samples described by the scene.
+    Raw,
+    /// NRRD, attached (`.nrrd`) or detached (`.nhdr`).
+    Nrrd,
+    /// Levoy's `.den`.
+    Den,
+    /// NIfTI-1 (`.nii`, `.nii.gz`, `.hdr`/`.img` pairs).
+    Nifti,
+    /// MetaImage (`.mha`, or `.mhd` naming its data file).
+    MetaImage,
+    /// VTK legacy `STRUCTURED_POINTS` (`.vtk`) or XML image data (`.vti`).
+    Vtk,
+    /// A folder of DICOM slices (or one multi-frame DICOM file).
+    Dicom,
+}
+
+impl Format {
+    /// Every format, as the scene file spells it.
+    pub const NAMES: &'static str = "raw, nrrd, den, nifti, metaimage, vtk, dicom";
+
+    /// The format a path's extension names, if any.
+    pub fn from_extension(path: &Path) -> Option<Format> {
+        let name = path.file_name()?.to_str()?.to_ascii_lowercase();
+        let ext = name.rsplit('.').next()?;
+        Some(match ext {
+            "nrrd" | "nhdr" => Format::Nrrd,
+            "den" => Format::Den,
+            "nii" | "hdr" => Format::Nifti,
+            "gz" if name.ends_with(".nii.gz") => Format::Nifti,
+            "mha" | "mhd" => Format::MetaImage,
+            "vtk" | "vti" => Format::Vtk,
+            "dcm" | "dicom" => Format::Dicom,
+            _ => return None,
+        })
+    }
+
+    /// The format a file's first bytes show (a folder is a DICOM series), if any.
+    pub fn sniff(path: &Path) -> Option<Format> {
+        use std::io::Read;
+        if path.is_dir() {
+            return Some(Format::Dicom);
+        }
+        let mut head = Vec::with_capacity(512);
+        std::fs::File::open(path)
+            .ok()?
+            .take(512)
+            .read_to_end(&mut head)
+            .ok()?;
+        let text = String::from_utf8_lossy(&head).to_string();
+        if head.len() >= 132 && &head[128..132] == b"DICM" {
+            Some(Format::Dicom)
+        } else if head.len() >= 348 && matches!(&head[344..348], b"n+1\0" | b"ni1\0") {
+            Some(Format::Nifti)
+        } else if text.starts_with("NRRD000") {
+            Some(Format::Nrrd)
+        } else if text.starts_with("# vtk DataFile") || text.contains("<VTKFile") {
+            Some(Format::Vtk)
+        } else if text.starts_with("ObjectType") || text.starts_with("NDims") {
+            Some(Format::MetaImage)
+        } else {
+            None
+        }
+    }
+}
+
+/// Load `path` as `format` (not raw: a raw file needs the scene's layout). `spacing`
+/// overrides the file's.
+pub fn load(path: &Path, format: Format, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
+    match format {
+        Format::Raw => Err(LoadError::new(
+            path,
+            LoadErrorKind::Header("a raw file needs dims and type from the scene".into()),
+        )),
+        Format::Nrrd => nrrd::load(path, spacing),
+        Format::Den => den::load(path, spacing),
+        Format::Nifti => nifti::load(path, spacing),
+        Format::MetaImage => metaimage::load(path, spacing),
+        Format::Vtk => vtk::load(path, spacing),
+        Format::Dicom => dicom::load(path, spacing),
+    }
+}
+
+/// Apply a file's linear value scaling `v·slope + intercept` (NIfTI `scl_slope`/`scl_inter`,
+/// DICOM rescale). The identity keeps the samples' type; any other scaling makes them f32,
+/// computed in f64 and rounded once.
+pub fn rescale(volume: Volume, slope: f64, intercept: f64) -> Result<Volume, LoadErrorKind> {
+    if slope == 1.0 && intercept == 0.0 {
+        return Ok(volume);
+    }
+    if !(slope.is_finite() && intercept.is_finite()) || slope == 0.0 {
+        return Err(LoadErrorKind::Header(format!(
+            "value scaling slope {slope}, intercept {intercept}: expected finite numbers and a slope other than 0"
+        )));
+    }
+    let f = |x: f64| (x * slope + intercept) as f32;
+    let data = match volume.data {
+        VolumeData::U8(v) => v.iter().map(|&x| f(x.into())).collect(),
+        VolumeData::U16(v) => v.iter().map(|&x| f(x.into())).collect(),
+        VolumeData::F32(v) => v.iter().map(|&x| f(x.into())).collect::<Vec<f32>>(),
+    };
+    if data.iter().any(|x| !x.is_finite()) {
+        return Err(LoadErrorKind::Header(format!(
+            "value scaling slope {slope}, intercept {intercept} overflows 32-bit floats"
+        )));
+    }
+    Ok(Volume {
+        grid: volume.grid,
+        data: VolumeData::F32(data),
+    })
 }
 
 /// Byte order of multi-byte samples.
@@ -189,16 +321,24 @@ pub fn decode(
                 .collect();
             VolumeData::F32(to_plane_major(&v, dims))
         }
-        FileType::F32 => {
+        FileType::F32 | FileType::F64 | FileType::I32 | FileType::U32 => {
+            let word = |b: &[u8]| -> f64 {
+                let mut w = [0u8; 8];
+                let n = b.len();
+                w[..n].copy_from_slice(b);
+                if endian == Endian::Big {
+                    w[..n].reverse();
+                }
+                match ty {
+                    FileType::F32 => f64::from(f32::from_le_bytes([w[0], w[1], w[2], w[3]])),
+                    FileType::I32 => f64::from(i32::from_le_bytes([w[0], w[1], w[2], w[3]])),
+                    FileType::U32 => f64::from(u32::from_le_bytes([w[0], w[1], w[2], w[3]])),
+                    _ => f64::from_le_bytes(w),
+                }
+            };
             let v: Vec<f32> = samples
-                .chunks_exact(4)
-                .map(|b| {
-                    let b = [b[0], b[1], b[2], b[3]];
-                    match endian {
-                        Endian::Little => f32::from_le_bytes(b),
-                        Endian::Big => f32::from_be_bytes(b),
-                    }
-                })
+                .chunks_exact(ty.bytes())
+                .map(|b| word(b) as f32)
                 .collect();
             if let Some(i) = v.iter().position(|x| !x.is_finite()) {
                 let [nx, ny, _] = dims.map(|d| d as usize);

@@ -1,0 +1,327 @@
+//! DICOM volumes, read with dicom-rs (`dicom-object`, `dicom-pixeldata`): a folder of
+//! single-frame slices of one series, or one multi-frame file.
+//!
+//! Slices are ordered by their position along the slice normal (`ImagePositionPatient` ·
+//! (row × column direction of `ImageOrientationPatient`)), never by file name; without
+//! positions, by `InstanceNumber`. The spacing is `PixelSpacing` in the plane and the
+//! distance between consecutive slices across it (which must be even within 1%). Values are
+//! `RescaleSlope`·v + `RescaleIntercept`. The orientation itself is not applied (index space).
+//! Files without the `DICM` preamble and `DICOMDIR` are passed over; two series in one folder
+//! is an error, as are colour images, uneven or repeated slices, and differing slice sizes.
+
+use super::{LoadError, LoadErrorKind};
+use crate::dataset::{to_plane_major, Volume, VolumeData};
+use dicom_dictionary_std::tags;
+use dicom_object::{open_file, DefaultDicomObject, Tag};
+use dicom_pixeldata::{ConvertOptions, ModalityLutOption, PixelDecoder};
+use std::path::{Path, PathBuf};
+use voxcube_kernel::volume::grid::Grid;
+use voxcube_kernel::Vec3;
+
+fn header_err(msg: impl Into<String>) -> LoadErrorKind {
+    LoadErrorKind::Header(msg.into())
+}
+
+/// One slice file, its header read.
+struct Slice {
+    path: PathBuf,
+    object: DefaultDicomObject,
+    series: String,
+    rows: u32,
+    columns: u32,
+    position: Option<[f64; 3]>,
+    normal: Option<[f64; 3]>,
+    instance: Option<i64>,
+    pixel_spacing: Option<[f64; 2]>,
+    rescale: (f64, f64),
+}
+
+fn floats(object: &DefaultDicomObject, tag: Tag) -> Option<Vec<f64>> {
+    object
+        .element_opt(tag)
+        .ok()
+        .flatten()
+        .and_then(|e| e.to_multi_float64().ok())
+}
+
+fn int(object: &DefaultDicomObject, tag: Tag) -> Option<i64> {
+    object
+        .element_opt(tag)
+        .ok()
+        .flatten()
+        .and_then(|e| e.to_int::<i64>().ok())
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn read_slice(path: &Path) -> Result<Slice, LoadError> {
+    let at = |k| LoadError::new(path, k);
+    let object = open_file(path).map_err(|e| {
+        at(header_err(format!(
+            "not a readable DICOM file, truncated or malformed ({e})"
+        )))
+    })?;
+    let rows =
+        int(&object, tags::ROWS).ok_or_else(|| at(header_err("missing Rows (0028,0010)")))?;
+    let columns =
+        int(&object, tags::COLUMNS).ok_or_else(|| at(header_err("missing Columns (0028,0011)")))?;
+    let spp = int(&object, tags::SAMPLES_PER_PIXEL).unwrap_or(1);
+    if spp != 1 {
+        return Err(at(header_err(format!(
+            "SamplesPerPixel (0028,0002) is {spp}; voxcube reads grey-scale images (1)"
+        ))));
+    }
+    let (rows, columns) = match (u32::try_from(rows), u32::try_from(columns)) {
+        (Ok(r), Ok(c)) if r > 0 && c > 0 => (r, c),
+        _ => {
+            return Err(at(header_err(format!(
+                "Rows {rows} × Columns {columns}: expected positive sizes"
+            ))))
+        }
+    };
+    let series = object
+        .element_opt(tags::SERIES_INSTANCE_UID)
+        .ok()
+        .flatten()
+        .and_then(|e| e.to_str().ok())
+        .map(|s| s.trim_end_matches('\0').trim().to_string())
+        .unwrap_or_default();
+    let position =
+        floats(&object, tags::IMAGE_POSITION_PATIENT).and_then(|v| <[f64; 3]>::try_from(v).ok());
+    let normal = floats(&object, tags::IMAGE_ORIENTATION_PATIENT)
+        .and_then(|v| <[f64; 6]>::try_from(v).ok())
+        .map(|o| cross([o[0], o[1], o[2]], [o[3], o[4], o[5]]));
+    let pixel_spacing =
+        floats(&object, tags::PIXEL_SPACING).and_then(|v| <[f64; 2]>::try_from(v).ok());
+    let slope = floats(&object, tags::RESCALE_SLOPE)
+        .and_then(|v| v.first().copied())
+        .unwrap_or(1.0);
+    let intercept = floats(&object, tags::RESCALE_INTERCEPT)
+        .and_then(|v| v.first().copied())
+        .unwrap_or(0.0);
+    Ok(Slice {
+        path: path.to_path_buf(),
+        instance: int(&object, tags::INSTANCE_NUMBER),
+        object,
+        series,
+        rows,
+        columns,
+        position,
+        normal,
+        pixel_spacing,
+        rescale: (slope, intercept),
+    })
+}
+
+/// Whether a file starts like DICOM Part 10 (a 128-byte preamble, then `DICM`).
+fn has_preamble(path: &Path) -> bool {
+    use std::io::Read;
+    let mut head = [0u8; 132];
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut head))
+        .is_ok()
+        && &head[128..] == b"DICM"
+}
+
+/// The slice files of a folder, or the one file.
+fn slice_files(path: &Path) -> Result<Vec<PathBuf>, LoadError> {
+    if !path.is_dir() {
+        return Ok(vec![path.to_path_buf()]);
+    }
+    let entries = std::fs::read_dir(path).map_err(|e| LoadError::new(path, e))?;
+    let mut files = Vec::new();
+    for entry in entries {
+        let entry = entry.map_err(|e| LoadError::new(path, e))?;
+        let p = entry.path();
+        let name = entry.file_name().to_string_lossy().to_string();
+        if p.is_file() && !name.starts_with('.') && name != "DICOMDIR" && has_preamble(&p) {
+            files.push(p);
+        }
+    }
+    if files.is_empty() {
+        return Err(LoadError::new(
+            path,
+            header_err("the folder holds no DICOM files (none starts with the DICM preamble)"),
+        ));
+    }
+    files.sort();
+    Ok(files)
+}
+
+/// Order the slices along the normal and find the distance between them.
+fn order(slices: &mut [Slice], folder: &Path) -> Result<f64, LoadError> {
+    let at = |k| LoadError::new(folder, k);
+    if slices.len() == 1 {
+        return Ok(0.0);
+    }
+    let normal = slices.iter().find_map(|s| s.normal);
+    let located = normal.filter(|_| slices.iter().all(|s| s.position.is_some()));
+    let Some(n) = located else {
+        if slices.iter().any(|s| s.instance.is_none()) {
+            return Err(at(header_err(
+                "slices have neither ImagePositionPatient with ImageOrientationPatient nor InstanceNumber to order them by",
+            )));
+        }
+        slices.sort_by_key(|s| s.instance);
+        return Ok(0.0);
+    };
+    let depth = |s: &Slice| s.position.map_or(0.0, |p| dot(p, n));
+    slices.sort_by(|a, b| depth(a).total_cmp(&depth(b)));
+    let gaps: Vec<f64> = slices
+        .windows(2)
+        .map(|w| depth(&w[1]) - depth(&w[0]))
+        .collect();
+    let mut sorted = gaps.clone();
+    sorted.sort_by(f64::total_cmp);
+    let gap = sorted[sorted.len() / 2];
+    for (i, g) in gaps.iter().enumerate() {
+        if *g <= gap * 1e-3 {
+            return Err(at(header_err(format!(
+                "{} and {} lie at the same position; a folder must hold one volume",
+                slices[i].path.display(),
+                slices[i + 1].path.display()
+            ))));
+        }
+        if (g - gap).abs() > 0.01 * gap {
+            return Err(at(header_err(format!(
+                "slices are unevenly spaced: {} and {} are {g:.4} apart, the others {gap:.4} (a missing slice?)",
+                slices[i].path.display(),
+                slices[i + 1].path.display()
+            ))));
+        }
+    }
+    Ok(gap)
+}
+
+/// Load a DICOM series (a folder) or one multi-frame file. `spacing` overrides the files'.
+pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
+    let files = slice_files(path)?;
+    let mut slices = files
+        .iter()
+        .map(|f| read_slice(f))
+        .collect::<Result<Vec<_>, _>>()?;
+    let first_series = slices[0].series.clone();
+    if let Some(other) = slices.iter().find(|s| s.series != first_series) {
+        return Err(LoadError::new(
+            &other.path,
+            header_err(format!(
+                "SeriesInstanceUID {} differs from {}'s {first_series}: the folder holds more than one series",
+                other.series,
+                slices[0].path.display()
+            )),
+        ));
+    }
+    let (rows, columns) = (slices[0].rows, slices[0].columns);
+    if let Some(s) = slices
+        .iter()
+        .find(|s| (s.rows, s.columns) != (rows, columns))
+    {
+        return Err(LoadError::new(
+            &s.path,
+            header_err(format!(
+                "Rows × Columns {} × {} differ from the first slice's {rows} × {columns}",
+                s.rows, s.columns
+            )),
+        ));
+    }
+    let gap = order(&mut slices, path)?;
+    // Decode every slice's stored values; rescaling is applied below, once, in f64.
+    let raw = ConvertOptions::new().with_modality_lut(ModalityLutOption::None);
+    let mut frames: Vec<(Vec<i32>, (f64, f64), bool)> = Vec::with_capacity(slices.len());
+    for s in &slices {
+        let at = |k| LoadError::new(&s.path, k);
+        let pixels = s
+            .object
+            .decode_pixel_data()
+            .map_err(|e| at(header_err(format!("pixel data: {e}"))))?;
+        if pixels.bits_allocated() > 16 {
+            return Err(at(header_err(format!(
+                "BitsAllocated (0028,0100) is {}; voxcube reads 8- and 16-bit images",
+                pixels.bits_allocated()
+            ))));
+        }
+        let signed = pixels.pixel_representation() == dicom_pixeldata::PixelRepresentation::Signed;
+        let values: Vec<i32> = pixels
+            .to_vec_with_options(&raw)
+            .map_err(|e| at(header_err(format!("pixel data: {e}"))))?;
+        let expected = rows as usize * columns as usize * pixels.number_of_frames() as usize;
+        if values.len() != expected {
+            return Err(at(LoadErrorKind::Truncated {
+                expected: expected as u64,
+                actual: values.len() as u64,
+            }));
+        }
+        frames.push((values, s.rescale, signed));
+    }
+    let depth =
+        frames.iter().map(|f| f.0.len()).sum::<usize>() / (rows as usize * columns as usize);
+    let dims = [columns, rows, depth as u32];
+    let first = &slices[0];
+    let at = |k| LoadError::new(path, k);
+    let spacing = match spacing {
+        Some(s) => s,
+        None => {
+            let [row, col] = first.pixel_spacing.unwrap_or([1.0, 1.0]);
+            let z = if gap > 0.0 {
+                gap
+            } else {
+                floats(&first.object, tags::SPACING_BETWEEN_SLICES)
+                    .or_else(|| floats(&first.object, tags::SLICE_THICKNESS))
+                    .and_then(|v| v.first().copied())
+                    .unwrap_or(1.0)
+            };
+            Vec3::new(col as f32, row as f32, z as f32)
+        }
+    };
+    if !(spacing.is_finite() && spacing.min_element() > 0.0) {
+        return Err(at(header_err(format!(
+            "spacing {spacing} (PixelSpacing and the slice distance): expected three spacings > 0"
+        ))));
+    }
+    let grid = Grid::new(dims, spacing).map_err(|e| at(e.into()))?;
+    let identity = frames.iter().all(|f| f.1 == (1.0, 0.0) && !f.2);
+    let data = if identity {
+        let v: Vec<u16> = frames
+            .iter()
+            .flat_map(|f| f.0.iter().map(|&x| x.clamp(0, 65535) as u16))
+            .collect();
+        VolumeData::U16(to_plane_major(&v, dims))
+    } else {
+        let v: Vec<f32> = frames
+            .iter()
+            .flat_map(|(v, (slope, inter), _)| {
+                v.iter()
+                    .map(move |&x| (f64::from(x) * slope + inter) as f32)
+            })
+            .collect();
+        if v.iter().any(|x| !x.is_finite()) {
+            return Err(at(header_err(
+                "RescaleSlope/RescaleIntercept give values beyond 32-bit floats",
+            )));
+        }
+        VolumeData::F32(to_plane_major(&v, dims))
+    };
+    let data = match data {
+        VolumeData::U16(v) if v.iter().all(|&x| x <= 255) && frames_are_8bit(&slices) => {
+            VolumeData::U8(v.into_iter().map(|x| x as u8).collect())
+        }
+        other => other,
+    };
+    Ok(Volume { grid, data })
+}
+
+fn frames_are_8bit(slices: &[Slice]) -> bool {
+    slices
+        .iter()
+        .all(|s| int(&s.object, tags::BITS_ALLOCATED) == Some(8))
+}

@@ -1,0 +1,241 @@
+//! MetaImage volumes (ITK's format): a text header of `Key = Value` lines, then the samples
+//! (`.mha`, `ElementDataFile = LOCAL`) or in a file the header names (`.mhd`).
+//!
+//! Read: `NDims` (3), `DimSize`, `ElementType`, `ElementNumberOfChannels` (1),
+//! `ElementSpacing` (or `ElementSize`), `BinaryDataByteOrderMSB`/`ByteOrderMSB`,
+//! `CompressedData` (zlib), `HeaderSize` (bytes to skip in the data file; -1: the data
+//! is the file's last bytes), `ElementDataFile`. `Offset`, `TransformMatrix` and
+//! `AnatomicalOrientation` are not applied (index space). A short header needs no crate.
+
+use super::{check_size, decode, read, Endian, FileType, LoadError, LoadErrorKind};
+use crate::dataset::Volume;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use voxcube_kernel::Vec3;
+
+fn header_err(msg: impl Into<String>) -> LoadErrorKind {
+    LoadErrorKind::Header(msg.into())
+}
+
+fn element_type(v: &str) -> Result<FileType, LoadErrorKind> {
+    Ok(match v {
+        "MET_UCHAR" => FileType::U8,
+        "MET_CHAR" => FileType::I8,
+        "MET_USHORT" => FileType::U16,
+        "MET_SHORT" => FileType::I16,
+        "MET_FLOAT" => FileType::F32,
+        "MET_INT" | "MET_LONG" => FileType::I32,
+        "MET_UINT" | "MET_ULONG" => FileType::U32,
+        "MET_DOUBLE" => FileType::F64,
+        other => {
+            return Err(header_err(format!(
+                "ElementType \"{other}\" is not supported (MET_UCHAR, MET_CHAR, MET_USHORT, MET_SHORT, MET_INT, MET_UINT, MET_FLOAT, MET_DOUBLE)"
+            )))
+        }
+    })
+}
+
+fn three<T: std::str::FromStr>(key: &str, v: &str) -> Result<[T; 3], LoadErrorKind> {
+    let bad = || header_err(format!("{key}: expected three numbers, found \"{v}\""));
+    let parts: Vec<T> = v
+        .split_whitespace()
+        .map(|p| p.parse::<T>().map_err(|_| bad()))
+        .collect::<Result<_, _>>()?;
+    parts.try_into().map_err(|_| bad())
+}
+
+fn truthy(key: &str, v: &str) -> Result<bool, LoadErrorKind> {
+    match v.to_ascii_lowercase().as_str() {
+        "true" | "1" => Ok(true),
+        "false" | "0" => Ok(false),
+        _ => Err(header_err(format!(
+            "{key}: expected True or False, found \"{v}\""
+        ))),
+    }
+}
+
+/// The header: fields voxcube uses, and the offset of the byte after `ElementDataFile`'s line.
+#[derive(Debug, Default)]
+struct Header {
+    dims: Option<[u32; 3]>,
+    ty: Option<FileType>,
+    spacing: Option<Vec3>,
+    big_endian: bool,
+    compressed: bool,
+    header_size: i64,
+    data_file: Option<String>,
+    end: usize,
+}
+
+fn parse_header(bytes: &[u8]) -> Result<Header, LoadErrorKind> {
+    let mut h = Header::default();
+    let mut pos = 0;
+    let mut first = true;
+    while pos < bytes.len() {
+        let end = bytes[pos..]
+            .iter()
+            .position(|&b| b == b'\n')
+            .map_or(bytes.len(), |i| pos + i);
+        let line = std::str::from_utf8(&bytes[pos..end])
+            .map_err(|_| header_err("header is not text"))?
+            .trim();
+        pos = (end + 1).min(bytes.len());
+        if line.is_empty() {
+            continue;
+        }
+        let Some((key, value)) = line.split_once('=') else {
+            return Err(header_err(format!(
+                "header line \"{}\" is not \"Key = Value\"",
+                line.chars().take(60).collect::<String>()
+            )));
+        };
+        let (key, value) = (key.trim(), value.trim());
+        if first && !matches!(key, "ObjectType" | "NDims" | "Comment") {
+            return Err(header_err(format!(
+                "not a MetaImage header: first key is \"{key}\", expected ObjectType or NDims"
+            )));
+        }
+        first = false;
+        match key {
+            "ObjectType" if value != "Image" => {
+                return Err(header_err(format!(
+                    "ObjectType is \"{value}\"; voxcube reads Image"
+                )))
+            }
+            "NDims" if value != "3" => {
+                return Err(header_err(format!(
+                    "NDims is {value}; voxcube reads 3-D scalar volumes"
+                )))
+            }
+            "DimSize" => h.dims = Some(three(key, value)?),
+            "ElementType" => h.ty = Some(element_type(value)?),
+            "ElementSpacing" => h.spacing = Some(Vec3::from_array(three(key, value)?)),
+            "ElementSize" if h.spacing.is_none() => {
+                h.spacing = Some(Vec3::from_array(three(key, value)?))
+            }
+            "ElementNumberOfChannels" if value != "1" => {
+                return Err(header_err(format!(
+                    "ElementNumberOfChannels is {value}; voxcube reads scalar volumes (1)"
+                )))
+            }
+            "BinaryDataByteOrderMSB" | "ByteOrderMSB" => h.big_endian = truthy(key, value)?,
+            "CompressedData" => h.compressed = truthy(key, value)?,
+            "HeaderSize" => {
+                h.header_size = value
+                    .parse()
+                    .map_err(|_| header_err(format!("HeaderSize: \"{value}\" is not a number")))?
+            }
+            "ElementDataFile" => {
+                if value == "LIST" || value.contains('%') {
+                    return Err(header_err(
+                        "ElementDataFile: lists and patterns of data files are not supported",
+                    ));
+                }
+                h.data_file = Some(value.to_string());
+                h.end = pos;
+                return Ok(h);
+            }
+            _ => {}
+        }
+    }
+    Err(header_err(
+        "missing ElementDataFile (the header's last line: LOCAL or a file name)",
+    ))
+}
+
+/// Load a MetaImage volume. `spacing` overrides the header's.
+pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
+    let bytes = read(path)?;
+    let at = |k| LoadError::new(path, k);
+    let h = parse_header(&bytes).map_err(at)?;
+    let dims = h.dims.ok_or_else(|| at(header_err("missing DimSize")))?;
+    let ty = h.ty.ok_or_else(|| at(header_err("missing ElementType")))?;
+    let spacing = spacing.or(h.spacing).unwrap_or(Vec3::ONE);
+    if !(spacing.is_finite() && spacing.min_element() > 0.0) {
+        return Err(at(header_err(format!(
+            "ElementSpacing {spacing}: expected three spacings > 0"
+        ))));
+    }
+    let endian = if h.big_endian {
+        Endian::Big
+    } else {
+        Endian::Little
+    };
+    let (data_path, payload): (PathBuf, Vec<u8>) = match h.data_file.as_deref() {
+        Some("LOCAL") | None => (path.to_path_buf(), bytes[h.end..].to_vec()),
+        Some(name) => {
+            let file = path.parent().unwrap_or(Path::new(".")).join(name);
+            let data = read(&file)?;
+            (file, data)
+        }
+    };
+    let data_err = |k| LoadError::new(&data_path, k);
+    let count = dims
+        .iter()
+        .try_fold(1u64, |a, &d| a.checked_mul(u64::from(d)))
+        .unwrap_or(u64::MAX);
+    let need = count.saturating_mul(ty.bytes() as u64);
+    let skip = match h.header_size {
+        -1 if !h.compressed => (payload.len() as u64).saturating_sub(need),
+        s if s >= 0 => s as u64,
+        s => {
+            return Err(at(header_err(format!(
+                "HeaderSize {s}: only -1 (uncompressed data) or a count of bytes is meaningful"
+            ))))
+        }
+    };
+    let payload = if h.compressed {
+        let start = (skip as usize).min(payload.len());
+        let mut out = Vec::new();
+        flate2::read::ZlibDecoder::new(&payload[start..])
+            .read_to_end(&mut out)
+            .map_err(|e| {
+                data_err(header_err(format!(
+                    "CompressedData: zlib data is corrupt: {e}"
+                )))
+            })?;
+        out
+    } else {
+        payload
+    };
+    let skip = if h.compressed { 0 } else { skip };
+    check_size(&payload, skip, count, ty).map_err(data_err)?;
+    decode(&payload[skip as usize..], dims, spacing, ty, endian).map_err(data_err)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn header_fields_parse_and_bad_ones_are_named() {
+        let text = b"ObjectType = Image\nNDims = 3\nDimSize = 2 3 4\nElementType = MET_SHORT\nElementSpacing = 1 2 0.5\nBinaryDataByteOrderMSB = True\nElementDataFile = LOCAL\nDATA";
+        let h = parse_header(text).unwrap();
+        assert_eq!(h.dims, Some([2, 3, 4]));
+        assert_eq!(h.ty, Some(FileType::I16));
+        assert_eq!(h.spacing, Some(Vec3::new(1.0, 2.0, 0.5)));
+        assert!(h.big_endian);
+        assert_eq!(&text[h.end..], b"DATA");
+        for (text, needle) in [
+            (&b"NDims = 2\n"[..], "NDims is 2"),
+            (
+                b"NDims = 3\nElementType = MET_RGB\n",
+                "ElementType \"MET_RGB\"",
+            ),
+            (
+                b"NDims = 3\nDimSize = 1 2\n",
+                "DimSize: expected three numbers",
+            ),
+            (b"P6\n", "is not \"Key = Value\""),
+            (b"Foo = 1\n", "not a MetaImage header"),
+            (b"NDims = 3\nDimSize = 1 1 1\n", "missing ElementDataFile"),
+            (
+                b"NDims = 3\nElementNumberOfChannels = 3\n",
+                "ElementNumberOfChannels is 3",
+            ),
+        ] {
+            let e = parse_header(text).unwrap_err().to_string();
+            assert!(e.contains(needle), "{e}");
+        }
+    }
+}

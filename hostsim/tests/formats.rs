@@ -1,0 +1,572 @@
+//! Every reader: the same volume written in every format loads to the same samples and
+//! renders to the same pixels as the raw file, on one node and on a cluster; bad files get
+//! an error that names the file and the field. The tests write every file themselves.
+
+use dicom_core::{DataElement, PrimitiveValue, VR};
+use dicom_dictionary_std::{tags, uids};
+use dicom_object::{FileMetaTableBuilder, InMemDicomObject};
+use std::io::Write;
+use std::path::Path;
+use std::process::Command;
+use voxcube::scene::Scene;
+
+const DIMS: [usize; 3] = [24, 20, 16];
+const SPACING: [f32; 3] = [1.0, 1.0, 1.5];
+
+/// A CT-like blob: air at -1000, a soft shell and a dense core (exact integers).
+fn value(x: usize, y: usize, z: usize) -> i16 {
+    let d2 = (x as i32 - 12).pow(2) + (y as i32 - 10).pow(2) + ((z as i32 - 8) * 3 / 2).pow(2);
+    match d2 {
+        0..=16 => 900 - 10 * d2 as i16,
+        17..=64 => 60 + (64 - d2 as i16),
+        _ => -1000,
+    }
+}
+
+/// The samples in file order (X fastest).
+fn samples() -> Vec<i16> {
+    let [nx, ny, nz] = DIMS;
+    let mut v = Vec::with_capacity(nx * ny * nz);
+    for z in 0..nz {
+        for y in 0..ny {
+            for x in 0..nx {
+                v.push(value(x, y, z));
+            }
+        }
+    }
+    v
+}
+
+fn le(v: &[i16]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+fn be(v: &[i16]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_be_bytes()).collect()
+}
+
+/// A NIfTI-1 single file: the 348-byte header (the fields the standard requires), four
+/// bytes of extension flag, then the samples.
+fn nifti(datatype: i16, bitpix: i16, slope: f32, inter: f32, data: &[u8]) -> Vec<u8> {
+    let mut h = vec![0u8; 352];
+    h[0..4].copy_from_slice(&348i32.to_le_bytes());
+    let dim: [i16; 8] = [
+        3,
+        DIMS[0] as i16,
+        DIMS[1] as i16,
+        DIMS[2] as i16,
+        1,
+        1,
+        1,
+        1,
+    ];
+    for (i, d) in dim.iter().enumerate() {
+        h[40 + 2 * i..42 + 2 * i].copy_from_slice(&d.to_le_bytes());
+    }
+    h[70..72].copy_from_slice(&datatype.to_le_bytes());
+    h[72..74].copy_from_slice(&bitpix.to_le_bytes());
+    let pixdim = [
+        1.0f32, SPACING[0], SPACING[1], SPACING[2], 1.0, 1.0, 1.0, 1.0,
+    ];
+    for (i, p) in pixdim.iter().enumerate() {
+        h[76 + 4 * i..80 + 4 * i].copy_from_slice(&p.to_le_bytes());
+    }
+    h[108..112].copy_from_slice(&352f32.to_le_bytes());
+    h[112..116].copy_from_slice(&slope.to_le_bytes());
+    h[116..120].copy_from_slice(&inter.to_le_bytes());
+    h[344..348].copy_from_slice(b"n+1\0");
+    h.extend_from_slice(data);
+    h
+}
+
+fn gzip(bytes: &[u8]) -> Vec<u8> {
+    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    e.write_all(bytes).expect("gzip");
+    e.finish().expect("gzip")
+}
+
+fn zlib(bytes: &[u8]) -> Vec<u8> {
+    let mut e = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::fast());
+    e.write_all(bytes).expect("zlib");
+    e.finish().expect("zlib")
+}
+
+fn mhd_header(extra: &str, data_file: &str) -> String {
+    format!(
+        "ObjectType = Image\nNDims = 3\nDimSize = {} {} {}\nElementType = MET_SHORT\nElementSpacing = {} {} {}\nBinaryDataByteOrderMSB = False\n{extra}ElementDataFile = {data_file}\n",
+        DIMS[0], DIMS[1], DIMS[2], SPACING[0], SPACING[1], SPACING[2]
+    )
+}
+
+fn vtk_legacy(v: &[i16]) -> Vec<u8> {
+    let mut out = format!(
+        "# vtk DataFile Version 3.0\nblob\nBINARY\nDATASET STRUCTURED_POINTS\nDIMENSIONS {} {} {}\nSPACING {} {} {}\nORIGIN 0 0 0\nPOINT_DATA {}\nSCALARS density short 1\nLOOKUP_TABLE default\n",
+        DIMS[0], DIMS[1], DIMS[2], SPACING[0], SPACING[1], SPACING[2], v.len()
+    )
+    .into_bytes();
+    out.extend(be(v));
+    out.push(b'\n');
+    out
+}
+
+fn vti(v: &[i16]) -> String {
+    let e = format!("0 {} 0 {} 0 {}", DIMS[0] - 1, DIMS[1] - 1, DIMS[2] - 1);
+    let values: Vec<String> = v.iter().map(i16::to_string).collect();
+    format!(
+        "<?xml version=\"1.0\"?>\n<VTKFile type=\"ImageData\" version=\"1.0\" byte_order=\"LittleEndian\">\n<ImageData WholeExtent=\"{e}\" Origin=\"0 0 0\" Spacing=\"{} {} {}\">\n<Piece Extent=\"{e}\">\n<PointData Scalars=\"density\">\n<DataArray type=\"Int16\" Name=\"density\" format=\"ascii\">\n{}\n</DataArray>\n</PointData>\n<CellData>\n</CellData>\n</Piece>\n</ImageData>\n</VTKFile>\n",
+        SPACING[0], SPACING[1], SPACING[2], values.join(" ")
+    )
+}
+
+/// One slice of a CT series: stored `u16` values, rescaled by `intercept`.
+fn dicom_slice(z: usize, stored: &[u16], intercept: f64, series: &str) -> InMemDicomObject {
+    let instance = format!("1.2.826.0.1.3680043.2.1125.7.{z}");
+    let ds = |v: f64| PrimitiveValue::from(format!("{v}"));
+    let obj = InMemDicomObject::from_element_iter([
+        DataElement::new(
+            tags::SOP_CLASS_UID,
+            VR::UI,
+            PrimitiveValue::from(uids::CT_IMAGE_STORAGE),
+        ),
+        DataElement::new(
+            tags::SOP_INSTANCE_UID,
+            VR::UI,
+            PrimitiveValue::from(instance),
+        ),
+        DataElement::new(
+            tags::SERIES_INSTANCE_UID,
+            VR::UI,
+            PrimitiveValue::from(series),
+        ),
+        DataElement::new(tags::MODALITY, VR::CS, PrimitiveValue::from("CT")),
+        DataElement::new(
+            tags::INSTANCE_NUMBER,
+            VR::IS,
+            PrimitiveValue::from(format!("{}", z + 1)),
+        ),
+        // Patient position runs downward in z: ordering by name or instance would not do.
+        DataElement::new(
+            tags::IMAGE_POSITION_PATIENT,
+            VR::DS,
+            PrimitiveValue::from(format!(
+                "-10\\-12\\{}",
+                40.0 + f64::from(SPACING[2]) * z as f64
+            )),
+        ),
+        DataElement::new(
+            tags::IMAGE_ORIENTATION_PATIENT,
+            VR::DS,
+            PrimitiveValue::from("1\\0\\0\\0\\1\\0"),
+        ),
+        DataElement::new(
+            tags::PIXEL_SPACING,
+            VR::DS,
+            PrimitiveValue::from(format!("{}\\{}", SPACING[1], SPACING[0])),
+        ),
+        DataElement::new(tags::SAMPLES_PER_PIXEL, VR::US, PrimitiveValue::from(1u16)),
+        DataElement::new(
+            tags::PHOTOMETRIC_INTERPRETATION,
+            VR::CS,
+            PrimitiveValue::from("MONOCHROME2"),
+        ),
+        DataElement::new(tags::ROWS, VR::US, PrimitiveValue::from(DIMS[1] as u16)),
+        DataElement::new(tags::COLUMNS, VR::US, PrimitiveValue::from(DIMS[0] as u16)),
+        DataElement::new(tags::BITS_ALLOCATED, VR::US, PrimitiveValue::from(16u16)),
+        DataElement::new(tags::BITS_STORED, VR::US, PrimitiveValue::from(16u16)),
+        DataElement::new(tags::HIGH_BIT, VR::US, PrimitiveValue::from(15u16)),
+        DataElement::new(
+            tags::PIXEL_REPRESENTATION,
+            VR::US,
+            PrimitiveValue::from(0u16),
+        ),
+        DataElement::new(tags::RESCALE_INTERCEPT, VR::DS, ds(intercept)),
+        DataElement::new(tags::RESCALE_SLOPE, VR::DS, ds(1.0)),
+        DataElement::new(
+            tags::PIXEL_DATA,
+            VR::OW,
+            PrimitiveValue::U16(stored.iter().copied().collect()),
+        ),
+    ]);
+    obj
+}
+
+/// Write a CT series to `dir`: slice files named in reverse of their position.
+fn dicom_series(dir: &Path, v: &[i16], series: &str) {
+    std::fs::create_dir_all(dir).expect("mkdir");
+    let plane = DIMS[0] * DIMS[1];
+    for z in 0..DIMS[2] {
+        let stored: Vec<u16> = v[z * plane..(z + 1) * plane]
+            .iter()
+            .map(|&x| (i32::from(x) + 1024) as u16)
+            .collect();
+        let file = dicom_slice(z, &stored, -1024.0, series)
+            .with_meta(FileMetaTableBuilder::new().transfer_syntax(uids::EXPLICIT_VR_LITTLE_ENDIAN))
+            .expect("meta");
+        file.write_to_file(dir.join(format!("IM{:04}", DIMS[2] - z)))
+            .expect("write dicom");
+    }
+    std::fs::write(dir.join("README.txt"), "not a slice").expect("write");
+}
+
+/// Every format, written into `dir`; returns the scene's dataset tables.
+fn write_all(dir: &Path) -> Vec<(&'static str, String)> {
+    let v = samples();
+    let w = |name: &str, bytes: &[u8]| std::fs::write(dir.join(name), bytes).expect("write");
+    w("blob.raw", &le(&v));
+    let nrrd = format!(
+        "NRRD0004\ntype: short\ndimension: 3\nsizes: {} {} {}\nspacings: {} {} {}\nencoding: raw\nendian: little\n\n",
+        DIMS[0], DIMS[1], DIMS[2], SPACING[0], SPACING[1], SPACING[2]
+    );
+    w("blob.nrrd", &[nrrd.as_bytes(), &le(&v)].concat());
+    w("blob.nii", &nifti(4, 16, 1.0, 0.0, &le(&v)));
+    // Stored as u16 with an intercept, as scanners write CT.
+    let shifted: Vec<u8> = v
+        .iter()
+        .flat_map(|&x| ((i32::from(x) + 1024) as u16).to_le_bytes())
+        .collect();
+    w(
+        "scaled.nii.gz",
+        &gzip(&nifti(512, 16, 1.0, -1024.0, &shifted)),
+    );
+    w("blob.mhd", mhd_header("", "blob.raw").as_bytes());
+    w(
+        "blob.mha",
+        &[mhd_header("", "LOCAL").as_bytes(), &le(&v)].concat(),
+    );
+    let packed = zlib(&le(&v));
+    let extra = format!(
+        "CompressedData = True\nCompressedDataSize = {}\n",
+        packed.len()
+    );
+    w(
+        "zipped.mha",
+        &[mhd_header(&extra, "LOCAL").as_bytes(), &packed].concat(),
+    );
+    w("blob.vtk", &vtk_legacy(&v));
+    w("blob.vti", vti(&v).as_bytes());
+    dicom_series(&dir.join("series"), &v, "1.2.826.0.1.3680043.2.1125.9");
+    let raw = format!(
+        "path = \"blob.raw\"\ndims = [{}, {}, {}]\ntype = \"i16\"\nendian = \"little\"\nspacing = [{}, {}, {}]",
+        DIMS[0], DIMS[1], DIMS[2], SPACING[0], SPACING[1], SPACING[2]
+    );
+    vec![
+        ("raw", raw),
+        ("nrrd", "path = \"blob.nrrd\"".into()),
+        ("nifti", "path = \"blob.nii\"".into()),
+        ("nifti-gz-scaled", "path = \"scaled.nii.gz\"".into()),
+        ("mhd", "path = \"blob.mhd\"".into()),
+        ("mha", "path = \"blob.mha\"".into()),
+        ("mha-zlib", "path = \"zipped.mha\"".into()),
+        ("vtk", "path = \"blob.vtk\"".into()),
+        ("vti", "path = \"blob.vti\"".into()),
+        ("dicom", "path = \"series\"".into()),
+    ]
+}
+
+fn scene(datasets: &[(&str, String)]) -> String {
+    let mut s = String::new();
+    for (name, table) in datasets {
+        s += &format!(
+            "[[datasets]]\nname = \"{name}\"\n{table}\n[[datasets.views]]\nname = \"v\"\nwidth = 48\nheight = 40\n[[datasets.views.surfaces]]\niso = 0.0\ncolor = [0.9, 0.8, 0.7]\ntransparency = 0.5\n[[datasets.views.surfaces]]\niso = 500.0\n[[datasets.views.lights]]\ntype = \"directional\"\ndirection = [0.3, -0.4, 1.0]\nshadows = true\n"
+        );
+    }
+    s
+}
+
+#[test]
+fn every_format_loads_the_same_samples_as_the_raw_file() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let datasets = write_all(dir.path());
+    let file = dir.path().join("all.toml");
+    std::fs::write(&file, scene(&datasets)).expect("write scene");
+    let loaded = Scene::from_file(&file)
+        .and_then(Scene::load)
+        .unwrap_or_else(|e| panic!("{e}"));
+    let raw = &loaded[0].volume;
+    assert!(matches!(raw.data, voxcube::dataset::VolumeData::F32(_)));
+    for (d, (name, _)) in loaded.iter().zip(&datasets) {
+        assert_eq!(d.volume.grid, raw.grid, "{name}: grid");
+        assert!(
+            d.volume.data == raw.data,
+            "{name}: samples differ from the raw file's"
+        );
+    }
+}
+
+fn voxcube(dir: &Path, args: &[&str]) -> serde_json::Value {
+    let out = Command::new(env!("CARGO_BIN_EXE_voxcube"))
+        .arg("render")
+        .args(args)
+        .arg("-o")
+        .arg(dir)
+        .arg("--report")
+        .arg(dir.join("r.json"))
+        .output()
+        .expect("runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&std::fs::read(dir.join("r.json")).expect("report")).expect("json")
+}
+
+#[test]
+fn every_format_renders_the_raw_file_s_pixels_on_one_node_and_on_a_cluster() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let datasets = write_all(dir.path());
+    let file = dir.path().join("all.toml");
+    std::fs::write(&file, scene(&datasets)).expect("write scene");
+    let file = file.to_str().expect("utf-8 path");
+    let one = voxcube(dir.path(), &[file]);
+    let cluster = voxcube(
+        dir.path(),
+        &[file, "--nodes", "8", "--clusters", "2", "--fabric", "sim"],
+    );
+    let hashes = |r: &serde_json::Value| -> Vec<String> {
+        r["views"]
+            .as_array()
+            .expect("views")
+            .iter()
+            .map(|v| v["pixels_sha256"].as_str().expect("hash").to_string())
+            .collect()
+    };
+    let (one, cluster) = (hashes(&one), hashes(&cluster));
+    assert_eq!(one.len(), datasets.len());
+    for (i, (name, _)) in datasets.iter().enumerate() {
+        assert_eq!(one[i], one[0], "{name} on one node");
+        assert_eq!(cluster[i], one[0], "{name} on 8 nodes in 2 clusters");
+    }
+}
+
+// ------------------------------------------------------------------ bad files
+
+fn error_of(dir: &Path, table: &str) -> String {
+    let file = dir.join("bad.toml");
+    std::fs::write(&file, scene(&[("bad", table.to_string())])).expect("write");
+    match Scene::from_file(&file).and_then(Scene::load) {
+        Ok(_) => panic!("accepted: {table}"),
+        Err(e) => e.to_string(),
+    }
+}
+
+fn assert_names(msg: &str, parts: &[&str]) {
+    for p in parts {
+        assert!(msg.contains(p), "error {msg:?} does not mention {p:?}");
+    }
+}
+
+#[test]
+fn bad_nifti_files_name_the_file_and_the_field() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let v = le(&samples());
+    let w = |name: &str, bytes: &[u8]| std::fs::write(dir.path().join(name), bytes).expect("write");
+    let good = nifti(4, 16, 1.0, 0.0, &v);
+    w("short.nii", &good[..good.len() - 10]);
+    assert_names(
+        &error_of(dir.path(), "path = \"short.nii\""),
+        &["short.nii", "truncated"],
+    );
+    let mut magic = good.clone();
+    magic[344..348].copy_from_slice(b"xyz\0");
+    w("magic.nii", &magic);
+    assert_names(
+        &error_of(dir.path(), "path = \"magic.nii\""),
+        &["magic.nii", "not a NIfTI-1 file", "magic"],
+    );
+    w(
+        "complex.nii",
+        &nifti(
+            32,
+            64,
+            1.0,
+            0.0,
+            &[v.clone(), v.clone(), v.clone(), v.clone()].concat(),
+        ),
+    );
+    assert_names(
+        &error_of(dir.path(), "path = \"complex.nii\""),
+        &["complex.nii", "datatype", "not supported"],
+    );
+    let mut four = good.clone();
+    four[40..42].copy_from_slice(&4i16.to_le_bytes());
+    four[48..50].copy_from_slice(&2i16.to_le_bytes());
+    w("series.nii", &[&four[..], &v].concat());
+    assert_names(
+        &error_of(dir.path(), "path = \"series.nii\""),
+        &["series.nii", "dim", "one 3-D"],
+    );
+    let mut two = good.clone();
+    two[0..4].copy_from_slice(&540i32.to_le_bytes());
+    w("two.nii", &two);
+    assert_names(
+        &error_of(dir.path(), "path = \"two.nii\""),
+        &["two.nii", "NIfTI-2"],
+    );
+    w(
+        "zero.nii",
+        &nifti(4, 16, 1.0, 0.0, &v)
+            .iter()
+            .enumerate()
+            .map(|(i, &b)| if (80..84).contains(&i) { 0 } else { b })
+            .collect::<Vec<u8>>(),
+    );
+    assert_names(
+        &error_of(dir.path(), "path = \"zero.nii\""),
+        &["zero.nii", "pixdim"],
+    );
+}
+
+#[test]
+fn bad_metaimage_files_name_the_file_and_the_field() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let v = le(&samples());
+    let w = |name: &str, bytes: &[u8]| std::fs::write(dir.path().join(name), bytes).expect("write");
+    w(
+        "short.mha",
+        &[mhd_header("", "LOCAL").as_bytes(), &v[..v.len() - 3]].concat(),
+    );
+    assert_names(
+        &error_of(dir.path(), "path = \"short.mha\""),
+        &["short.mha", "truncated"],
+    );
+    w(
+        "rgb.mha",
+        mhd_header("ElementNumberOfChannels = 3\n", "LOCAL").as_bytes(),
+    );
+    assert_names(
+        &error_of(dir.path(), "path = \"rgb.mha\""),
+        &["rgb.mha", "ElementNumberOfChannels is 3"],
+    );
+    w("gone.mhd", mhd_header("", "missing.raw").as_bytes());
+    assert_names(
+        &error_of(dir.path(), "path = \"gone.mhd\""),
+        &["missing.raw", "cannot read"],
+    );
+    w(
+        "bad.zip.mha",
+        &[
+            mhd_header("CompressedData = True\n", "LOCAL").as_bytes(),
+            &v[..100],
+        ]
+        .concat(),
+    );
+    assert_names(
+        &error_of(dir.path(), "path = \"bad.zip.mha\""),
+        &["bad.zip.mha", "CompressedData", "corrupt"],
+    );
+    let wrong = mhd_header("", "LOCAL").replace("MET_SHORT", "MET_FLOAT");
+    w("wrong.mha", &[wrong.as_bytes(), &v].concat());
+    assert_names(
+        &error_of(dir.path(), "path = \"wrong.mha\""),
+        &["wrong.mha", "truncated"],
+    );
+}
+
+#[test]
+fn bad_vtk_files_name_the_file_and_the_field() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let s = samples();
+    let w = |name: &str, bytes: &[u8]| std::fs::write(dir.path().join(name), bytes).expect("write");
+    let good = vtk_legacy(&s);
+    w("short.vtk", &good[..good.len() - 400]);
+    assert_names(
+        &error_of(dir.path(), "path = \"short.vtk\""),
+        &["short.vtk", "truncated"],
+    );
+    w(
+        "poly.vtk",
+        b"# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 1 float\n0 0 0\n",
+    );
+    assert_names(
+        &error_of(dir.path(), "path = \"poly.vtk\""),
+        &["poly.vtk", "DATASET POLYDATA", "STRUCTURED_POINTS"],
+    );
+    let cell_values = vec!["7"; (DIMS[0] - 1) * (DIMS[1] - 1) * (DIMS[2] - 1)].join(" ");
+    let cells = vti(&s)
+        .replace(
+            "<PointData Scalars=\"density\">",
+            "<PointData>\n</PointData>\n<CellData Scalars=\"density\">",
+        )
+        .replace("</PointData>\n<CellData>\n</CellData>", "</CellData>");
+    let start = cells.find("format=\"ascii\">\n").expect("array") + 15;
+    let end = cells.find("\n</DataArray>").expect("array end");
+    let cells = format!("{}{cell_values}{}", &cells[..start], &cells[end..]);
+    w("cells.vti", cells.as_bytes());
+    let m = error_of(dir.path(), "path = \"cells.vti\"");
+    assert_names(&m, &["cells.vti", "cell data only", "POINT_DATA"]);
+    w("broken.vti", &vti(&s).as_bytes()[..300]);
+    assert_names(
+        &error_of(dir.path(), "path = \"broken.vti\""),
+        &["broken.vti", "VTK XML"],
+    );
+}
+
+#[test]
+fn bad_dicom_series_name_the_file_and_the_field() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let v = samples();
+    // A slice missing from the middle.
+    let gap = dir.path().join("gap");
+    dicom_series(&gap, &v, "1.2.3");
+    std::fs::remove_file(gap.join(format!("IM{:04}", DIMS[2] - 5))).expect("rm");
+    assert_names(
+        &error_of(dir.path(), "path = \"gap\""),
+        &["gap", "unevenly spaced", "missing slice"],
+    );
+    // Two series in one folder.
+    let two = dir.path().join("two");
+    dicom_series(&two, &v, "1.2.3");
+    let plane = DIMS[0] * DIMS[1];
+    let other = dicom_slice(0, &vec![0u16; plane], 0.0, "1.2.4")
+        .with_meta(FileMetaTableBuilder::new().transfer_syntax(uids::EXPLICIT_VR_LITTLE_ENDIAN))
+        .expect("meta");
+    other.write_to_file(two.join("OTHER")).expect("write");
+    assert_names(
+        &error_of(dir.path(), "path = \"two\""),
+        &["SeriesInstanceUID", "more than one series"],
+    );
+    // A truncated slice.
+    let cut = dir.path().join("cut");
+    dicom_series(&cut, &v, "1.2.3");
+    let f = cut.join("IM0003");
+    let bytes = std::fs::read(&f).expect("read");
+    std::fs::write(&f, &bytes[..bytes.len() - 100]).expect("write");
+    assert_names(
+        &error_of(dir.path(), "path = \"cut\""),
+        &["IM0003", "truncated or malformed"],
+    );
+    // An empty folder.
+    std::fs::create_dir(dir.path().join("empty")).expect("mkdir");
+    assert_names(
+        &error_of(dir.path(), "path = \"empty\""),
+        &["empty", "no DICOM files"],
+    );
+}
+
+#[test]
+fn a_file_of_unknown_kind_asks_for_a_format() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    std::fs::write(dir.path().join("blob.bin"), [0u8; 64]).expect("write");
+    assert_names(
+        &error_of(dir.path(), "path = \"blob.bin\""),
+        &[
+            "blob.bin",
+            "format",
+            "cannot tell",
+            "nifti",
+            "dims and type",
+        ],
+    );
+    // The magic finds a NIfTI file whatever its name.
+    std::fs::write(
+        dir.path().join("brain.img1"),
+        nifti(4, 16, 1.0, 0.0, &le(&samples())),
+    )
+    .expect("write");
+    let file = dir.path().join("ok.toml");
+    std::fs::write(&file, scene(&[("b", "path = \"brain.img1\"".into())])).expect("write");
+    Scene::from_file(&file)
+        .and_then(Scene::load)
+        .unwrap_or_else(|e| panic!("{e}"));
+}
