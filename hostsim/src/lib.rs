@@ -3,7 +3,7 @@
 //! [`cli`].
 //!
 //! Modules: [`scene`] (the TOML scene format, checked), [`dataset`] and [`formats`] (volumes
-//! and their files), [`builtin`] (procedural volumes), [`render`] (one view on one node),
+//! and their files), [`framing`] (what a view can show), [`builtin`] (procedural volumes), [`render`] (one view on one node),
 //! [`output`] (PNG and checksums), [`report`] (summary and JSON), [`cli`].
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
@@ -16,6 +16,7 @@ pub mod dataset;
 pub mod experiments;
 pub mod fabric;
 pub mod formats;
+pub mod framing;
 pub mod output;
 pub mod profile;
 pub mod render;

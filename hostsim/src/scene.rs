@@ -8,6 +8,7 @@
 use crate::builtin;
 use crate::dataset::Volume;
 use crate::formats::{self, raw::RawLayout, Endian, FileType, Format, LoadError};
+use crate::framing::Frame;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use voxcube_kernel::optics::shade::{Light, Shading, MAX_LIGHTS};
@@ -260,6 +261,19 @@ struct CameraToml {
     fov: Option<f32>,
 }
 
+impl CameraToml {
+    /// Whether the camera's scale is left to `fit`: an orthographic width or a perspective
+    /// eye distance not given. Such a camera frames what the view can show, centred on it
+    /// unless `look_at` says otherwise; a given width or eye keeps the volume's centre (the
+    /// paper's framing of SOD is a width).
+    fn frames_by_default(&self) -> bool {
+        match self.projection {
+            ProjectionToml::Orthographic => self.width.is_none(),
+            ProjectionToml::Perspective => self.eye.is_none() && self.distance.is_none(),
+        }
+    }
+}
+
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct SurfaceToml {
@@ -473,16 +487,23 @@ impl Scene {
             let mut views = Vec::new();
             for (j, v) in d.views.iter().enumerate() {
                 let vkey = format!("{key}.views[{j}]");
-                let view =
-                    build_view(v, &volume.grid).map_err(|(k, message)| SceneError::Invalid {
-                        file: file.clone(),
-                        key: if k.is_empty() {
-                            vkey.clone()
-                        } else {
-                            format!("{vkey}.{k}")
-                        },
-                        message,
-                    })?;
+                let invalid = |(k, message): (String, String)| SceneError::Invalid {
+                    file: file.clone(),
+                    key: if k.is_empty() {
+                        vkey.clone()
+                    } else {
+                        format!("{vkey}.{k}")
+                    },
+                    message,
+                };
+                let mut view = build_view(v, &volume.grid, None).map_err(invalid)?;
+                // The default camera frames what the view can show, not the empty space
+                // around it.
+                if v.camera.frames_by_default() {
+                    if let Some(frame) = crate::framing::showing(&volume, &view) {
+                        view = build_view(v, &volume.grid, Some(frame)).map_err(invalid)?;
+                    }
+                }
                 views.push(ViewJob {
                     name: view_name(v, j),
                     view,
@@ -686,14 +707,18 @@ fn unit_color(key: &str, v: [f32; 3]) -> Result<Vec3, (String, String)> {
     }
 }
 
+/// The camera of a view. `frame` is the box the default camera frames (the cells the view
+/// can show, or the whole volume): its centre is the default target, and `fit` fills the
+/// image with its projection. Eye distances are in radii of the whole volume's bounding
+/// sphere, so an orbiting eye stays outside the volume whatever it frames.
 fn build_camera(
     c: &CameraToml,
     grid: &Grid,
     model: Model,
+    frame: &Frame,
     aspect: f32,
 ) -> Result<Camera, (String, String)> {
     let (lo, hi) = grid.world_box(model);
-    let centre = (lo + hi) * 0.5;
     let radius = ((hi - lo).length() * 0.5).max(f32::MIN_POSITIVE);
     let orbit = c.azimuth.is_some() || c.elevation.is_some() || c.distance.is_some();
     if orbit && c.eye.is_some() {
@@ -703,10 +728,11 @@ fn build_camera(
         ));
     }
     let perspective = c.projection == ProjectionToml::Perspective;
-    if perspective && (c.width.is_some() || c.fit.is_some()) {
+    if perspective && c.width.is_some() {
         return Err((
             "camera.width".into(),
-            "width and fit apply to orthographic cameras; a perspective camera takes fov".into(),
+            "width applies to orthographic cameras; a perspective camera takes fov (and fit)"
+                .into(),
         ));
     }
     if !perspective && c.fov.is_some() {
@@ -721,10 +747,28 @@ fn build_camera(
             "give either width or fit, not both".into(),
         ));
     }
+    let fit = c.fit.unwrap_or(0.86);
+    if !(fit > 0.0 && fit <= 10.0) {
+        return Err((
+            "camera.fit".into(),
+            format!("{fit} must lie in (0, 10]: the share of the image the volume fills"),
+        ));
+    }
     let up = finite3("camera.up", c.up.unwrap_or([0.0, 1.0, 0.0]))?;
+    let centre = frame.centre;
     let target = finite3("camera.look_at", c.look_at.unwrap_or(centre.to_array()))?;
-    let eye = match c.eye {
-        Some(e) => finite3("camera.eye", e)?,
+    let fov = c.fov.unwrap_or(30.0);
+    if !(fov > 0.0 && fov < 180.0) {
+        return Err((
+            "camera.fov".into(),
+            format!("{fov} must lie in (0, 180) degrees"),
+        ));
+    }
+    let (eye, toward_eye) = match c.eye {
+        Some(e) => {
+            let e = finite3("camera.eye", e)?;
+            (e, e - target)
+        }
         None => {
             let az = c.azimuth.unwrap_or(45.0).to_radians();
             let el = c.elevation.unwrap_or(0.0);
@@ -747,17 +791,10 @@ fn build_camera(
                 libm::sinf(el),
                 libm::cosf(az) * libm::cosf(el),
             );
-            target + toward_eye * (distance * radius)
+            (target + toward_eye * (distance * radius), toward_eye)
         }
     };
     let projection = if perspective {
-        let fov = c.fov.unwrap_or(30.0);
-        if !(fov > 0.0 && fov < 180.0) {
-            return Err((
-                "camera.fov".into(),
-                format!("{fov} must lie in (0, 180) degrees"),
-            ));
-        }
         Projection::Perspective {
             fov_y: fov.to_radians(),
         }
@@ -766,11 +803,28 @@ fn build_camera(
     };
     let cam = Camera::look_at(eye, target, up, projection)
         .map_err(|e| ("camera".to_string(), e.to_string()))?;
+    let (right, image_up) = cam.image_axes();
+    let corners = frame.corners.map(|p| p - target);
     if perspective {
-        return Ok(cam);
+        if c.eye.is_some() || c.distance.is_some() {
+            return Ok(cam);
+        }
+        // The nearest eye on the orbit from which every corner of the frame lies inside
+        // `fit` of the image: a corner at depth d - p·t beside the axis by |p·up| needs
+        // d >= p·t + |p·up| / (fit·tan(fov/2)) (and likewise across, with the aspect).
+        let dir = toward_eye.normalize_or_zero();
+        let t = fit * libm::tanf(fov.to_radians() * 0.5);
+        let distance = corners
+            .iter()
+            .map(|p| {
+                p.dot(dir) + (p.dot(image_up).abs() / t).max(p.dot(right).abs() / (t * aspect))
+            })
+            .fold(f32::MIN_POSITIVE, f32::max);
+        return Camera::look_at(target + dir * distance, target, up, projection)
+            .map_err(|e| ("camera".to_string(), e.to_string()));
     }
-    let width = match (c.width, c.fit) {
-        (Some(w), _) => {
+    let width = match c.width {
+        Some(w) => {
             if !(w.is_finite() && w > 0.0) {
                 return Err((
                     "camera.width".into(),
@@ -779,27 +833,14 @@ fn build_camera(
             }
             w
         }
-        (None, fit) => {
-            let fit = fit.unwrap_or(0.86);
-            if !(fit > 0.0 && fit <= 10.0) {
-                return Err((
-                    "camera.fit".into(),
-                    format!("{fit} must lie in (0, 10]: the share of the image the volume fills"),
-                ));
-            }
-            // The width at which the box's projection fills `fit` of the image in its tighter
-            // direction. The paper's own framing of SOD is `width = 175` (2 pixels per grid
-            // unit: its voxels cover 301×194 of 350×250), which `fit` approximates to 1%.
-            let (right, up) = cam.image_axes();
+        None => {
+            // The width at which the frame's projection fills `fit` of the image in its
+            // tighter direction. The paper's own framing of SOD is `width = 175` (2 pixels
+            // per grid unit: its voxels cover 301×194 of 350×250).
             let (mut w, mut h) = (0.0f32, 0.0f32);
-            for corner in 0..8 {
-                let p = Vec3::new(
-                    if corner & 1 == 0 { lo.x } else { hi.x },
-                    if corner & 2 == 0 { lo.y } else { hi.y },
-                    if corner & 4 == 0 { lo.z } else { hi.z },
-                ) - centre;
+            for p in corners {
                 w = w.max(2.0 * p.dot(right).abs());
-                h = h.max(2.0 * p.dot(up).abs());
+                h = h.max(2.0 * p.dot(image_up).abs());
             }
             (w.max(h * aspect) / fit).max(f32::MIN_POSITIVE)
         }
@@ -808,7 +849,8 @@ fn build_camera(
         .map_err(|e| ("camera".to_string(), e.to_string()))
 }
 
-fn build_view(v: &ViewToml, grid: &Grid) -> Result<View, (String, String)> {
+/// Build a view; its default camera frames `frame` (the whole volume when `None`).
+fn build_view(v: &ViewToml, grid: &Grid, frame: Option<Frame>) -> Result<View, (String, String)> {
     if v.width == 0 || v.height == 0 || v.width > 16384 || v.height > 16384 {
         return Err((
             "width".into(),
@@ -839,7 +881,14 @@ fn build_view(v: &ViewToml, grid: &Grid) -> Result<View, (String, String)> {
         ModelToml::Cell => Model::Cell,
         ModelToml::Voxel => Model::Voxel,
     };
-    let camera = build_camera(&v.camera, grid, model, v.width as f32 / v.height as f32)?;
+    let frame = frame.unwrap_or_else(|| Frame::of_box(grid.world_box(model)));
+    let camera = build_camera(
+        &v.camera,
+        grid,
+        model,
+        &frame,
+        v.width as f32 / v.height as f32,
+    )?;
     let mode = match v.mode {
         ModeToml::Surfaces => {
             if !v.transfer.is_empty() {

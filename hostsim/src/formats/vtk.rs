@@ -79,10 +79,12 @@ fn buffer_bytes(buffer: IOBuffer) -> Result<(Vec<u8>, FileType), LoadErrorKind> 
         IOBuffer::I32(v) => (le(&v, i32::to_le_bytes), FileType::I32),
         IOBuffer::F32(v) => (le(&v, f32::to_le_bytes), FileType::F32),
         IOBuffer::F64(v) => (le(&v, f64::to_le_bytes), FileType::F64),
-        other => return Err(header_err(format!(
+        other => {
+            return Err(header_err(format!(
             "point data of type {:?} is not supported (8-, 16-, 32-bit integers, float, double)",
             other.scalar_type()
-        ))),
+        )))
+        }
     })
 }
 
