@@ -548,7 +548,17 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 };
                 bar.finish_and_clear();
                 let image = out.join(format!("{}-{}.png", job.name, v.name));
-                write_png(&image, rendered.width, rendered.height, &rendered.bytes())?;
+                let pixels = rendered.bytes();
+                let mut warnings = crate::framing::blank_reasons(&job.volume, &v.view);
+                if warnings.is_empty() && pixels.chunks_exact(4).all(|p| p == &pixels[..4]) {
+                    warnings.push("the view drew nothing: every pixel is the background".into());
+                }
+                if !quiet {
+                    for w in &warnings {
+                        eprintln!("voxcube: warning: {}/{}: {w}", job.name, v.name);
+                    }
+                }
+                write_png(&image, rendered.width, rendered.height, &pixels)?;
                 let mut report = ViewReport::new(
                     &job.name,
                     &v.name,
@@ -558,6 +568,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                     &rendered,
                 );
                 report.balance = balanced;
+                report.warnings = warnings;
                 views.push(report);
             }
             if !quiet {

@@ -8,6 +8,7 @@
 //! axis-aligned box seen corner-on), in world units.
 
 use crate::dataset::{Volume, VolumeData};
+use voxcube_kernel::trace::camera::Projection;
 use voxcube_kernel::trace::view::View;
 use voxcube_kernel::volume::grid::Model;
 use voxcube_kernel::volume::sample::Range;
@@ -172,6 +173,71 @@ pub fn corners((lo, hi): (Vec3, Vec3)) -> [Vec3; 8] {
             if c & 4 == 0 { lo.z } else { hi.z },
         )
     })
+}
+
+/// Why `view` of `volume` can draw nothing (or a surface of it nothing), if a reason shows
+/// before rendering: iso values outside the data's range, a transfer function transparent
+/// over it, a camera facing away, or a volume outside the image.
+pub fn blank_reasons(volume: &Volume, view: &View) -> Vec<String> {
+    use voxcube_kernel::trace::view::Mode;
+    let stats = volume.stats();
+    let (min, max) = (stats.min as f32, stats.max as f32);
+    let mut out = Vec::new();
+    match &view.spec().mode {
+        Mode::Surfaces(surfaces) => {
+            for (i, s) in surfaces.iter().enumerate() {
+                if !(s.iso > min && s.iso <= max) {
+                    out.push(format!(
+                        "surfaces[{i}].iso = {} lies outside the data's range ({min} to {max}): that surface draws nothing",
+                        s.iso
+                    ));
+                }
+            }
+        }
+        Mode::Composite(_) => {
+            if view.empty(Range { min, max }) {
+                out.push(format!(
+                    "the transfer function is transparent over the data's range ({min} to {max}): the view draws nothing"
+                ));
+            }
+        }
+    }
+    let camera = &view.spec().camera;
+    let (lo, hi) = volume.grid.world_box(view.spec().model);
+    let depth = |p: Vec3| (p - camera.eye()).dot(camera.forward());
+    let box_corners = corners((lo, hi));
+    if box_corners.iter().all(|&p| depth(p) <= 0.0) {
+        out.push("the camera faces away from the volume: it lies behind the eye".into());
+    } else if box_corners.iter().all(|&p| depth(p) > 0.0) {
+        let (right, up) = camera.image_axes();
+        let spec = view.spec();
+        let aspect = spec.width as f32 / spec.height as f32;
+        // Image-plane position of a point, in half-widths and half-heights of the image.
+        let project = |p: Vec3| -> (f32, f32) {
+            let d = p - camera.eye();
+            match camera.projection() {
+                Projection::Orthographic { width } => {
+                    (d.dot(right) * 2.0 / width, d.dot(up) * 2.0 * aspect / width)
+                }
+                Projection::Perspective { fov_y } => {
+                    let t = libm::tanf(fov_y * 0.5) * d.dot(camera.forward());
+                    (d.dot(right) / (t * aspect), d.dot(up) / t)
+                }
+            }
+        };
+        let (mut x0, mut x1, mut y0, mut y1) = (f32::MAX, f32::MIN, f32::MAX, f32::MIN);
+        for p in box_corners {
+            let (x, y) = project(p);
+            (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
+        }
+        if x1 < -1.0 || x0 > 1.0 || y1 < -1.0 || y0 > 1.0 {
+            out.push(
+                "no primary ray meets the volume: it lies outside the image (see camera look_at, width or fov)"
+                    .into(),
+            );
+        }
+    }
+    out
 }
 
 #[cfg(test)]

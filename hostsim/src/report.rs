@@ -201,6 +201,8 @@ pub struct ViewReport {
     pub pixels_sha256: String,
     /// Static load balancing, when the view asked for it.
     pub balance: Option<BalanceReport>,
+    /// Why the view draws nothing, or part of it nothing (also printed on stderr).
+    pub warnings: Vec<String>,
 }
 
 /// What static load balancing did for a view: partitions and the probe's worker times.
@@ -331,6 +333,7 @@ impl ViewReport {
             wall_ms: rendered.wall.as_secs_f64() * 1e3,
             pixels_sha256: crate::output::pixels_sha256(&rendered.bytes()),
             balance: None,
+            warnings: Vec::new(),
         }
     }
 }

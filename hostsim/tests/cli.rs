@@ -327,3 +327,68 @@ fn paper_and_accuracy_without_sod_fail_naming_the_path_unless_told_to_substitute
         );
     }
 }
+
+#[test]
+fn a_view_that_draws_nothing_says_why_and_still_renders() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = dir.path().join("blank.toml");
+    let view = |name: &str, body: &str| format!("[[datasets.views]]\nname = \"{name}\"\n{body}\n");
+    let surface = "[[datasets.views.surfaces]]\niso = 50.0\n";
+    let text = [
+        "[[datasets]]\nname = \"m\"\nbuiltin = \"molecule\"\n".to_string(),
+        view("high", "[[datasets.views.surfaces]]\niso = 5000.0"),
+        view(
+            "away",
+            &format!("[datasets.views.camera]\nprojection = \"perspective\"\neye = [48.0, 48.0, -200.0]\nlook_at = [48.0, 48.0, -400.0]\n{surface}"),
+        ),
+        view(
+            "aside",
+            &format!("[datasets.views.camera]\nlook_at = [500.0, 48.0, 57.0]\nwidth = 100.0\n{surface}"),
+        ),
+        view(
+            "clear",
+            "mode = \"composite\"\n[[datasets.views.transfer]]\nvalue = 0.0\ncolor = [1.0, 1.0, 1.0]\nopacity = 0.0\n[[datasets.views.transfer]]\nvalue = 300.0\ncolor = [1.0, 1.0, 1.0]\nopacity = 0.0",
+        ),
+        view("fine", surface),
+    ]
+    .concat();
+    std::fs::write(&scene, text).expect("write");
+    let out = voxcube()
+        .arg("render")
+        .arg(&scene)
+        .arg("-o")
+        .arg(dir.path())
+        .arg("--report")
+        .arg(dir.path().join("r.json"))
+        .output()
+        .expect("runs");
+    assert!(out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    for (view, cause) in [
+        (
+            "m/high",
+            "surfaces[0].iso = 5000 lies outside the data's range",
+        ),
+        ("m/away", "the camera faces away"),
+        ("m/aside", "no primary ray meets the volume"),
+        (
+            "m/clear",
+            "the transfer function is transparent over the data's range",
+        ),
+    ] {
+        assert!(
+            stderr.contains(&format!("warning: {view}: {cause}")),
+            "{view}: {stderr}"
+        );
+    }
+    assert!(!stderr.contains("m/fine"), "{stderr}");
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("r.json")).expect("report"))
+            .expect("json");
+    let warnings = |i: usize| json["views"][i]["warnings"].as_array().map(Vec::len);
+    assert_eq!(
+        (0..5).map(warnings).collect::<Vec<_>>(),
+        [Some(1), Some(1), Some(1), Some(1), Some(0)]
+    );
+    assert!(dir.path().join("m-high.png").exists());
+}
