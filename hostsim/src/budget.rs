@@ -164,8 +164,15 @@ impl fmt::Display for BudgetError {
             self.profile.name,
             self.profile.node_memory
         )?;
+        let fixed = n.buffer + n.worker + n.allowance;
         match self.fits_at {
             Some(size) => write!(f, "; the smallest cluster that fits has {size} nodes"),
+            // The buffer alone leaves no room for any slab: blame the buffer, not the volume.
+            None if fixed >= self.profile.node_memory => write!(
+                f,
+                "; the receive buffer alone leaves no room for a slab: at most {} bytes of buffer fit beside the worker and code (--buffer)",
+                self.profile.node_memory.saturating_sub(n.worker + n.allowance)
+            ),
             None => write!(f, "; no cluster size fits this volume"),
         }
     }

@@ -5,7 +5,7 @@
 use crate::budget::Profile;
 use crate::experiments::bench;
 use crate::experiments::explore;
-use crate::output::{write_atomic, write_png};
+use crate::output::{check_writable, stdout, write_atomic, write_png};
 use crate::render::{preflight, render_cut, Fabric, Machine};
 use crate::report::{summary, BalanceReport, Report, ViewReport};
 use crate::scene::{Scene, ViewJob, DEFAULT_SCENE};
@@ -60,8 +60,10 @@ pub enum Command {
         /// Clusters (a power of two, at most the nodes), overriding every view's `clusters`.
         #[arg(long)]
         clusters: Option<u32>,
-        /// What carries the work: direct (one node, in process) or sim (the deterministic
-        /// simulator). Default: direct on one node, sim on more.
+        /// What carries the work: direct (one node, in process), sim (the deterministic
+        /// simulator), threads (a thread per node, for wall-clock speed) or mpi (ranks under
+        /// mpirun, in a build with the `mpi` feature). Default: direct on one node, sim on
+        /// more.
         #[arg(long, value_enum)]
         fabric: Option<FabricArg>,
         /// Scheduler seed of the sim fabric: the same seed gives the same run.
@@ -313,7 +315,7 @@ pub fn main() -> std::process::ExitCode {
 pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
     match cli.command {
         Command::Scene => {
-            print!("{DEFAULT_SCENE}");
+            stdout(DEFAULT_SCENE)?;
             Ok(())
         }
         Command::Paper {
@@ -326,7 +328,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             let mut text = String::new();
             let job = crate::experiments::paper::dataset(source(&data, substitute), &mut text)?;
             crate::experiments::paper::run(&job, &profile, &out, &mut text)?;
-            print!("{text}");
+            stdout(&text)?;
             Ok(())
         }
         Command::Accuracy {
@@ -343,10 +345,10 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             std::fs::write(out.join("accuracy.txt"), &table)
                 .map_err(|e| format!("{}: {e}", out.display()))?;
             crate::experiments::accuracy::plot(&out.join("accuracy.svg"), &points)?;
-            println!(
-                "{notes}{table}wrote {}/accuracy.txt and accuracy.svg",
+            stdout(&format!(
+                "{notes}{table}wrote {}/accuracy.txt and accuracy.svg\n",
                 out.display()
-            );
+            ))?;
             Ok(())
         }
         Command::Bench { runs, small, sod } => {
@@ -357,7 +359,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 &[bench::Size::PAPER, bench::Size::LARGE]
             };
             let rows = bench::run(runs, sizes, &sod, &mut notes)?;
-            print!("{notes}{}", bench::table(&rows, runs));
+            stdout(&format!("{notes}{}", bench::table(&rows, runs)))?;
             Ok(())
         }
         Command::Explore {
@@ -382,10 +384,10 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             }
             let on = flow_control == Switch::On;
             let found = explore::explore(&job, &all, seeds, &|cfg| cfg.flow_control = on);
-            print!(
+            stdout(&format!(
                 "flow control          {}\n{found}",
                 if on { "on" } else { "off" }
-            );
+            ))?;
             if on && found.failures() > 0 {
                 return Err(format!(
                     "{} of {} runs failed with flow control on",
@@ -468,6 +470,23 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                     plan.push((job, v, m));
                 }
             }
+            // Every output is checked before the first view renders: a bad path fails now, not
+            // after minutes of work.
+            if out.exists() && !out.is_dir() {
+                return Err(format!(
+                    "{}: -o names a file; expected a folder for the images",
+                    out.display()
+                )
+                .into());
+            }
+            std::fs::create_dir_all(&out)
+                .map_err(|e| format!("{}: cannot create folder: {e}", out.display()))?;
+            for (job, v, _) in &plan {
+                check_writable(&out.join(format!("{}-{}.png", job.name, v.name)))?;
+            }
+            if let Some(path) = &report {
+                check_writable(path)?;
+            }
             // The universe finalises MPI when dropped, at the end of this command on every rank.
             #[cfg(feature = "mpi")]
             let mpi_universe = mpi_start(&plan)?;
@@ -493,8 +512,6 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                     return Ok(());
                 }
             }
-            std::fs::create_dir_all(&out)
-                .map_err(|e| format!("{}: cannot create folder: {e}", out.display()))?;
             let mut views = Vec::new();
             for (job, v, machine) in plan {
                 let bar = ProgressBar::with_draw_target(
@@ -572,7 +589,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 views.push(report);
             }
             if !quiet {
-                print!("{}", summary(&views));
+                stdout(&summary(&views))?;
             }
             if let Some(path) = report {
                 let json = serde_json::to_string_pretty(&Report { scene: name, views })?;

@@ -120,9 +120,17 @@ pub enum RenderError {
     /// The machine does not fit the fabric or the volume.
     #[error("{0}")]
     Machine(String),
-    /// The simulated run failed.
-    #[error("simulation: {0}")]
-    Sim(#[from] RunError),
+    /// A run on a fabric failed; the message names the fabric.
+    #[error("{fabric} fabric: {source}")]
+    Run {
+        /// The fabric's name (`--fabric`).
+        fabric: &'static str,
+        /// What went wrong.
+        source: RunError,
+    },
+    /// The configuration cannot run on any fabric (found before the run).
+    #[error("{0}")]
+    Config(RunError),
     /// A node would not fit the machine's node memory.
     #[error("{0}")]
     Budget(#[from] BudgetError),
@@ -241,7 +249,7 @@ pub fn preflight(volume: &Volume, view: &View, machine: &Machine) -> Result<(), 
     let needed = flow::min_i_max(view.effects().shadow_lights);
     let i_max = flow::i_max_for(cfg.buffer(), size as usize);
     if machine.flow_control && size > 1 && i_max < needed {
-        return Err(RenderError::Sim(RunError::Buffer {
+        return Err(RenderError::Config(RunError::Buffer {
             bytes: cfg.buffer(),
             size: size as usize,
             i_max,
@@ -377,10 +385,14 @@ pub fn render_cut(
             };
             let run = match machine.fabric {
                 Fabric::Threads => {
-                    threads::run_with_progress(volume, view, &cfg, machine.threads, progress)?
+                    threads::run_with_progress(volume, view, &cfg, machine.threads, progress)
                 }
-                _ => sim::run_with_progress(volume, view, &cfg, progress)?,
-            };
+                _ => sim::run_with_progress(volume, view, &cfg, progress),
+            }
+            .map_err(|source| RenderError::Run {
+                fabric: machine.fabric.name(),
+                source,
+            })?;
             if let Some(n) = run
                 .nodes
                 .iter()

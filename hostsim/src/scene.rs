@@ -353,9 +353,9 @@ pub struct ViewJob {
     pub name: String,
     /// The kernel view.
     pub view: View,
-    /// Requested nodes (recorded; this build renders on one node).
+    /// Nodes of the hypercube the view renders on (`--nodes` overrides).
     pub nodes: u32,
-    /// Requested clusters (recorded).
+    /// Clusters the nodes form (`--clusters` overrides).
     pub clusters: u32,
     /// Balance the slabs before rendering (the paper's static load balancing).
     pub balance: bool,
@@ -881,6 +881,15 @@ fn build_view(v: &ViewToml, grid: &Grid, frame: Option<Frame>) -> Result<View, (
         ModelToml::Cell => Model::Cell,
         ModelToml::Voxel => Model::Voxel,
     };
+    if let (Model::Cell, Some(axis)) = (model, grid.dims().iter().position(|&n| n < 2)) {
+        return Err((
+            "model".into(),
+            format!(
+                "the cell model interpolates between samples and needs at least 2 along each axis; this volume has 1 along {}: use model = \"voxel\"",
+                ["x", "y", "z"][axis]
+            ),
+        ));
+    }
     let frame = frame.unwrap_or_else(|| Frame::of_box(grid.world_box(model)));
     let camera = build_camera(
         &v.camera,

@@ -322,3 +322,63 @@ fn unreadable_scene_names_the_file() {
     assert!(matches!(e, SceneError::Read { .. }));
     assert_names(&e.to_string(), &["/no/such/scene.toml", "cannot read"]);
 }
+
+#[test]
+fn a_detached_header_s_bad_spacing_names_the_header() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let nhdr = "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nspacings: 1 0 1\nencoding: raw\ndata file: v.raw\n";
+    std::fs::write(dir.path().join("v.nhdr"), nhdr).expect("write");
+    std::fs::write(dir.path().join("v.raw"), [0u8; 8]).expect("write");
+    let m = error_of(dir.path(), "[[datasets]]\nname = \"d\"\npath = \"v.nhdr\"\n[[datasets.views]]\n[[datasets.views.surfaces]]\niso = 1.0\n");
+    assert_names(&m, &["v.nhdr", "spacing y is 0"]);
+    assert!(!m.contains("v.raw"), "{m}");
+}
+
+#[test]
+fn a_volume_of_one_sample_asks_for_the_voxel_model() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    std::fs::write(dir.path().join("v.raw"), [7u8]).expect("write");
+    let m = error_of(
+        dir.path(),
+        &raw_scene("v.raw", "dims = [1, 1, 1]\ntype = \"u8\""),
+    );
+    assert_names(
+        &m,
+        &[
+            "datasets[0].views[0].model",
+            "at least 2 along each axis",
+            "model = \"voxel\"",
+        ],
+    );
+    // The voxel model takes it.
+    let file = dir.path().join("voxel.toml");
+    let text = raw_scene("v.raw", "dims = [1, 1, 1]\ntype = \"u8\"").replace(
+        "[[datasets.views]]\n",
+        "[[datasets.views]]\nmodel = \"voxel\"\n",
+    );
+    std::fs::write(&file, text).expect("write");
+    Scene::from_file(&file)
+        .and_then(Scene::load)
+        .unwrap_or_else(|e| panic!("{e}"));
+}
+
+#[test]
+fn a_buffer_too_big_for_any_node_blames_the_buffer() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_voxcube"))
+        .args([
+            "render",
+            "-q",
+            "--nodes",
+            "2",
+            "--buffer",
+            "1000000000000",
+            "-o",
+        ])
+        .arg(tempfile::tempdir().expect("tempdir").path())
+        .output()
+        .expect("runs");
+    let m = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert_names(&m, &["receive buffer alone leaves no room", "--buffer"]);
+    assert!(!m.contains("fits this volume"), "{m}");
+}

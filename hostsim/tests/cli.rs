@@ -392,3 +392,144 @@ fn a_view_that_draws_nothing_says_why_and_still_renders() {
     );
     assert!(dir.path().join("m-high.png").exists());
 }
+
+/// `voxcube render -q -o DIR ARGS` with stdout to `stdout`; the exit success and stderr.
+fn render_to(dir: &std::path::Path, args: &[&str], stdout: std::process::Stdio) -> (bool, String) {
+    let out = voxcube()
+        .args(["render", "-q", "-o"])
+        .arg(dir)
+        .args(args)
+        .stdout(stdout)
+        .output()
+        .expect("runs");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stderr).to_string(),
+    )
+}
+
+#[test]
+fn outputs_are_checked_before_rendering_and_never_replace_a_special_file() {
+    use std::os::unix::fs::FileTypeExt;
+    let dir = tempfile::tempdir().expect("tempdir");
+    let images = dir.path().join("images");
+    let quiet = std::process::Stdio::null;
+    // A report in a folder that does not exist: refused before any image is written.
+    let missing = dir.path().join("nowhere/r.json");
+    let (ok, err) = render_to(
+        &images,
+        &["--report", missing.to_str().expect("utf-8")],
+        quiet(),
+    );
+    assert!(
+        !ok && err.contains("nowhere") && err.contains("does not exist"),
+        "{err}"
+    );
+    assert!(!images.join("molecule-paper.png").exists());
+    // A folder as the report, a file as the image folder.
+    let (ok, err) = render_to(
+        &images,
+        &["--report", dir.path().to_str().expect("utf-8")],
+        quiet(),
+    );
+    assert!(!ok && err.contains("is a folder"), "{err}");
+    std::fs::write(dir.path().join("file"), b"x").expect("write");
+    let (ok, err) = render_to(&dir.path().join("file"), &[], quiet());
+    assert!(!ok && err.contains("expected a folder"), "{err}");
+    // A device that refuses the bytes: an error, and the device stays a device.
+    let (ok, err) = render_to(&images, &["--report", "/dev/full"], quiet());
+    assert!(!ok && err.contains("/dev/full"), "{err}");
+    let full = std::fs::metadata("/dev/full").expect("/dev/full");
+    assert!(full.file_type().is_char_device());
+    // A symlink is written through, and stays a symlink.
+    let link = dir.path().join("link.json");
+    std::os::unix::fs::symlink(dir.path().join("real.json"), &link).expect("symlink");
+    let (ok, err) = render_to(
+        &images,
+        &["--report", link.to_str().expect("utf-8")],
+        quiet(),
+    );
+    assert!(ok, "{err}");
+    assert!(std::fs::symlink_metadata(&link)
+        .expect("link")
+        .file_type()
+        .is_symlink());
+    let real = std::fs::read_to_string(dir.path().join("real.json")).expect("written through");
+    assert!(real.contains("pixels_sha256"));
+    // A FIFO is written into, and stays a FIFO.
+    let fifo = dir.path().join("fifo");
+    assert!(Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .expect("mkfifo")
+        .success());
+    let reader = {
+        let fifo = fifo.clone();
+        std::thread::spawn(move || std::fs::read_to_string(fifo).expect("read fifo"))
+    };
+    let (ok, err) = render_to(
+        &images,
+        &["--report", fifo.to_str().expect("utf-8")],
+        quiet(),
+    );
+    assert!(ok, "{err}");
+    assert!(reader.join().expect("reader").contains("pixels_sha256"));
+    assert!(std::fs::metadata(&fifo)
+        .expect("fifo")
+        .file_type()
+        .is_fifo());
+}
+
+#[test]
+fn a_failed_write_to_standard_output_is_an_error() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let full = || {
+        std::process::Stdio::from(
+            std::fs::OpenOptions::new()
+                .write(true)
+                .open("/dev/full")
+                .expect("/dev/full"),
+        )
+    };
+    let out = voxcube()
+        .args(["render", "-o"])
+        .arg(dir.path())
+        .stdout(full())
+        .output()
+        .expect("runs");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("standard output"),
+        "{err}"
+    );
+    let out = voxcube()
+        .arg("scene")
+        .stdout(full())
+        .output()
+        .expect("runs");
+    assert!(!out.status.success());
+    // Control: the same commands to /dev/null succeed.
+    let out = voxcube()
+        .arg("scene")
+        .stdout(std::process::Stdio::null())
+        .output()
+        .expect("runs");
+    assert!(out.status.success());
+}
+
+#[test]
+fn the_fabric_help_names_every_fabric() {
+    let out = voxcube().args(["render", "--help"]).output().expect("runs");
+    let help = String::from_utf8_lossy(&out.stdout);
+    let line = help
+        .split("--fabric")
+        .nth(1)
+        .and_then(|s| s.split("Possible values").next())
+        .unwrap_or_default();
+    for fabric in ["direct", "sim", "threads", "mpi"] {
+        assert!(
+            line.contains(fabric),
+            "--fabric's help omits {fabric}: {line}"
+        );
+    }
+}

@@ -210,6 +210,14 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
         }
     };
     let spacing = spacing.or(h.spacing).unwrap_or(Vec3::ONE);
+    // Checked here, so the error names the header that gives the spacing, not a data file.
+    if let Some(axis) = (0..3).find(|&a| !(spacing[a].is_finite() && spacing[a] > 0.0)) {
+        return Err(at(header_err(format!(
+            "spacing {} is {}; spacings must be finite and greater than zero",
+            ["x", "y", "z"][axis],
+            spacing[axis]
+        ))));
+    }
     let (data_path, payload): (PathBuf, Vec<u8>) = match &h.data_file {
         Some(name) => {
             let file = path.parent().unwrap_or(Path::new(".")).join(name);
