@@ -124,6 +124,16 @@ pub enum Command {
     },
     /// Print the built-in default scene: a complete, commented example of the format.
     Scene,
+    /// Describe a volume file, DICOM folder or scene's datasets: grid, type, spacing, values
+    /// and their histogram, node memory per cluster size on each machine profile, and
+    /// suggested iso values; with --scene, print a ready scene file for the volume instead.
+    Info {
+        /// A volume file (NIfTI, MetaImage, VTK, NRRD, .den), a DICOM folder, or a scene.
+        path: PathBuf,
+        /// Print a scene file that renders the volume (a surfaces and a composited view).
+        #[arg(long)]
+        scene: bool,
+    },
     /// Benchmark: the default scene and SOD at 350x250 (dt 1/2) and 1024x768 (dt 1/5), surfaces
     /// and compositing, on the shapes worth comparing here, beside this machine's trilinear
     /// ceiling; medians of several runs, then the speed targets met or not.
@@ -316,6 +326,29 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
     match cli.command {
         Command::Scene => {
             stdout(DEFAULT_SCENE)?;
+            Ok(())
+        }
+        Command::Info { path, scene } => {
+            let volumes = crate::info::volumes(&path)?;
+            let text = if scene {
+                match &volumes[..] {
+                    [(_, volume)] if path.extension().is_none_or(|e| e != "toml") => {
+                        crate::info::suggested_scene(&path, volume)?
+                    }
+                    _ => {
+                        return Err(
+                            "--scene takes a volume file or DICOM folder, not a scene".into()
+                        )
+                    }
+                }
+            } else {
+                volumes
+                    .iter()
+                    .map(|(name, v)| crate::info::describe(name, v))
+                    .collect::<Result<Vec<_>, _>>()?
+                    .join("\n")
+            };
+            stdout(&text)?;
             Ok(())
         }
         Command::Paper {

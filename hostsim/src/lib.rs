@@ -17,6 +17,7 @@ pub mod experiments;
 pub mod fabric;
 pub mod formats;
 pub mod framing;
+pub mod info;
 pub mod output;
 pub mod profile;
 pub mod render;

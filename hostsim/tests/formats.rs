@@ -570,3 +570,80 @@ fn a_file_of_unknown_kind_asks_for_a_format() {
         .and_then(Scene::load)
         .unwrap_or_else(|e| panic!("{e}"));
 }
+
+// ------------------------------------------------------------------ voxcube info
+
+fn run(args: &[&std::ffi::OsStr]) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_voxcube"))
+        .args(args)
+        .output()
+        .expect("runs");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).to_string(),
+        String::from_utf8_lossy(&out.stderr).to_string(),
+    )
+}
+
+#[test]
+fn info_describes_a_volume_and_its_scene_renders_something_on_the_first_try() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write_all(dir.path());
+    let nii = dir.path().join("blob.nii");
+    let (ok, text, err) = run(&["info".as_ref(), nii.as_os_str()]);
+    assert!(ok, "{err}");
+    for part in [
+        "24 x 20 x 16 samples, spacing 1 x 1 x 1.5",
+        "f32",
+        "min -1000 max 900",
+        "histogram",
+        "iso values",
+        "ncube2",
+        "modern",
+    ] {
+        assert!(text.contains(part), "info omits {part:?}:\n{text}");
+    }
+    // The DICOM folder reads the same.
+    let (ok, series, err) = run(&["info".as_ref(), dir.path().join("series").as_os_str()]);
+    assert!(ok && series.contains("min -1000 max 900"), "{err}{series}");
+    // A ready scene: it renders with no warning, and shows the blob.
+    let (ok, scene, err) = run(&["info".as_ref(), "--scene".as_ref(), nii.as_os_str()]);
+    assert!(ok, "{err}");
+    let file = dir.path().join("first.toml");
+    std::fs::write(&file, &scene).expect("write");
+    let out = dir.path().join("out");
+    let report = dir.path().join("first.json");
+    let (ok, _, err) = run(&[
+        "render".as_ref(),
+        file.as_os_str(),
+        "-o".as_ref(),
+        out.as_os_str(),
+        "--report".as_ref(),
+        report.as_os_str(),
+    ]);
+    assert!(ok, "{err}\n{scene}");
+    assert!(!err.contains("warning"), "{err}");
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&report).expect("report")).expect("json");
+    let views = json["views"].as_array().expect("views");
+    assert_eq!(views.len(), 2, "{scene}");
+    for v in views {
+        let png = image::open(v["image"].as_str().expect("image path"))
+            .expect("png")
+            .to_rgba8();
+        let lit = png.pixels().filter(|p| p.0[..3] != [0, 0, 0]).count();
+        let share = lit as f64 / (png.width() * png.height()) as f64;
+        assert!(share > 0.2, "{}: {share:.3} of the image shows", v["view"]);
+    }
+}
+
+#[test]
+fn info_on_a_raw_file_asks_for_a_scene() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write_all(dir.path());
+    let (ok, _, err) = run(&["info".as_ref(), dir.path().join("blob.raw").as_os_str()]);
+    assert!(
+        !ok && err.contains("blob.raw") && err.contains("raw file has no header"),
+        "{err}"
+    );
+}
