@@ -632,7 +632,7 @@ fn info_describes_a_volume_and_its_scene_renders_something_on_the_first_try() {
             .expect("png")
             .to_rgba8();
         let lit = png.pixels().filter(|p| p.0[..3] != [0, 0, 0]).count();
-        let share = lit as f64 / (png.width() * png.height()) as f64;
+        let share = lit as f64 / f64::from(png.width() * png.height());
         assert!(share > 0.2, "{}: {share:.3} of the image shows", v["view"]);
     }
 }
