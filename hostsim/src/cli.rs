@@ -114,6 +114,11 @@ pub enum Command {
         /// named in the report).
         #[arg(long, value_enum)]
         accuracy: Option<AccuracyArg>,
+        /// Render every view as an orbit of N frames turning once around the volume (about
+        /// the up axis through the target, at one scale): the frames as
+        /// `<dataset>-<view>-000.png` … and an animated `<dataset>-<view>.gif`.
+        #[arg(long, value_name = "N")]
+        orbit: Option<u32>,
         /// Balance every view's slabs first, as the paper does: one cluster traces a probe
         /// of about 32x32 primary rays, timed by the --machine profile, and the slab sizes
         /// follow the workers' times. The nodes start on uniform slabs and shift planes to
@@ -451,6 +456,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             no_row_leaps,
             no_depths,
             accuracy,
+            orbit,
             balance,
         } => {
             let (scene, name) = match &scene {
@@ -461,7 +467,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 ),
             };
             // Everything is loaded and checked before the first image is written.
-            let mut jobs = scene.load()?;
+            let mut jobs = scene.load_orbits(orbit)?;
             if let Some(tier) = accuracy {
                 let tier = match tier {
                     AccuracyArg::Exact => Accuracy::Exact,
@@ -520,6 +526,11 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             if let Some(path) = &report {
                 check_writable(path)?;
             }
+            for (job, v, _) in &plan {
+                if let Some(o) = v.orbit.as_ref().filter(|o| o.frame == 0) {
+                    check_writable(&out.join(format!("{}-{}.gif", job.name, o.view)))?;
+                }
+            }
             // The universe finalises MPI when dropped, at the end of this command on every rank.
             #[cfg(feature = "mpi")]
             let mpi_universe = mpi_start(&plan)?;
@@ -546,6 +557,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 }
             }
             let mut views = Vec::new();
+            let mut animation: Vec<image::RgbaImage> = Vec::new();
             for (job, v, machine) in plan {
                 let bar = ProgressBar::with_draw_target(
                     Some(v.view.pixel_count()),
@@ -609,6 +621,16 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                     }
                 }
                 write_png(&image, rendered.width, rendered.height, &pixels)?;
+                if let Some(o) = &v.orbit {
+                    animation.push(
+                        image::RgbaImage::from_raw(rendered.width, rendered.height, pixels.clone())
+                            .ok_or("an orbit frame's pixels do not fill its image")?,
+                    );
+                    if o.frame + 1 == o.frames {
+                        let gif = out.join(format!("{}-{}.gif", job.name, o.view));
+                        write_gif(&gif, std::mem::take(&mut animation))?;
+                    }
+                }
                 let mut report = ViewReport::new(
                     &job.name,
                     &v.name,
@@ -631,6 +653,26 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             Ok(())
         }
     }
+}
+
+/// Write `frames` as an animated GIF that loops, a tenth of a second a frame.
+fn write_gif(path: &std::path::Path, frames: Vec<image::RgbaImage>) -> Result<(), String> {
+    let mut bytes = Vec::new();
+    {
+        let mut encoder = image::codecs::gif::GifEncoder::new_with_speed(&mut bytes, 10);
+        encoder
+            .set_repeat(image::codecs::gif::Repeat::Infinite)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        let delay = image::Delay::from_numer_denom_ms(100, 1);
+        encoder
+            .encode_frames(
+                frames
+                    .into_iter()
+                    .map(|f| image::Frame::from_parts(f, 0, 0, delay)),
+            )
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+    }
+    write_atomic(path, &bytes).map_err(|e| e.to_string())
 }
 
 /// Static load balancing of `view` for `machine`'s clusters, timed by the `profile` chosen

@@ -274,6 +274,22 @@ impl CameraToml {
     }
 }
 
+/// What the host sets of a camera beyond its scene entry: the frame its default framing fits,
+/// an orbit's turn, and, for every frame of an orbit, one target and scale.
+#[derive(Clone, Copy, Debug, Default)]
+struct CameraTweak {
+    /// The box the default camera frames (the whole volume when `None`).
+    frame: Option<Frame>,
+    /// Degrees the eye turns about the up axis through the target.
+    turn: f32,
+    /// Target, overriding the frame's centre.
+    look_at: Option<Vec3>,
+    /// Orthographic width, overriding `fit`.
+    width: Option<f32>,
+    /// Perspective eye distance in radii, overriding `fit`.
+    distance: Option<f32>,
+}
+
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct SurfaceToml {
@@ -359,6 +375,100 @@ pub struct ViewJob {
     pub clusters: u32,
     /// Balance the slabs before rendering (the paper's static load balancing).
     pub balance: bool,
+    /// The orbit this view is a frame of, if any.
+    pub orbit: Option<OrbitFrame>,
+}
+
+/// One frame of an orbit around a view.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct OrbitFrame {
+    /// The view the orbit turns.
+    pub view: String,
+    /// This frame's index.
+    pub frame: u32,
+    /// Frames in the orbit.
+    pub frames: u32,
+}
+
+/// A view turned by `turn` degrees, its default camera framing what it can show.
+fn framed_view(
+    v: &ViewToml,
+    volume: &Volume,
+    turn: f32,
+    look_at: Option<Vec3>,
+) -> Result<View, (String, String)> {
+    let base = CameraTweak {
+        turn,
+        look_at,
+        ..CameraTweak::default()
+    };
+    let view = build_view(v, &volume.grid, &base)?;
+    if !v.camera.frames_by_default() {
+        return Ok(view);
+    }
+    match crate::framing::showing(volume, &view) {
+        Some(frame) => build_view(
+            v,
+            &volume.grid,
+            &CameraTweak {
+                frame: Some(frame),
+                ..base
+            },
+        ),
+        None => Ok(view),
+    }
+}
+
+/// `frames` views turning once around `v`. A camera framed by default keeps one target (the
+/// centre of what shows) and one scale (the largest any frame needs), so the volume turns in
+/// place rather than swimming and breathing.
+fn orbit_views(v: &ViewToml, volume: &Volume, frames: u32) -> Result<Vec<View>, (String, String)> {
+    if frames == 0 || frames > 3600 {
+        return Err((
+            String::new(),
+            format!("an orbit of {frames} frames: expected 1 to 3600"),
+        ));
+    }
+    let turn = |i: u32| 360.0 * i as f32 / frames as f32;
+    let c = &v.camera;
+    let look_at = match (c.frames_by_default(), c.look_at) {
+        (true, None) => {
+            let first = build_view(v, &volume.grid, &CameraTweak::default())?;
+            crate::framing::showing_box(volume, &first).map(|(lo, hi)| (lo + hi) * 0.5)
+        }
+        _ => None,
+    };
+    let views = (0..frames)
+        .map(|i| framed_view(v, volume, turn(i), look_at))
+        .collect::<Result<Vec<_>, _>>()?;
+    let target = look_at.or(c.look_at.map(Vec3::from_array));
+    let Some(target) = target.filter(|_| c.frames_by_default()) else {
+        return Ok(views);
+    };
+    let (lo, hi) = volume.grid.world_box(views[0].spec().model);
+    let radius = ((hi - lo).length() * 0.5).max(f32::MIN_POSITIVE);
+    let (mut width, mut distance) = (0.0f32, 0.0f32);
+    for view in &views {
+        let camera = &view.spec().camera;
+        match camera.projection() {
+            Projection::Orthographic { width: w } => width = width.max(w),
+            Projection::Perspective { .. } => {
+                distance = distance.max((camera.eye() - target).length() / radius)
+            }
+        }
+    }
+    (0..frames)
+        .map(|i| {
+            let tweak = CameraTweak {
+                turn: turn(i),
+                look_at: Some(target),
+                width: (width > 0.0).then_some(width),
+                distance: (distance > 0.0).then_some(distance),
+                frame: None,
+            };
+            build_view(v, &volume.grid, &tweak)
+        })
+        .collect()
 }
 
 /// A dataset loaded, with its views built.
@@ -468,6 +578,12 @@ impl Scene {
 
     /// Load every dataset and build every view; nothing is rendered yet.
     pub fn load(self) -> Result<Vec<DatasetJob>, SceneError> {
+        self.load_orbits(None)
+    }
+
+    /// As [`Scene::load`], with every view turned into an orbit of `orbit` frames when given:
+    /// views `<view>-000` … around the up axis through the target, at one scale.
+    pub fn load_orbits(self, orbit: Option<u32>) -> Result<Vec<DatasetJob>, SceneError> {
         let file = self.file;
         let mut jobs = Vec::new();
         for (i, (d, source)) in self.datasets.into_iter().enumerate() {
@@ -496,21 +612,33 @@ impl Scene {
                     },
                     message,
                 };
-                let mut view = build_view(v, &volume.grid, None).map_err(invalid)?;
-                // The default camera frames what the view can show, not the empty space
-                // around it.
-                if v.camera.frames_by_default() {
-                    if let Some(frame) = crate::framing::showing(&volume, &view) {
-                        view = build_view(v, &volume.grid, Some(frame)).map_err(invalid)?;
-                    }
+                let name = view_name(v, j);
+                let frames = match orbit {
+                    None => vec![framed_view(v, &volume, 0.0, None).map_err(invalid)?],
+                    Some(n) => orbit_views(v, &volume, n).map_err(invalid)?,
+                };
+                let count = frames.len() as u32;
+                for (i, view) in frames.into_iter().enumerate() {
+                    let (name, orbit) = match orbit {
+                        None => (name.clone(), None),
+                        Some(_) => (
+                            format!("{name}-{i:03}"),
+                            Some(OrbitFrame {
+                                view: name.clone(),
+                                frame: i as u32,
+                                frames: count,
+                            }),
+                        ),
+                    };
+                    views.push(ViewJob {
+                        name,
+                        view,
+                        nodes: v.nodes,
+                        clusters: v.clusters,
+                        balance: v.balance,
+                        orbit,
+                    });
                 }
-                views.push(ViewJob {
-                    name: view_name(v, j),
-                    view,
-                    nodes: v.nodes,
-                    clusters: v.clusters,
-                    balance: v.balance,
-                });
             }
             jobs.push(DatasetJob {
                 name: d.name.clone(),
@@ -715,9 +843,12 @@ fn build_camera(
     c: &CameraToml,
     grid: &Grid,
     model: Model,
-    frame: &Frame,
+    tweak: &CameraTweak,
     aspect: f32,
 ) -> Result<Camera, (String, String)> {
+    let frame = &tweak
+        .frame
+        .unwrap_or_else(|| Frame::of_box(grid.world_box(model)));
     let (lo, hi) = grid.world_box(model);
     let radius = ((hi - lo).length() * 0.5).max(f32::MIN_POSITIVE);
     let orbit = c.azimuth.is_some() || c.elevation.is_some() || c.distance.is_some();
@@ -756,7 +887,10 @@ fn build_camera(
     }
     let up = finite3("camera.up", c.up.unwrap_or([0.0, 1.0, 0.0]))?;
     let centre = frame.centre;
-    let target = finite3("camera.look_at", c.look_at.unwrap_or(centre.to_array()))?;
+    let target = match tweak.look_at {
+        Some(t) => t,
+        None => finite3("camera.look_at", c.look_at.unwrap_or(centre.to_array()))?,
+    };
     let fov = c.fov.unwrap_or(30.0);
     if !(fov > 0.0 && fov < 180.0) {
         return Err((
@@ -779,7 +913,11 @@ fn build_camera(
                 ));
             }
             let el = el.to_radians();
-            let distance = c.distance.unwrap_or(if perspective { 3.0 } else { 2.0 });
+            let distance =
+                tweak
+                    .distance
+                    .or(c.distance)
+                    .unwrap_or(if perspective { 3.0 } else { 2.0 });
             if !(distance.is_finite() && distance > 0.0) {
                 return Err((
                     "camera.distance".into(),
@@ -794,6 +932,9 @@ fn build_camera(
             (target + toward_eye * (distance * radius), toward_eye)
         }
     };
+    // An orbit's frame: the eye turned about the up axis through the target.
+    let turn = glam::Quat::from_axis_angle(up.normalize_or(Vec3::Y), tweak.turn.to_radians());
+    let (eye, toward_eye) = (target + turn * (eye - target), turn * toward_eye);
     let projection = if perspective {
         Projection::Perspective {
             fov_y: fov.to_radians(),
@@ -806,7 +947,7 @@ fn build_camera(
     let (right, image_up) = cam.image_axes();
     let corners = frame.corners.map(|p| p - target);
     if perspective {
-        if c.eye.is_some() || c.distance.is_some() {
+        if c.eye.is_some() || c.distance.is_some() || tweak.distance.is_some() {
             return Ok(cam);
         }
         // The nearest eye on the orbit from which every corner of the frame lies inside
@@ -823,7 +964,7 @@ fn build_camera(
         return Camera::look_at(target + dir * distance, target, up, projection)
             .map_err(|e| ("camera".to_string(), e.to_string()));
     }
-    let width = match c.width {
+    let width = match tweak.width.or(c.width) {
         Some(w) => {
             if !(w.is_finite() && w > 0.0) {
                 return Err((
@@ -850,7 +991,7 @@ fn build_camera(
 }
 
 /// Build a view; its default camera frames `frame` (the whole volume when `None`).
-fn build_view(v: &ViewToml, grid: &Grid, frame: Option<Frame>) -> Result<View, (String, String)> {
+fn build_view(v: &ViewToml, grid: &Grid, tweak: &CameraTweak) -> Result<View, (String, String)> {
     if v.width == 0 || v.height == 0 || v.width > 16384 || v.height > 16384 {
         return Err((
             "width".into(),
@@ -890,12 +1031,11 @@ fn build_view(v: &ViewToml, grid: &Grid, frame: Option<Frame>) -> Result<View, (
             ),
         ));
     }
-    let frame = frame.unwrap_or_else(|| Frame::of_box(grid.world_box(model)));
     let camera = build_camera(
         &v.camera,
         grid,
         model,
-        &frame,
+        tweak,
         v.width as f32 / v.height as f32,
     )?;
     let mode = match v.mode {

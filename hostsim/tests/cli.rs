@@ -533,3 +533,26 @@ fn the_fabric_help_names_every_fabric() {
         );
     }
 }
+
+#[test]
+fn an_orbit_writes_its_frames_and_an_animation_that_turns() {
+    use image::AnimationDecoder;
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (still, _) = render_ok(dir.path(), &[], "still.json");
+    let (orbit, _) = render_ok(dir.path(), &["--orbit", "4"], "orbit.json");
+    let views = orbit["views"].as_array().expect("views");
+    let names: Vec<&str> = views.iter().filter_map(|v| v["view"].as_str()).collect();
+    assert_eq!(names, ["paper-000", "paper-001", "paper-002", "paper-003"]);
+    // Frame 0 is the view itself (its camera gives a width: no reframing); the others turn.
+    let hash = |v: &serde_json::Value| v["pixels_sha256"].as_str().map(str::to_string);
+    assert_eq!(hash(&views[0]), hash(&still["views"][0]));
+    assert_ne!(hash(&views[0]), hash(&views[2]));
+    let gif = std::fs::File::open(dir.path().join("molecule-paper.gif")).expect("gif written");
+    let frames = image::codecs::gif::GifDecoder::new(std::io::BufReader::new(gif))
+        .expect("a gif")
+        .into_frames()
+        .collect_frames()
+        .expect("frames");
+    assert_eq!(frames.len(), 4);
+    assert_eq!(frames[0].buffer().dimensions(), (350, 250));
+}
