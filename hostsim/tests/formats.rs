@@ -536,6 +536,26 @@ fn bad_dicom_series_name_the_file_and_the_field() {
         &error_of(dir.path(), "path = \"cut\""),
         &["IM0003", "truncated or malformed"],
     );
+    // A compression this build does not decode (JPEG-LS): the slice is named.
+    let packed = dir.path().join("packed");
+    std::fs::create_dir(&packed).expect("mkdir");
+    let mut slice = dicom_slice(0, &vec![0u16; plane], 0.0, "1.2.5");
+    slice.put(DataElement::new(
+        tags::PIXEL_DATA,
+        VR::OB,
+        dicom_core::value::Value::from(dicom_core::value::PixelFragmentSequence::new_fragments(
+            vec![vec![0xffu8, 0xd8, 0xff, 0xf7, 0, 0]],
+        )),
+    ));
+    slice
+        .with_meta(FileMetaTableBuilder::new().transfer_syntax("1.2.840.10008.1.2.4.80"))
+        .expect("meta")
+        .write_to_file(packed.join("IM0001"))
+        .expect("write");
+    assert_names(
+        &error_of(dir.path(), "path = \"packed\""),
+        &["IM0001", "pixel data", "Unsupported TransferSyntax"],
+    );
     // An empty folder.
     std::fs::create_dir(dir.path().join("empty")).expect("mkdir");
     assert_names(
