@@ -71,18 +71,6 @@ struct SceneToml {
     datasets: Vec<DatasetToml>,
 }
 
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields, rename_all = "lowercase")]
-enum FormatToml {
-    Raw,
-    Nrrd,
-    Den,
-    Nifti,
-    MetaImage,
-    Vtk,
-    Dicom,
-}
-
 #[derive(Debug, Clone, Copy, Deserialize)]
 #[serde(deny_unknown_fields, rename_all = "lowercase")]
 enum TypeToml {
@@ -106,7 +94,7 @@ struct DatasetToml {
     name: String,
     builtin: Option<String>,
     path: Option<PathBuf>,
-    format: Option<FormatToml>,
+    format: Option<Format>,
     dims: Option<[u32; 3]>,
     #[serde(rename = "type")]
     ty: Option<TypeToml>,
@@ -721,14 +709,8 @@ fn source_of(d: &DatasetToml, base: &Path) -> Result<Source, (String, String)> {
         (None, Some(p)) => {
             let path = base.join(p);
             let raw_keys = raw_only.iter().any(|(_, set)| *set);
-            let format = match &d.format {
-                Some(FormatToml::Raw) => Format::Raw,
-                Some(FormatToml::Nrrd) => Format::Nrrd,
-                Some(FormatToml::Den) => Format::Den,
-                Some(FormatToml::Nifti) => Format::Nifti,
-                Some(FormatToml::MetaImage) => Format::MetaImage,
-                Some(FormatToml::Vtk) => Format::Vtk,
-                Some(FormatToml::Dicom) => Format::Dicom,
+            let format = match d.format {
+                Some(f) => f,
                 None => match Format::from_extension(&path) {
                     Some(f) => f,
                     None if raw_keys => Format::Raw,

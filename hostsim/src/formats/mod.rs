@@ -56,8 +56,9 @@ impl FileType {
     }
 }
 
-/// The file formats voxcube reads.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// The file formats voxcube reads, as the scene's `format` key names them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Format {
     /// Headerless samples described by the scene.
     Raw,
