@@ -195,6 +195,15 @@ pub fn describe(name: &str, volume: &Volume) -> Result<String, InfoError> {
             .collect::<Vec<_>>()
             .join(", ")
     );
+    let _ = writeln!(
+        out,
+        "transfer    {} (value: opacity per cell edge)",
+        transfer(volume, &isos)
+            .iter()
+            .map(|(v, _, o)| format!("{}: {o}", round(*v)))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
     let profiles: Vec<Profile> = ["ncube2", "modern"]
         .iter()
         .filter_map(|n| Profile::builtin(n))
@@ -272,6 +281,27 @@ fn first_view_needs(volume: &Volume, isos: &[f64]) -> Result<ViewNeeds, InfoErro
     Ok(ViewNeeds::of(&view))
 }
 
+/// A starting transfer function: clear below the first iso value, faint at it, denser at the
+/// second, densest at the maximum (value, colour, opacity per cell edge).
+pub fn transfer(volume: &Volume, isos: &[f64]) -> [(f64, [f32; 3], f32); 4] {
+    let stats = volume.stats();
+    let iso_a = isos
+        .first()
+        .copied()
+        .unwrap_or((stats.min + stats.max) / 2.0);
+    let iso_b = isos
+        .get(1)
+        .copied()
+        .unwrap_or(iso_a + (stats.max - iso_a) * 0.5);
+    let low = iso_a - (iso_a - stats.min) * 0.25;
+    [
+        (low, [0.8, 0.5, 0.3], 0.0),
+        (iso_a, [0.85, 0.6, 0.4], 0.02),
+        (iso_b, [1.0, 0.95, 0.85], 0.3),
+        (stats.max.max(iso_b + 1e-3), [1.0, 1.0, 1.0], 0.6),
+    ]
+}
+
 fn scene_text(name: &str, path: &Path, volume: &Volume, isos: &[f64], nodes: u32) -> String {
     let stats = volume.stats();
     let [nx, ny, nz] = volume.grid.dims();
@@ -309,21 +339,11 @@ fn scene_text(name: &str, path: &Path, volume: &Volume, isos: &[f64], nodes: u32
             let _ = writeln!(s, "color = [0.85, 0.75, 0.6]\n");
         }
     }
-    let iso_b = isos
-        .get(1)
-        .copied()
-        .unwrap_or(iso_a + (stats.max - iso_a) * 0.5);
-    let low = iso_a - (iso_a - stats.min) * 0.25;
     let _ = writeln!(
         s,
         "[[datasets.views]]\nname = \"composite\"\nmode = \"composite\"\nwidth = 400\nheight = 400\nnodes = {nodes}"
     );
-    for (value, color, opacity) in [
-        (low, [0.8, 0.5, 0.3], 0.0),
-        (iso_a, [0.85, 0.6, 0.4], 0.02),
-        (iso_b, [1.0, 0.95, 0.85], 0.3),
-        (stats.max.max(iso_b + 1e-3), [1.0, 1.0, 1.0], 0.6),
-    ] {
+    for (value, color, opacity) in transfer(volume, isos) {
         let _ = writeln!(
             s,
             "[[datasets.views.transfer]]\nvalue = {value:?}\ncolor = {color:?}\nopacity = {opacity:?}"

@@ -618,6 +618,7 @@ fn info_describes_a_volume_and_its_scene_renders_something_on_the_first_try() {
         "min -1000 max 900",
         "histogram",
         "iso values",
+        "transfer",
         "ncube2",
         "modern",
     ] {
