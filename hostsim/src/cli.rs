@@ -152,6 +152,11 @@ pub enum Command {
         /// The SOD volume (left out, with a note, if absent).
         #[arg(long, default_value = "../shared/data/sod-97x97x116.u8.binary")]
         sod: PathBuf,
+        /// Instead: how the cost grows with the work, both tiers, on one node and every core:
+        /// the molecule resampled to 128³, 256³, 512³ at 350x250, and 128³ at images up to
+        /// 2048x1536 (time per evaluated sample and per pixel).
+        #[arg(long)]
+        scale: bool,
     },
     /// The paper's Tables 1-4 in simulated nCUBE 2 time, beside the paper's numbers, with
     /// speedup and efficiency plots and the image.
@@ -389,7 +394,20 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             ))?;
             Ok(())
         }
-        Command::Bench { runs, small, sod } => {
+        Command::Bench {
+            runs, scale: true, ..
+        } => {
+            let mut notes = String::new();
+            let rows = crate::experiments::scale::run(runs, &mut notes)?;
+            stdout(&format!(
+                "{notes}{}",
+                crate::experiments::scale::table(&rows, runs)
+            ))?;
+            Ok(())
+        }
+        Command::Bench {
+            runs, small, sod, ..
+        } => {
             let mut notes = String::new();
             let sizes: &[bench::Size] = if small {
                 &[bench::Size::PAPER]

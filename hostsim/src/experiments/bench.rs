@@ -131,6 +131,9 @@ pub enum BenchError {
     /// The ceiling loop could not read the volume.
     #[error("{0}")]
     Slab(#[from] SlabError),
+    /// A view of the scale sweep could not be built on its volume.
+    #[error("scale sweep: {0}")]
+    Scale(String),
 }
 
 /// One measured configuration.

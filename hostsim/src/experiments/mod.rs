@@ -10,3 +10,4 @@ pub mod accuracy;
 pub mod bench;
 pub mod explore;
 pub mod paper;
+pub mod scale;
