@@ -84,7 +84,8 @@ impl ScaleRow {
 fn view(tier: &str, (width, height): (u32, u32), n: u32) -> String {
     let c = (n - 1) as f32 / 2.0;
     let far = 2.0 * n as f32;
-    let eye = [c + far * 0.707_106_8, c, c + far * 0.707_106_8];
+    let side = far * core::f32::consts::FRAC_1_SQRT_2;
+    let eye = [c + side, c, c + side];
     let span = 1.65 * n as f32;
     format!(
         r#"[[datasets.views]]
