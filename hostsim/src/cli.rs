@@ -415,7 +415,18 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 &[bench::Size::PAPER, bench::Size::LARGE]
             };
             let rows = bench::run(runs, sizes, &sod, &mut notes)?;
-            stdout(&format!("{notes}{}", bench::table(&rows, runs)))?;
+            let vtk = match crate::experiments::peer::vtk(&sod, runs) {
+                Ok(t) => t,
+                Err(e) => {
+                    notes += &format!("VTK peer failed: {e}\n");
+                    None
+                }
+            };
+            stdout(&format!(
+                "{notes}{}{}",
+                bench::table(&rows, runs),
+                bench::versus_vtk(&rows, vtk)
+            ))?;
             Ok(())
         }
         Command::Explore {

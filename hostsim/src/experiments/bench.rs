@@ -591,6 +591,44 @@ pub fn table(rows: &[Row], runs: usize) -> String {
     out
 }
 
+/// voxcube against VTK on SOD at 350×250 in the same run: each view's time on every core
+/// (`threads, N clusters of 1`, VTK also on two threads) over VTK's, the fast tier's
+/// composited view against VTK's composited one.
+pub fn versus_vtk(rows: &[Row], vtk: Option<super::peer::VtkTimes>) -> String {
+    let Some(vtk) = vtk else {
+        return format!(
+            "VTK: not measured (its peer is not installed: ../shared/peers/setup.sh makes {})\n",
+            super::peer::VENV_PYTHON
+        );
+    };
+    let mut out = format!(
+        "VTK in the same run (vtkFixedPointVolumeRayCastMapper, 2 threads, median): surfaces {:.1} ms, composite {:.1} ms\n",
+        vtk.surface.as_secs_f64() * 1e3,
+        vtk.composite.as_secs_f64() * 1e3
+    );
+    for r in rows.iter().filter(|r| {
+        r.dataset == "sod"
+            && r.size == Size::PAPER
+            && r.config.starts_with("threads, ")
+            && r.config.contains("clusters of 1")
+    }) {
+        let peer = if r.view == "surfaces" {
+            vtk.surface
+        } else {
+            vtk.composite
+        };
+        let _ = writeln!(
+            out,
+            "  {:<15} {:>8.1} ms = {:.2}x VTK's time ({})",
+            r.view,
+            r.median.as_secs_f64() * 1e3,
+            r.median.as_secs_f64() / peer.as_secs_f64().max(1e-9),
+            r.config
+        );
+    }
+    out
+}
+
 /// Which vector instructions this binary was compiled to use: the figures depend on it. A
 /// default build on x86-64 Linux targets x86-64-v2 (`.cargo/config.toml`: SSE4.1 and SSE4.2,
 /// no AVX), whatever more the machine it runs on has.
@@ -846,6 +884,64 @@ mod tests {
             describe_machine(None, 1, &[]),
             "ran on: a CPU /proc/cpuinfo does not name, 1 logical CPU; caches not reported"
         );
+    }
+
+    #[test]
+    fn vtk_ratios_are_each_sod_view_on_every_core_over_vtk_s_mode() {
+        let rows = [
+            row(
+                "sod",
+                Size::PAPER,
+                "surfaces",
+                "threads, 2 clusters of 1",
+                30,
+            ),
+            row(
+                "sod",
+                Size::PAPER,
+                "composite",
+                "threads, 2 clusters of 1",
+                300,
+            ),
+            row(
+                "sod",
+                Size::PAPER,
+                FAST_VIEW,
+                "threads, 2 clusters of 1",
+                150,
+            ),
+            row("sod", Size::PAPER, "composite", "direct, 1 node", 600),
+            row(
+                "molecule",
+                Size::PAPER,
+                "composite",
+                "threads, 2 clusters of 1",
+                1,
+            ),
+        ];
+        let vtk = super::super::peer::VtkTimes {
+            surface: Duration::from_millis(60),
+            composite: Duration::from_millis(150),
+        };
+        let text = versus_vtk(&rows, Some(vtk));
+        assert!(
+            text.contains("surfaces 60.0 ms, composite 150.0 ms"),
+            "{text}"
+        );
+        assert!(
+            text.contains("surfaces            30.0 ms = 0.50x"),
+            "{text}"
+        );
+        assert!(
+            text.contains("composite          300.0 ms = 2.00x"),
+            "{text}"
+        );
+        assert!(
+            text.contains("composite-fast     150.0 ms = 1.00x"),
+            "{text}"
+        );
+        assert_eq!(text.lines().count(), 4, "{text}");
+        assert!(versus_vtk(&rows, None).contains("not measured"));
     }
 
     fn row(dataset: &str, size: Size, view: &str, config: &str, ms: u64) -> Row {

@@ -10,4 +10,5 @@ pub mod accuracy;
 pub mod bench;
 pub mod explore;
 pub mod paper;
+pub mod peer;
 pub mod scale;
