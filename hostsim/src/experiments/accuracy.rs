@@ -45,6 +45,31 @@ pub struct Point {
     /// The 99th percentile over pixels of each pixel's largest channel difference, 8-bit
     /// levels: what a few silhouette pixels cannot saturate.
     pub p99_error: u8,
+    /// Structural similarity to the reference (mean SSIM over 8×8 windows, RGB; 1 when
+    /// identical), from the `image-compare` crate.
+    pub ssim: f64,
+}
+
+/// Mean SSIM (8×8 windows, over the RGB channels) between two RGBA8 images of `width` ×
+/// `height`; `NaN` when they are not that size.
+pub fn ssim(a: &[[u8; 4]], b: &[[u8; 4]], width: u32, height: u32) -> f64 {
+    let rgb = |p: &[[u8; 4]]| {
+        if p.len() as u64 != u64::from(width) * u64::from(height) {
+            return None;
+        }
+        image::RgbImage::from_raw(
+            width,
+            height,
+            p.iter().flat_map(|q| [q[0], q[1], q[2]]).collect(),
+        )
+    };
+    match (rgb(a), rgb(b)) {
+        (Some(x), Some(y)) => {
+            image_compare::rgb_similarity_structure(&image_compare::Algorithm::MSSIMSimple, &x, &y)
+                .map_or(f64::NAN, |s| s.score)
+        }
+        _ => f64::NAN,
+    }
 }
 
 /// Simulated 1-node seconds of the counted work on `profile` (compute, scaled; no messages).
@@ -137,6 +162,7 @@ fn measure(
         psnr,
         max_error,
         p99_error: p99_error(&r.pixels, reference),
+        ssim: ssim(&r.pixels, reference, r.width, r.height),
     })
 }
 
@@ -254,8 +280,8 @@ pub fn sweep(job: &DatasetJob, profile: &MachineProfile) -> Vec<Point> {
 /// The table.
 pub fn table(points: &[Point]) -> String {
     let mut out = format!(
-        "{:<30} {:>9} {:>12} {:>10} {:>9} {:>9} {:>9}\n",
-        "setting", "wall ms", "nCUBE 2 s", "samples", "PSNR dB", "p99 err", "max err"
+        "{:<30} {:>9} {:>12} {:>10} {:>9} {:>8} {:>9} {:>9}\n",
+        "setting", "wall ms", "nCUBE 2 s", "samples", "PSNR dB", "SSIM", "p99 err", "max err"
     );
     let mut sweep = "";
     for p in points {
@@ -270,17 +296,18 @@ pub fn table(points: &[Point]) -> String {
         };
         let _ = writeln!(
             out,
-            "{:<30} {:>9.1} {:>12.1} {:>9.2}M {:>9} {:>9} {:>9}",
+            "{:<30} {:>9.1} {:>12.1} {:>9.2}M {:>9} {:>8.4} {:>9} {:>9}",
             p.label,
             p.wall_ms,
             p.ncube_s,
             p.samples as f64 / 1e6,
             psnr,
+            p.ssim,
             p.p99_error,
             p.max_error
         );
     }
-    out.push_str("reference: dt 1/16, cell model, exact tier, same image size; errors in 8-bit levels (p99: the 99th percentile over pixels of a pixel's largest channel error)\n");
+    out.push_str("reference: dt 1/16, cell model, exact tier, same image size; errors in 8-bit levels (p99: the 99th percentile over pixels of a pixel's largest channel error); SSIM: mean structural similarity over 8x8 windows (1: identical)\n");
     out
 }
 
@@ -405,5 +432,13 @@ mod tests {
         let c: Vec<[u8; 4]> = a.iter().map(|p| [p[0], p[1] + 3, p[2], 255]).collect();
         assert_eq!(p99_error(&a, &c), 3);
         assert_eq!(p99_error(&[], &[]), 0);
+        // SSIM: 1 for the same image, less for a changed one, NaN for a wrong size.
+        let img: Vec<[u8; 4]> = (0..64u8).map(|i| [i * 3, 255 - i, i, 255]).collect();
+        let mut other = img.clone();
+        other[27] = [0, 0, 0, 255];
+        assert_eq!(ssim(&img, &img, 8, 8), 1.0);
+        let changed = ssim(&img, &other, 8, 8);
+        assert!(changed < 1.0 && changed > 0.0, "{changed}");
+        assert!(ssim(&img, &img, 4, 4).is_nan());
     }
 }
