@@ -114,6 +114,12 @@ pub enum Command {
         /// named in the report).
         #[arg(long, value_enum)]
         accuracy: Option<AccuracyArg>,
+        /// Write the simulator's timeline of the run in virtual time on the --machine profile
+        /// (each node's compute, send, receive, test and idle spans) as Chrome trace-event
+        /// JSON, which Perfetto and chrome://tracing open. Needs --fabric sim; with several
+        /// views, `FILE` gets each view's name before its extension.
+        #[arg(long, value_name = "FILE.json")]
+        trace: Option<PathBuf>,
         /// Render every view as an orbit of N frames turning once around the volume (about
         /// the up axis through the target, at one scale): the frames as
         /// `<dataset>-<view>-000.png` … and an animated `<dataset>-<view>.gif`.
@@ -486,6 +492,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             no_depths,
             accuracy,
             orbit,
+            trace,
             balance,
         } => {
             let (scene, name) = match &scene {
@@ -532,6 +539,19 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                         ProfileArg::Modern => Profile::builtin("modern")
                             .ok_or("the shipped modern profile is missing")?,
                     };
+                    if trace.is_some() {
+                        if m.fabric != Fabric::Sim {
+                            return Err(format!(
+                                "{}/{}: --trace records the simulator's virtual time: add --fabric sim (this view runs on {})",
+                                job.name, v.name, m.fabric.name()
+                            )
+                            .into());
+                        }
+                        m.timeline = Some(match profile {
+                            ProfileArg::Ncube2 => "ncube2",
+                            ProfileArg::Modern => "modern",
+                        });
+                    }
                     // Configuration errors up front: nothing renders if any view cannot.
                     preflight(&job.volume, &v.view, &m)
                         .map_err(|e| format!("{}/{}: {e}", job.name, v.name))?;
@@ -554,6 +574,23 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             }
             if let Some(path) = &report {
                 check_writable(path)?;
+            }
+            let single = plan.len() == 1;
+            let trace_path = |dataset: &str, view: &str| -> Option<PathBuf> {
+                let path = trace.as_ref()?;
+                if single {
+                    return Some(path.clone());
+                }
+                let stem = path.file_stem().unwrap_or_default().to_string_lossy();
+                let ext = path
+                    .extension()
+                    .map_or(String::new(), |e| format!(".{}", e.to_string_lossy()));
+                Some(path.with_file_name(format!("{stem}-{dataset}-{view}{ext}")))
+            };
+            for (job, v, _) in &plan {
+                if let Some(path) = trace_path(&job.name, &v.name) {
+                    check_writable(&path)?;
+                }
             }
             for (job, v, _) in &plan {
                 if let Some(o) = v.orbit.as_ref().filter(|o| o.frame == 0) {
@@ -668,6 +705,15 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                     &machine,
                     &rendered,
                 );
+                if let Some(path) = trace_path(&job.name, &v.name) {
+                    let time = rendered
+                        .distributed
+                        .as_ref()
+                        .and_then(|d| d.time.as_ref())
+                        .ok_or("--trace: the simulator returned no timeline")?;
+                    let json = crate::timeline::chrome_trace(time, machine.cluster_size());
+                    write_atomic(&path, json.to_string().as_bytes())?;
+                }
                 report.balance = balanced;
                 report.warnings = warnings;
                 views.push(report);

@@ -25,3 +25,4 @@ pub mod report;
 pub mod rng;
 pub mod scene;
 pub mod storage;
+pub mod timeline;

@@ -71,6 +71,9 @@ pub struct Machine {
     pub threads: usize,
     /// How provably empty samples are skipped (changes no pixel; off to compare or debug).
     pub skipping: SkipMode,
+    /// Keep the simulator's timeline in virtual time on the machine profile of this name
+    /// (`render --trace`).
+    pub timeline: Option<&'static str>,
 }
 
 impl Machine {
@@ -88,6 +91,7 @@ impl Machine {
             profile: Profile::ncube2(),
             threads: 0,
             skipping: SkipMode::ALL,
+            timeline: None,
         }
     }
 
@@ -381,6 +385,12 @@ pub fn render_cut(
                 cuts: cuts.map(<[u32]>::to_vec),
                 shift: cuts.is_some(),
                 skipping: node_skipping(volume, view, machine, cuts.is_some()),
+                time: machine
+                    .timeline
+                    .map(crate::profile::MachineProfile::load)
+                    .transpose()
+                    .map_err(|e| RenderError::Machine(e.to_string()))?,
+                timeline: machine.timeline.is_some(),
                 ..machine.sim_config()?
             };
             let run = match machine.fabric {

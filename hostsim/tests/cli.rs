@@ -556,3 +556,74 @@ fn an_orbit_writes_its_frames_and_an_animation_that_turns() {
     assert_eq!(frames.len(), 4);
     assert_eq!(frames[0].buffer().dimensions(), (350, 250));
 }
+
+#[test]
+fn a_simulated_run_s_timeline_is_chrome_trace_json_covering_every_node_s_time() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let trace = dir.path().join("t.json");
+    let args = [
+        "--nodes",
+        "4",
+        "--clusters",
+        "2",
+        "--fabric",
+        "sim",
+        "--trace",
+    ];
+    let mut all: Vec<&str> = args.to_vec();
+    all.push(trace.to_str().expect("utf-8"));
+    render_ok(dir.path(), &all, "r.json");
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&trace).expect("trace written")).expect("json");
+    let events = json["traceEvents"].as_array().expect("traceEvents");
+    let names: Vec<&str> = events
+        .iter()
+        .filter(|e| e["ph"] == "M" && e["name"] == "thread_name")
+        .filter_map(|e| e["args"]["name"].as_str())
+        .collect();
+    assert_eq!(names, ["node 0", "node 1", "node 2", "node 3"]);
+    let frame = json["otherData"]["frame_s"].as_f64().expect("frame") * 1e6;
+    for node in 0..4 {
+        let spans: Vec<(f64, f64)> = events
+            .iter()
+            .filter(|e| e["ph"] == "X" && e["tid"] == node)
+            .map(|e| {
+                (
+                    e["ts"].as_f64().expect("ts"),
+                    e["dur"].as_f64().expect("dur"),
+                )
+            })
+            .collect();
+        assert!(spans.iter().all(|&(ts, dur)| ts >= 0.0 && dur > 0.0));
+        // Spans follow each other without overlap and cover the node's whole frame.
+        for w in spans.windows(2) {
+            assert!(w[0].0 + w[0].1 <= w[1].0 + 1e-3, "node {node}: {w:?}");
+        }
+        // From 0 to the node's end, which is the frame's end or a little after (a node may
+        // still be terminating when the host holds the last pixel).
+        let covered: f64 = spans.iter().map(|s| s.1).sum();
+        let end = spans.last().map_or(0.0, |s| s.0 + s.1);
+        assert!(spans.first().is_some_and(|s| s.0 == 0.0), "node {node}");
+        assert!(
+            (covered - end).abs() <= 1e-6 * end,
+            "node {node}: {covered} of {end}"
+        );
+        assert!(
+            end >= frame * (1.0 - 1e-9),
+            "node {node}: ends at {end}, frame {frame}"
+        );
+    }
+    let kinds: std::collections::BTreeSet<&str> =
+        events.iter().filter_map(|e| e["cat"].as_str()).collect();
+    assert!(kinds.contains("compute") && kinds.contains("send") && kinds.contains("idle"));
+    // Only the simulator keeps virtual time.
+    let out = voxcube()
+        .args(["render", "--trace"])
+        .arg(&trace)
+        .arg("-o")
+        .arg(dir.path())
+        .output()
+        .expect("runs");
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--fabric sim"));
+}

@@ -77,6 +77,9 @@ pub struct RunConfig {
     /// Virtual time on this machine profile (simulator): events run in time order (the
     /// scheduler and seed then only break ties) and every node's time is kept by category.
     pub time: Option<MachineProfile>,
+    /// With `time`: keep every node's timeline of compute, send, receive, test and idle
+    /// spans ([`crate::fabric::VirtualTime::timeline`]).
+    pub timeline: bool,
     /// How the nodes skip provably empty samples (changes no pixel; off to compare).
     pub skipping: SkipMode,
     /// The simulator's event order.
@@ -103,6 +106,7 @@ impl RunConfig {
             buffer_bytes: None,
             flow_control: true,
             time: None,
+            timeline: false,
             skipping: SkipMode::ALL,
             schedule: Schedule {
                 seed,

@@ -192,6 +192,20 @@ pub struct VirtualTime {
     /// Per node, in node-id order (not ring order: ids are Gray-coded), seconds by
     /// [`Category`].
     pub parts: Vec<[f64; Category::COUNT]>,
+    /// Per node, in node-id order, its spans in time order (empty unless asked for with
+    /// [`RunConfig::timeline`]); neighbouring spans of one kind are merged.
+    pub timeline: Vec<Vec<Span>>,
+}
+
+/// A stretch of a node's virtual time spent one way.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Span {
+    /// What the node did: `compute`, `test`, `receive`, `send` or `idle`.
+    pub kind: &'static str,
+    /// Start, seconds.
+    pub start: f64,
+    /// End, seconds.
+    pub end: f64,
 }
 
 /// The result of a distributed render.

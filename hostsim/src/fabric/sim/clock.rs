@@ -7,7 +7,7 @@
 
 use super::network::Envelope;
 use super::schedule::Choice;
-use crate::fabric::{Category, VirtualTime};
+use crate::fabric::{Category, Span, VirtualTime};
 use crate::profile::MachineProfile;
 use voxcube_kernel::counters::Counters;
 use voxcube_kernel::node::msg::Msg;
@@ -21,16 +21,30 @@ pub(super) struct Clock {
     pub(super) parts: Vec<[f64; Category::COUNT]>,
     pub(super) host_time: f64,
     pub(super) last_pixel: f64,
+    /// Every node's spans, when a timeline was asked for.
+    timeline: Option<Vec<Vec<Span>>>,
+}
+
+/// Append a span to a node's timeline, merged into the last one when it continues it.
+fn push(spans: &mut Vec<Span>, kind: &'static str, start: f64, end: f64) {
+    if end <= start {
+        return;
+    }
+    match spans.last_mut() {
+        Some(last) if last.kind == kind && last.end == start => last.end = end,
+        _ => spans.push(Span { kind, start, end }),
+    }
 }
 
 impl Clock {
-    pub(super) fn new(profile: &MachineProfile, nodes: usize) -> Clock {
+    pub(super) fn new(profile: &MachineProfile, nodes: usize, timeline: bool) -> Clock {
         Clock {
             profile: profile.clone(),
             now: vec![0.0; nodes],
             parts: vec![[0.0; Category::COUNT]; nodes],
             host_time: 0.0,
             last_pixel: 0.0,
+            timeline: timeline.then(|| vec![Vec::new(); nodes]),
         }
     }
 
@@ -80,6 +94,8 @@ impl Clock {
         parts[Category::Read as usize] = received as f64 * m.read;
         parts[Category::Write as usize] = sent.len() as f64 * m.write;
         let mut spent = 0.0;
+        // A step tests its buffer, reads, computes, then writes: its spans in that order.
+        let mut kinds = [0.0f64; 4];
         for (category, (total, part)) in Category::ALL
             .iter()
             .zip(self.parts[n].iter_mut().zip(parts))
@@ -92,6 +108,23 @@ impl Clock {
             };
             *total += part;
             spent += part;
+            let k = match category {
+                Category::Test => 0,
+                Category::Read => 1,
+                Category::Write => 3,
+                _ => 2,
+            };
+            kinds[k] += part;
+        }
+        if let Some(timeline) = self.timeline.as_mut() {
+            let mut at = self.now[n];
+            for (kind, d) in ["test", "receive", "compute", "send"]
+                .into_iter()
+                .zip(kinds)
+            {
+                push(&mut timeline[n], kind, at, at + d);
+                at += d;
+            }
         }
         self.now[n] += spent;
         let me = n as u16;
@@ -108,6 +141,9 @@ impl Clock {
     pub(super) fn wake(&mut self, n: usize, at: f64) {
         if at > self.now[n] {
             self.parts[n][Category::Idle as usize] += at - self.now[n];
+            if let Some(timeline) = self.timeline.as_mut() {
+                push(&mut timeline[n], "idle", self.now[n], at);
+            }
             self.now[n] = at;
         }
     }
@@ -121,6 +157,10 @@ impl Clock {
 
     pub(super) fn finish(self) -> VirtualTime {
         let end = self.last_pixel;
+        let mut timeline = self.timeline.unwrap_or_default();
+        for (spans, &now) in timeline.iter_mut().zip(&self.now) {
+            push(spans, "idle", now, end);
+        }
         // From a node's last work to the end of the frame it is idle too.
         let parts = self
             .parts
@@ -137,6 +177,7 @@ impl Clock {
             frame: end,
             end: self.host_time,
             parts,
+            timeline,
         }
     }
 }

@@ -167,7 +167,10 @@ impl<'a, 'c, T: Sample> Sim<'a, 'c, T> {
             stopped: vec![false; nodes],
             host: plan.host(),
             rng: SplitMix(cfg.schedule.seed),
-            clock: cfg.time.as_ref().map(|p| Clock::new(p, nodes)),
+            clock: cfg
+                .time
+                .as_ref()
+                .map(|p| Clock::new(p, nodes, cfg.timeline)),
             log: EventLog::default(),
             messages: [0; 9],
             bytes: 0,
