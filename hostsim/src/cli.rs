@@ -180,6 +180,10 @@ pub enum Command {
         /// Machine profile: ncube2, modern, or a profile file.
         #[arg(long, default_value = "ncube2")]
         machine: String,
+        /// Also write one row's timeline, `NODES/SIZE` (say 128/2: 128 nodes in clusters of
+        /// 2), as Chrome trace-event JSON `trace-NODES-SIZE.json` in the output folder.
+        #[arg(long, value_name = "NODES/SIZE")]
+        trace: Option<String>,
     },
     /// What accuracy costs in time: dt, voxel vs cell model, image size and
     /// the accuracy tiers swept on SOD; wall time, simulated nCUBE 2 time, samples, and error
@@ -372,10 +376,33 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             substitute,
             out,
             machine,
+            trace,
         } => {
             let profile = crate::profile::MachineProfile::load(&machine)?;
+            let row = trace
+                .as_deref()
+                .map(|t| {
+                    t.split_once('/')
+                        .and_then(|(p, s)| Some((p.parse::<u32>().ok()?, s.parse::<u32>().ok()?)))
+                        .ok_or_else(|| {
+                            format!("--trace {t}: expected NODES/SIZE, for example 128/2")
+                        })
+                })
+                .transpose()?;
+            let trace_file = row.map(|(p, s)| out.join(format!("trace-{p}-{s}.json")));
             let mut text = String::new();
             let job = crate::experiments::paper::dataset(source(&data, substitute), &mut text)?;
+            if let (Some((p, s)), Some(path)) = (row, &trace_file) {
+                std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
+                check_writable(path)?;
+                let time = crate::experiments::paper::traced(&job, &profile, p, s)?;
+                let json = crate::timeline::chrome_trace(&time, s);
+                write_atomic(path, json.to_string().as_bytes())?;
+                text += &format!(
+                    "wrote the {p}-node, clusters-of-{s} timeline to {}\n",
+                    path.display()
+                );
+            }
             crate::experiments::paper::run(&job, &profile, &out, &mut text)?;
             stdout(&text)?;
             Ok(())

@@ -156,6 +156,40 @@ pub fn timed(
     size: u32,
     cuts: Option<Vec<u32>>,
 ) -> Result<VirtualTime, PaperError> {
+    timed_with(job, view, profile, (clusters, size), cuts, false)
+}
+
+/// The paper's run of `nodes` nodes in clusters of `size` (a row of Tables 1 and 2), with
+/// every node's timeline kept: what `paper --trace` writes.
+pub fn traced(
+    job: &DatasetJob,
+    profile: &MachineProfile,
+    nodes: u32,
+    size: u32,
+) -> Result<VirtualTime, PaperError> {
+    if size == 0 || nodes % size != 0 || !nodes.is_power_of_two() || !size.is_power_of_two() {
+        return Err(PaperError::Write(format!(
+            "--trace {nodes}/{size}: nodes and cluster size are powers of two, the size dividing the nodes"
+        )));
+    }
+    timed_with(
+        job,
+        &job.views[0].view,
+        profile,
+        (nodes / size, size),
+        None,
+        true,
+    )
+}
+
+fn timed_with(
+    job: &DatasetJob,
+    view: &View,
+    profile: &MachineProfile,
+    (clusters, size): (u32, u32),
+    cuts: Option<Vec<u32>>,
+    timeline: bool,
+) -> Result<VirtualTime, PaperError> {
     let Ok(base) = RunConfig::machine(clusters, size, 1) else {
         return Err(PaperError::Write(format!(
             "no layout of {clusters} clusters of {size}"
@@ -164,6 +198,7 @@ pub fn timed(
     // The paper's tracer had no acceleration: model it without empty-space skipping.
     let cfg = RunConfig {
         time: Some(profile.clone()),
+        timeline,
         shift: cuts.is_some(),
         cuts,
         skipping: crate::storage::SkipMode::OFF,
@@ -496,7 +531,28 @@ fn plot(dir: &Path, series: &[(f64, f64, f64, f64, f64)]) -> Result<(), PaperErr
 
 #[cfg(test)]
 mod tests {
-    use super::cluster_bound;
+    use super::*;
+
+    #[test]
+    fn a_traced_row_keeps_every_node_s_timeline_and_a_bad_row_is_named() {
+        let mut notes = String::new();
+        let job = dataset(Source::Substitute, &mut notes).unwrap_or_else(|e| panic!("{e}"));
+        let profile = MachineProfile::ncube2();
+        let time = traced(&job, &profile, 4, 2).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(time.timeline.len(), 4);
+        assert!(time.timeline.iter().all(|spans| !spans.is_empty()));
+        // The untraced run keeps none, and takes the same virtual time.
+        let plain =
+            timed(&job, &job.views[0].view, &profile, 2, 2, None).unwrap_or_else(|e| panic!("{e}"));
+        assert!(plain.timeline.iter().all(Vec::is_empty));
+        assert_eq!(plain.frame, time.frame);
+        let e = traced(&job, &profile, 6, 4)
+            .map(|_| ())
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(e.contains("--trace 6/4"), "{e}");
+    }
 
     #[test]
     fn the_bound_is_the_busiest_cluster_s_rows_over_its_nodes() {
