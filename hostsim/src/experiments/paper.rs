@@ -167,7 +167,11 @@ pub fn traced(
     nodes: u32,
     size: u32,
 ) -> Result<VirtualTime, PaperError> {
-    if size == 0 || nodes % size != 0 || !nodes.is_power_of_two() || !size.is_power_of_two() {
+    if size == 0
+        || !nodes.is_multiple_of(size)
+        || !nodes.is_power_of_two()
+        || !size.is_power_of_two()
+    {
         return Err(PaperError::Write(format!(
             "--trace {nodes}/{size}: nodes and cluster size are powers of two, the size dividing the nodes"
         )));
