@@ -57,7 +57,10 @@ accuracy = "TIER"
 [datasets.views.camera]
 azimuth = 45.0
 width = SPAN
-[[datasets.views.transfer]]
+"#;
+
+/// The transfer function of every benchmarked composited view (SOD's, scenes/sod.toml).
+pub const COMPOSITE_TRANSFER: &str = r#"[[datasets.views.transfer]]
 value = 10.0
 color = [0.2, 0.3, 0.8]
 opacity = 0.0
@@ -74,8 +77,9 @@ opacity = 0.8
 /// The views benchmarked: the paper's view as a shaded surface and composited, and
 /// composited in the fast tier, each with its placeholders for the size still in.
 fn views() -> String {
-    let composite =
-        |name: &str, tier: &str| COMPOSITE_VIEW.replace("NAME", name).replace("TIER", tier);
+    let composite = |name: &str, tier: &str| {
+        COMPOSITE_VIEW.replace("NAME", name).replace("TIER", tier) + COMPOSITE_TRANSFER
+    };
     format!(
         "{SURFACES_VIEW}{}{}",
         composite("composite", "exact"),

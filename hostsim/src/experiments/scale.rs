@@ -4,7 +4,7 @@
 //! of one node per core (threads), each node a modern one (1 GiB); time per evaluated sample and per pixel show where the
 //! cost goes as the volume or the image grows.
 
-use super::bench::BenchError;
+use super::bench::{BenchError, COMPOSITE_TRANSFER};
 use crate::builtin;
 use crate::dataset::{plane_major_from_fn, Volume, VolumeData};
 use crate::render::{render_on, Fabric, Machine};
@@ -99,19 +99,7 @@ accuracy = "{tier}"
 eye = {eye:?}
 look_at = [{c:?}, {c:?}, {c:?}]
 width = {span:?}
-[[datasets.views.transfer]]
-value = 10.0
-color = [0.2, 0.3, 0.8]
-opacity = 0.0
-[[datasets.views.transfer]]
-value = 60.0
-color = [0.9, 0.7, 0.3]
-opacity = 0.15
-[[datasets.views.transfer]]
-value = 200.0
-color = [1.0, 0.2, 0.1]
-opacity = 0.8
-"#
+{COMPOSITE_TRANSFER}"#
     )
 }
 
