@@ -180,6 +180,10 @@ pub enum Command {
         /// Machine profile: ncube2, modern, or a profile file.
         #[arg(long, default_value = "ncube2")]
         machine: String,
+        /// First fit the profile's two constants (compute `scale`, `message_scale`) on
+        /// Table 1 alone, then predict Tables 2-4 with them (a few minutes).
+        #[arg(long)]
+        fit: bool,
         /// Also write one row's timeline, `NODES/SIZE` (say 128/2: 128 nodes in clusters of
         /// 2), as Chrome trace-event JSON `trace-NODES-SIZE.json` in the output folder.
         #[arg(long, value_name = "NODES/SIZE")]
@@ -377,6 +381,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             out,
             machine,
             trace,
+            fit,
         } => {
             let profile = crate::profile::MachineProfile::load(&machine)?;
             let row = trace
@@ -403,7 +408,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                     path.display()
                 );
             }
-            crate::experiments::paper::run(&job, &profile, &out, &mut text)?;
+            crate::experiments::paper::run(&job, &profile, &out, &mut text, fit)?;
             stdout(&text)?;
             Ok(())
         }

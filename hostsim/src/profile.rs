@@ -3,7 +3,8 @@
 //! (`hostsim/profiles/`), selectable by name (`ncube2`, `modern`) or read from a path.
 //!
 //! Invariants: every cost is finite and non-negative, `scale` and `node_memory` positive. The
-//! time of a piece of work is `scale × Σ count × cost`; `scale` is the one calibrated number.
+//! time of a piece of work is `scale × Σ count × cost`, a message's software costs are times
+//! `message_scale`; those two are the fitted numbers ([`crate::experiments::fit`]).
 
 use serde::Deserialize;
 use std::path::Path;
@@ -24,7 +25,8 @@ pub struct Costs {
     pub gradient: f64,
     /// Shading one point.
     pub shading: f64,
-    /// One crossing found.
+    /// One crossing test: one taken sample against one surface (Voxel_Sample's threshold
+    /// search runs it for every sample, crossing or not).
     pub crossing: f64,
     /// Setting up one primary ray.
     pub ray_setup: f64,
@@ -58,12 +60,21 @@ pub struct MachineProfile {
     pub name: String,
     /// Bytes of memory per node.
     pub node_memory: usize,
-    /// The calibrated overall factor.
+    /// The fitted factor on the tracer's compute costs [`Costs`].
     pub scale: f64,
+    /// The fitted factor on the message primitives' software costs (start-up, `nread`,
+    /// `nwrite`, `ntest`); a link's per-byte and per-hop costs are the hardware's own and
+    /// stay. 1 when absent.
+    #[serde(default = "one")]
+    pub message_scale: f64,
     /// Operation costs.
     pub costs: Costs,
     /// Message costs.
     pub messages: MessageCosts,
+}
+
+fn one() -> f64 {
+    1.0
 }
 
 /// The profiles shipped with voxcube.
@@ -145,8 +156,10 @@ impl MachineProfile {
                 "{key}: {v} must be a finite number of seconds >= 0"
             )));
         }
-        if !(p.scale.is_finite() && p.scale > 0.0) {
-            return Err(invalid(format!("scale: {} must be > 0", p.scale)));
+        for (key, v) in [("scale", p.scale), ("message_scale", p.message_scale)] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(invalid(format!("{key}: {v} must be > 0")));
+            }
         }
         if p.node_memory == 0 {
             return Err(invalid("node_memory must be > 0".into()));
@@ -154,10 +167,12 @@ impl MachineProfile {
         Ok(p)
     }
 
-    /// Unscaled seconds of the tracer's compute for counted work `c`, as the paper's Table 4
-    /// splits it: interpolation, tracing (stepping and ray set-up), and sample-and-shade
-    /// (refinement, gradients, shading, crossings). Multiply by `scale` for machine time.
-    pub fn compute(&self, c: &voxcube_kernel::counters::Counters) -> [f64; 3] {
+    /// Unscaled seconds of the tracer's compute for counted work `c` of a view searching
+    /// `surfaces` iso-surfaces (0 for a composited view), as the paper's Table 4 splits it:
+    /// interpolation, tracing (stepping and ray set-up), and sample-and-shade (a crossing test
+    /// per taken sample and surface, refinement, gradients, shading). Multiply by `scale` for
+    /// machine time.
+    pub fn compute(&self, c: &voxcube_kernel::counters::Counters, surfaces: u32) -> [f64; 3] {
         let k = &self.costs;
         let n = |v: u64| v as f64;
         [
@@ -166,8 +181,30 @@ impl MachineProfile {
             n(c.refinements) * k.refinement
                 + n(c.gradients) * k.gradient
                 + n(c.shadings) * k.shading
-                + n(c.crossings) * k.crossing,
+                + n(c.samples) * f64::from(surfaces) * k.crossing,
         ]
+    }
+
+    /// What messages cost on this machine: the profile's message costs with their software
+    /// parts times [`MachineProfile::message_scale`].
+    pub fn message_costs(&self) -> MessageCosts {
+        let (m, f) = (self.messages, self.message_scale);
+        MessageCosts {
+            latency: m.latency * f,
+            read: m.read * f,
+            write: m.write * f,
+            test: m.test * f,
+            test_per_pending: m.test_per_pending * f,
+            ..m
+        }
+    }
+
+    /// The iso-surfaces `view` tests every taken sample against (none when compositing).
+    pub fn searched_surfaces(view: &voxcube_kernel::trace::view::View) -> u32 {
+        match &view.spec().mode {
+            voxcube_kernel::trace::view::Mode::Surfaces(s) => s.len() as u32,
+            voxcube_kernel::trace::view::Mode::Composite(_) => 0,
+        }
     }
 
     /// The nCUBE 2.
@@ -206,5 +243,47 @@ mod tests {
             MachineProfile::load("cray"),
             Err(ProfileError::Unknown(_))
         ));
+        let bad = include_str!("../profiles/ncube2.toml")
+            .replace("message_scale = 0.25", "message_scale = 0.0");
+        let e = MachineProfile::parse(&bad, "bad.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("message_scale"), "{e}");
+    }
+
+    #[test]
+    fn every_taken_sample_pays_a_crossing_test_per_surface() {
+        let p = MachineProfile::ncube2();
+        let c = voxcube_kernel::counters::Counters {
+            samples: 1000,
+            crossings: 3,
+            ..Default::default()
+        };
+        let [_, _, none] = p.compute(&c, 0);
+        let [_, _, two] = p.compute(&c, 2);
+        assert_eq!(
+            none, 0.0,
+            "crossings found cost nothing beyond their refinement"
+        );
+        assert!((two - 2000.0 * p.costs.crossing).abs() < 1e-15, "{two}");
+    }
+
+    #[test]
+    fn message_scale_scales_the_software_and_leaves_the_links() {
+        let p = MachineProfile {
+            message_scale: 3.0,
+            ..MachineProfile::ncube2()
+        };
+        let (m, f) = (p.message_costs(), p.messages);
+        for (scaled, given) in [
+            (m.latency, f.latency),
+            (m.read, f.read),
+            (m.write, f.write),
+            (m.test, f.test),
+            (m.test_per_pending, f.test_per_pending),
+        ] {
+            assert!((scaled - 3.0 * given).abs() < 1e-15);
+        }
+        assert_eq!((m.per_byte, m.per_hop), (f.per_byte, f.per_hop));
     }
 }

@@ -164,7 +164,7 @@ fn the_experiments_take_sod_as_its_folder_or_its_file() {
 }
 
 #[test]
-fn the_ncube2_profile_is_calibrated_to_the_papers_one_node_time() {
+fn the_fitted_ncube2_profile_keeps_the_papers_one_node_time_within_five_percent() {
     use voxcube::fabric::sim;
     use voxcube::fabric::RunConfig;
     use voxcube::profile::MachineProfile;
@@ -186,8 +186,10 @@ fn the_ncube2_profile_is_calibrated_to_the_papers_one_node_time() {
         .expect("runs")
         .time
         .expect("timed");
+    // The constants are fitted on all of Table 1, which this row alone does not pin: the fit
+    // leaves it 3.3% slow (docs/results.md), and the long mode checks the fit itself.
     assert!(
-        (t.frame - 485.24).abs() < 0.01 * 485.24,
+        (t.frame - 485.24).abs() < 0.05 * 485.24,
         "1-node SOD takes {:.2} s; the paper's is 485.24 s",
         t.frame
     );
@@ -264,5 +266,38 @@ fn at_128_nodes_a_small_cluster_beats_pure_dataflow_and_pure_image_partition() {
     assert!(
         one < two,
         "framed larger: clusters of 2 take {two:.2} s, of 1 {one:.2} s"
+    );
+}
+
+#[test]
+fn the_shipped_ncube2_constants_are_what_the_fit_on_table_1_finds() {
+    // The fit takes about a minute on a release build: the long mode only.
+    if std::env::var_os("VOXCUBE_LONG").is_none() {
+        eprintln!("skipping: VOXCUBE_LONG=1 runs the fit");
+        return;
+    }
+    let Some(data) = data_or_skip() else { return };
+    let mut notes = String::new();
+    let job = voxcube::experiments::paper::dataset(
+        voxcube::experiments::paper::Source::Sod(&data),
+        &mut notes,
+    )
+    .expect("SOD loads");
+    let shipped = voxcube::profile::MachineProfile::ncube2();
+    let fit = voxcube::experiments::fit::fit(
+        &job,
+        &job.views[0].view,
+        &shipped,
+        &voxcube::experiments::paper::TABLE1,
+    )
+    .expect("fits");
+    assert!(
+        (fit.profile.scale / shipped.scale - 1.0).abs() < 0.002
+            && fit.profile.message_scale == shipped.message_scale,
+        "the fit finds scale {} and message_scale {}; ncube2.toml ships {} and {}",
+        fit.profile.scale,
+        fit.profile.message_scale,
+        shipped.scale,
+        shipped.message_scale
     );
 }

@@ -72,9 +72,11 @@ pub fn ssim(a: &[[u8; 4]], b: &[[u8; 4]], width: u32, height: u32) -> f64 {
     }
 }
 
-/// Simulated 1-node seconds of the counted work on `profile` (compute, scaled; no messages).
-pub fn one_node_seconds(c: &Counters, profile: &MachineProfile) -> f64 {
-    profile.compute(c).iter().sum::<f64>() * profile.scale
+/// Simulated 1-node seconds of `view`'s counted work on `profile` (compute, scaled; no
+/// messages).
+pub fn one_node_seconds(c: &Counters, view: &View, profile: &MachineProfile) -> f64 {
+    let surfaces = MachineProfile::searched_surfaces(view);
+    profile.compute(c, surfaces).iter().sum::<f64>() * profile.scale
 }
 
 /// The 99th percentile, over the pixels of two RGBA8 images of the same size, of each
@@ -157,7 +159,7 @@ fn measure(
         label,
         sweep,
         wall_ms: walls[1],
-        ncube_s: one_node_seconds(&r.counters, profile),
+        ncube_s: one_node_seconds(&r.counters, view, profile),
         samples: r.counters.samples,
         psnr,
         max_error,

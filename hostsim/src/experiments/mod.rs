@@ -9,6 +9,7 @@
 pub mod accuracy;
 pub mod bench;
 pub mod explore;
+pub mod fit;
 pub mod paper;
 pub mod peer;
 pub mod scale;

@@ -2,8 +2,9 @@
 //! printed beside the paper's numbers; speedup and efficiency plots; the image.
 //!
 //! Table 1 takes, for each node count, the best cluster size (as the paper's own times imply:
-//! its 64- and 128-node rows are Table 2's best columns). Table 4 folds waiting into `ntest`,
-//! because an nCUBE worker with nothing to do spins on `ntest`; the idle share is also shown.
+//! its 64- and 128-node rows are Table 2's best columns); it is the table the profile's two
+//! constants are fitted on ([`crate::experiments::fit`]), and Tables 2–4 are held out. Table 4
+//! shows waiting as its own line, `idle`, apart from the `ntest` calls that find work.
 //!
 //! Static load balancing follows the paper (see [`crate::balance`]): one cluster traces a
 //! probe grid of primary rays, the workers' times set new slab sizes by the paper's formula,
@@ -269,80 +270,155 @@ pub fn cluster_bound(rows: &[f64], clusters: u32, size: u32) -> f64 {
     work.into_iter().fold(0.0, f64::max) / f64::from(size.max(1))
 }
 
+/// One slab's share of a ring's frame: its planes and its node's busy and idle seconds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SlabWork {
+    /// The slab's planes, `from..to` along x.
+    pub planes: (u32, u32),
+    /// Seconds the slab's node spent tracing, testing, reading and writing.
+    pub busy: f64,
+    /// Seconds it waited.
+    pub idle: f64,
+}
+
+/// Each slab's work in one cluster of `size` nodes rendering the whole image, on uniform
+/// slabs or on `cuts` (reached by the plane shift, whose time is included).
+pub fn slab_work(
+    job: &DatasetJob,
+    view: &View,
+    profile: &MachineProfile,
+    size: u32,
+    cuts: Option<Vec<u32>>,
+) -> Result<Vec<SlabWork>, PaperError> {
+    let layout = voxcube_kernel::node::topology::Layout::new(1, size)
+        .map_err(|e| PaperError::Write(e.to_string()))?;
+    let nx = job.volume.grid.dims()[0];
+    let planes: Vec<u32> = match &cuts {
+        Some(cuts) => cuts.clone(),
+        None => voxcube_kernel::node::partition::Partition::uniform(nx, size as usize)
+            .map_err(|e| PaperError::Write(e.to_string()))?
+            .cuts()
+            .to_vec(),
+    };
+    if planes.len() != size as usize + 1 {
+        return Err(PaperError::Write(format!(
+            "{} cuts for a ring of {size}",
+            planes.len()
+        )));
+    }
+    let time = timed(job, view, profile, 1, size, cuts)?;
+    (0..size as u16)
+        .map(|position| {
+            let part = time
+                .parts
+                .get(usize::from(layout.node(0, position)))
+                .ok_or_else(|| PaperError::Write("a ring position without a node".into()))?;
+            let idle = part[Category::Idle as usize];
+            let i = usize::from(position);
+            Ok(SlabWork {
+                planes: (planes[i], planes[i + 1]),
+                busy: part.iter().sum::<f64>() - idle,
+                idle,
+            })
+        })
+        .collect()
+}
+
 /// Picks one share out of a node's time by category.
 type Pick = fn(&[f64; Category::COUNT]) -> f64;
 
 /// Run every experiment; append the tables to `out`, write plots and the image to `dir`.
+/// With `fit`, the profile's two constants are first fitted on Table 1
+/// ([`crate::experiments::fit`]) and every table uses the fitted profile.
 pub fn run(
     job: &DatasetJob,
     profile: &MachineProfile,
     dir: &Path,
     out: &mut String,
+    fit: bool,
 ) -> Result<(), PaperError> {
     let view = &job.views[0].view;
     std::fs::create_dir_all(dir)
         .map_err(|e| PaperError::Write(format!("{}: {e}", dir.display())))?;
-    let one = timed(job, view, profile, 1, 1, None)?;
-    let compute: f64 = Category::ALL
-        .iter()
-        .filter(|c| c.is_compute())
-        .map(|&c| one.parts[0][c as usize])
-        .sum();
-    let rest = one.frame - compute;
-    let calibrated = profile.scale * (TABLE1[0].1 - rest) / compute.max(1e-12);
-    let _ = writeln!(
-        out,
-        "Machine {}: the 1-node render takes {:.2} s with scale {} ({:.2} s uncalibrated, scale 1); the paper's 485.24 s needs scale {:.3}.\n",
-        profile.name,
-        one.frame,
-        profile.scale,
-        compute / profile.scale + rest,
-        calibrated
-    );
-    // Every shape up to 128 nodes.
-    let mut times = std::collections::BTreeMap::new();
-    for k in 0..=7u32 {
-        let p = 1u32 << k;
-        for cs in [1u32, 2, 4, 8, 16].into_iter().filter(|&c| c <= p) {
-            let t = if p == 1 {
-                one.clone()
+    let fitted;
+    let profile = if fit {
+        let f = crate::experiments::fit::fit(job, view, profile, &TABLE1)?;
+        let _ = writeln!(
+            out,
+            "Fit on Table 1 alone ({} evaluations of its {} node counts, every cluster size each): scale {:.4} (was {}), message_scale {:.4} (was {}); rms log-time error {:.3}.{}\n",
+            f.evaluations,
+            TABLE1.len(),
+            f.profile.scale,
+            profile.scale,
+            f.profile.message_scale,
+            profile.message_scale,
+            f.rms,
+            if f.at_bound {
+                " message_scale is at its search bound: Table 1 asks for message software outside the range the machine's documentation allows."
             } else {
-                timed(job, view, profile, p / cs, cs, None)?
-            };
-            times.insert((p, cs), t.frame);
-        }
-    }
-    let t1 = one.frame;
+                ""
+            }
+        );
+        fitted = f.profile;
+        &fitted
+    } else {
+        profile
+    };
     let _ = writeln!(
         out,
-        "Table 1: times (s), speedup and efficiency with increasing nodes (best cluster size)"
+        "Machine {}: scale {} on the tracer's compute, message_scale {} on the message primitives' software ({}).\n",
+        profile.name,
+        profile.scale,
+        profile.message_scale,
+        if fit {
+            "fitted above"
+        } else {
+            "as the profile gives them; `voxcube paper --fit` fits them on Table 1"
+        }
+    );
+    let nodes: Vec<u32> = TABLE1.iter().map(|r| r.0).collect();
+    let times = crate::experiments::fit::shapes(job, view, profile, &nodes)?;
+    let t1 = times
+        .get(&(1, 1))
+        .copied()
+        .ok_or_else(|| PaperError::Write("no 1-node time".into()))?;
+    let _ = writeln!(
+        out,
+        "Table 1: times (s), speedup and efficiency with increasing nodes (best cluster size); the fitted table"
     );
     let _ = writeln!(
         out,
-        "{:>6} {:>9} {:>9} {:>8} {:>8} {:>9} {:>9} {:>8}",
-        "nodes", "cluster", "voxcube", "speedup", "effic.", "paper", "speedup", "effic."
+        "{:>6} {:>9} {:>9} {:>8} {:>8} {:>9} {:>9} {:>8} {:>7}",
+        "nodes", "cluster", "voxcube", "speedup", "effic.", "paper", "speedup", "effic.", "error"
     );
     let mut series = Vec::new();
+    let mut fit_rows = Vec::new();
     for (p, paper) in TABLE1 {
-        let (cs, t) = times
-            .iter()
-            .filter(|((q, _), _)| *q == p)
-            .map(|((_, c), t)| (*c, *t))
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .unwrap_or((1, t1));
+        let (cs, t) = crate::experiments::fit::best(&times, p).unwrap_or((1, t1));
         let (speedup, eff) = (t1 / t, t1 / t / f64::from(p));
         let (psp, peff) = (TABLE1[0].1 / paper, TABLE1[0].1 / paper / f64::from(p));
         let flag = if (eff - peff).abs() > 0.05 { " *" } else { "" };
-        let _ = writeln!(out, "{p:>6} {cs:>9} {t:>9.2} {speedup:>8.2} {eff:>8.2} {paper:>9.2} {psp:>9.2} {peff:>8.2}{flag}");
+        let _ = writeln!(
+            out,
+            "{p:>6} {cs:>9} {t:>9.2} {speedup:>8.2} {eff:>8.2} {paper:>9.2} {psp:>9.2} {peff:>8.2} {:>+6.1}%{flag}",
+            100.0 * (t / paper - 1.0)
+        );
         series.push((f64::from(p), speedup, eff, psp, peff));
+        fit_rows.push(crate::experiments::fit::Row {
+            nodes: p,
+            size: cs,
+            model: t,
+            paper,
+        });
     }
     let _ = writeln!(
         out,
-        "(* efficiency departs from the paper's by more than 0.05)\n"
+        "(error: time against the paper's; * efficiency departs from the paper's by more than 0.05; rms log-time error {:.3})\n",
+        crate::experiments::fit::rms(&fit_rows)
     );
     let _ = writeln!(
         out,
-        "Table 2: times (s) and efficiency with decreasing cluster size"
+        "Table 2 (held out): times (s) and efficiency with decreasing cluster size"
     );
     let _ = writeln!(
         out,
@@ -350,6 +426,7 @@ pub fn run(
         "cluster", "64 nodes", "effic.", "bound", "paper", "128 nodes", "effic.", "bound", "paper"
     );
     let rows = row_costs(job, view, profile)?;
+    let mut held = Vec::new();
     for (cs, p64, p128) in TABLE2 {
         let (a, b) = (times[&(64, cs)], times[&(128, cs)]);
         let _ = writeln!(
@@ -360,7 +437,48 @@ pub fn run(
             t1 / b / 128.0,
             cluster_bound(&rows, 128 / cs, cs),
         );
+        for (model, paper) in [(a, p64), (b, p128)] {
+            held.push(crate::experiments::fit::Row {
+                nodes: 0,
+                size: cs,
+                model,
+                paper,
+            });
+        }
     }
+    // Per column of Table 2: the best cluster size and how much slower the slowest one is.
+    let column = |p: u32, paper: fn(&(u32, f64, f64)) -> f64| {
+        let model = TABLE2.iter().map(|r| (r.0, times[&(p, r.0)]));
+        let ours = model.clone().min_by(|a, b| a.1.total_cmp(&b.1));
+        let theirs = TABLE2.iter().min_by(|a, b| paper(a).total_cmp(&paper(b)));
+        let spread = |best: f64, worst: f64| worst / best.max(1e-12);
+        (
+            ours.map_or(0, |b| b.0),
+            theirs.map_or(0, |b| b.0),
+            spread(
+                ours.map_or(1.0, |b| b.1),
+                model.map(|m| m.1).fold(0.0, f64::max),
+            ),
+            spread(
+                theirs.map_or(1.0, paper),
+                TABLE2.iter().map(paper).fold(0.0, f64::max),
+            ),
+        )
+    };
+    let (c64, c128) = (column(64, |r| r.1), column(128, |r| r.2));
+    let _ = writeln!(
+        out,
+        "held out: rms log-time error {:.3}; best cluster size at 64 nodes {} (paper {}), at 128 {} (paper {}); the slowest size takes {:.2}x the best at 64, {:.2}x at 128 (paper {:.2}x, {:.2}x)",
+        crate::experiments::fit::rms(&held),
+        c64.0,
+        c64.1,
+        c128.0,
+        c128.1,
+        c64.2,
+        c128.2,
+        c64.3,
+        c128.3,
+    );
     let (lo, hi) = rows
         .iter()
         .filter(|&&c| c > 0.1 * t1 / rows.len() as f64)
@@ -371,27 +489,73 @@ pub fn run(
         out,
         "(bound: the busiest cluster's rows, each timed alone on one node, split evenly over its nodes\n with no message cost; rows the volume covers take {lo:.2} to {hi:.2} s)"
     );
-    let _ = writeln!(out, "\nTable 3: times (s) without and with static load balancing (balanced: the plane shift by message included)");
+    let _ = writeln!(out, "\nTable 3 (held out): times (s) without and with static load balancing (balanced: the plane shift by message included); gain = 1 - balanced/standard");
     let _ = writeln!(
         out,
-        "{:>8} {:>10} {:>10} {:>9} {:>11} {:>10} {:>9}",
-        "cluster", "64 std", "64 bal", "paper", "128 std", "128 bal", "paper"
+        "{:>8} {:>9} {:>9} {:>6} {:>6} {:>10} {:>9} {:>6} {:>6}",
+        "cluster", "64 std", "64 bal", "gain", "paper", "128 std", "128 bal", "gain", "paper"
     );
+    let mut ring_cuts = None;
     for (cs, p64, p128) in TABLE3 {
         let cuts = balance(job, view, profile, cs)?;
         let a = timed(job, view, profile, 64 / cs, cs, Some(cuts.clone()))?.frame;
         let b = timed(job, view, profile, 128 / cs, cs, Some(cuts.clone()))?.frame;
+        let (s64, s128) = (times[&(64, cs)], times[&(128, cs)]);
+        let paper2 = TABLE2
+            .iter()
+            .find(|r| r.0 == cs)
+            .map_or((1.0, 1.0), |r| (r.1, r.2));
         let _ = writeln!(
             out,
-            "{cs:>8} {:>10.2} {a:>10.2} {p64:>9.2} {:>11.2} {b:>10.2} {p128:>9.2}   cuts {cuts:?}",
-            times[&(64, cs)],
-            times[&(128, cs)]
+            "{cs:>8} {s64:>9.2} {a:>9.2} {:>5.0}% {:>5.0}% {s128:>10.2} {b:>9.2} {:>5.0}% {:>5.0}%   cuts {cuts:?}",
+            100.0 * (1.0 - a / s64),
+            100.0 * (1.0 - p64 / paper2.0),
+            100.0 * (1.0 - b / s128),
+            100.0 * (1.0 - p128 / paper2.1),
+        );
+        if cs == 16 {
+            ring_cuts = Some(cuts);
+        }
+    }
+    let uniform = slab_work(job, view, profile, 16, None)?;
+    let balanced = slab_work(job, view, profile, 16, ring_cuts)?;
+    let _ = writeln!(
+        out,
+        "\nThe ring of 16 alone (one cluster, every row): each slab's busy and idle seconds, uniform and balanced"
+    );
+    let _ = writeln!(
+        out,
+        "{:>4} {:>9} {:>8} {:>8}   {:>9} {:>8} {:>8}",
+        "slab", "planes", "busy", "idle", "planes", "busy", "idle"
+    );
+    for (i, (u, b)) in uniform.iter().zip(&balanced).enumerate() {
+        let _ = writeln!(
+            out,
+            "{i:>4} {:>9} {:>8.2} {:>8.2}   {:>9} {:>8.2} {:>8.2}",
+            format!("{}..{}", u.planes.0, u.planes.1),
+            u.busy,
+            u.idle,
+            format!("{}..{}", b.planes.0, b.planes.1),
+            b.busy,
+            b.idle
         );
     }
+    let spread = |w: &[SlabWork]| {
+        let max = w.iter().map(|s| s.busy).fold(0.0, f64::max);
+        let mean = w.iter().map(|s| s.busy).sum::<f64>() / w.len().max(1) as f64;
+        max / mean.max(1e-12)
+    };
+    let _ = writeln!(
+        out,
+        "busiest slab / mean: {:.2} uniform, {:.2} balanced",
+        spread(&uniform),
+        spread(&balanced)
+    );
+    plot_slabs(dir, &uniform, &balanced)?;
     let sixteen = timed(job, view, profile, 1, 16, None)?;
     let _ = writeln!(
         out,
-        "\nTable 4: profile of one 16-node cluster, percent of the frame time ({:.2} s)",
+        "\nTable 4 (held out): profile of one 16-node cluster, percent of the frame time ({:.2} s); idle is waiting, apart from ntest",
         sixteen.frame
     );
     let _ = writeln!(
@@ -412,18 +576,16 @@ pub fn run(
             v.iter().copied().fold(0.0, f64::max),
         )
     };
-    let rows: [(&str, Pick); 7] = [
-        ("ntest", |p| {
-            p[Category::Test as usize] + p[Category::Idle as usize]
-        }),
+    let shares: [(&str, Pick); 7] = [
+        ("ntest", |p| p[Category::Test as usize]),
         ("Interpolate", |p| p[Category::Interpolate as usize]),
         ("Trace", |p| p[Category::Trace as usize]),
         ("Voxel_Sample", |p| p[Category::SampleShade as usize]),
         ("nread", |p| p[Category::Read as usize]),
         ("nwrite", |p| p[Category::Write as usize]),
-        ("(of ntest: idle)", |p| p[Category::Idle as usize]),
+        ("idle", |p| p[Category::Idle as usize]),
     ];
-    for (name, f) in rows.iter() {
+    for (name, f) in shares.iter() {
         let (mean, min, max) = pct(f);
         let paper = TABLE4.iter().find(|r| r.0 == *name);
         match paper {
@@ -452,9 +614,69 @@ pub fn run(
         .map_err(|e| PaperError::Write(e.to_string()))?;
     let _ = writeln!(
         out,
-        "\nwrote {}/tables.txt, speedup.svg, efficiency.svg, sod-paper.png",
+        "\nwrote {}/tables.txt, speedup.svg, efficiency.svg, slabs.svg, sod-paper.png",
         dir.display()
     );
+    Ok(())
+}
+
+/// Each slab's busy seconds in the ring of 16, uniform and balanced.
+fn plot_slabs(dir: &Path, uniform: &[SlabWork], balanced: &[SlabWork]) -> Result<(), PaperError> {
+    let err = |e: String| PaperError::Write(e);
+    let path = dir.join("slabs.svg");
+    let root = SVGBackend::new(&path, (640, 420)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
+    let top = uniform
+        .iter()
+        .chain(balanced)
+        .map(|s| s.busy)
+        .fold(0.0, f64::max)
+        * 1.1;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(
+            "A ring of 16 on SOD: each slab's busy time",
+            ("sans-serif", 18),
+        )
+        .margin(12)
+        .x_label_area_size(36)
+        .y_label_area_size(48)
+        .build_cartesian_2d(-0.5f64..(uniform.len() as f64 - 0.5), 0f64..top.max(1e-9))
+        .map_err(|e| err(e.to_string()))?;
+    chart
+        .configure_mesh()
+        .x_desc("slab (ring position, front to back along x)")
+        .y_desc("busy seconds")
+        .draw()
+        .map_err(|e| err(e.to_string()))?;
+    for (work, colour, label) in [
+        (uniform, RED, "uniform slabs"),
+        (balanced, BLUE, "balanced slabs"),
+    ] {
+        let points: Vec<(f64, f64)> = work
+            .iter()
+            .enumerate()
+            .map(|(i, s)| (i as f64, s.busy))
+            .collect();
+        chart
+            .draw_series(LineSeries::new(points.clone(), colour.stroke_width(2)))
+            .map_err(|e| err(e.to_string()))?
+            .label(label)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], colour));
+        chart
+            .draw_series(
+                points
+                    .into_iter()
+                    .map(|p| Circle::new(p, 3, colour.filled())),
+            )
+            .map_err(|e| err(e.to_string()))?;
+    }
+    chart
+        .configure_series_labels()
+        .border_style(BLACK)
+        .background_style(WHITE)
+        .draw()
+        .map_err(|e| err(e.to_string()))?;
+    root.present().map_err(|e| err(e.to_string()))?;
     Ok(())
 }
 
@@ -556,6 +778,38 @@ mod tests {
             .map(|e| e.to_string())
             .unwrap_or_default();
         assert!(e.contains("--trace 6/4"), "{e}");
+    }
+
+    #[test]
+    fn a_ring_s_slabs_cover_the_planes_and_each_is_accounted_for_the_whole_frame() {
+        let mut notes = String::new();
+        let job = dataset(Source::Substitute, &mut notes).unwrap_or_else(|e| panic!("{e}"));
+        let (view, profile) = (&job.views[0].view, MachineProfile::ncube2());
+        let frame = timed(&job, view, &profile, 1, 4, None)
+            .unwrap_or_else(|e| panic!("{e}"))
+            .frame;
+        let slabs = slab_work(&job, view, &profile, 4, None).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(slabs.len(), 4);
+        assert_eq!(slabs[0].planes.0, 0);
+        assert_eq!(slabs[3].planes.1, job.volume.grid.dims()[0]);
+        assert!(slabs.windows(2).all(|w| w[0].planes.1 == w[1].planes.0));
+        for s in &slabs {
+            assert!(s.busy > 0.0, "{s:?}");
+            // Every node is accounted for until the frame ends (and past it, when it still
+            // hands in its statistics).
+            assert!(s.busy + s.idle >= frame * (1.0 - 1e-9), "{s:?} in {frame}");
+            assert!(s.busy < frame, "{s:?} in {frame}");
+        }
+        let cuts = vec![0, 20, 40, 60, job.volume.grid.dims()[0]];
+        let given = slab_work(&job, view, &profile, 4, Some(cuts.clone()))
+            .unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(given[1].planes, (20, 40));
+        let e = slab_work(&job, view, &profile, 4, Some(vec![0, 97]))
+            .map(|_| ())
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(e.contains("2 cuts for a ring of 4"), "{e}");
     }
 
     #[test]

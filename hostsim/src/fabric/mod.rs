@@ -159,7 +159,7 @@ impl Category {
         Category::Idle,
     ];
 
-    /// Whether this is the tracer's compute (scaled by the profile's calibration), as opposed
+    /// Whether this is the tracer's compute (times the profile's fitted `scale`), as opposed
     /// to message handling and waiting.
     pub fn is_compute(self) -> bool {
         matches!(

@@ -366,7 +366,7 @@ fn round<T: Sample>(
     report.messages += sent.iter().sum::<u64>();
     report.bytes += sent_bytes.iter().sum::<u64>();
     if let Some(p) = profile {
-        let m = &p.messages;
+        let m = p.message_costs();
         let mut slowest = 0.0f64;
         for (n, total) in report.per_node.iter_mut().enumerate() {
             let send = sent[n] as f64 * (m.latency + m.write) + sent_bytes[n] as f64 * m.per_byte;

@@ -17,6 +17,8 @@ use voxcube_kernel::node::topology::hops;
 /// Virtual time of a timed run: every node's clock and its time by category.
 pub(super) struct Clock {
     pub(super) profile: MachineProfile,
+    /// Iso-surfaces each taken sample is tested against.
+    surfaces: u32,
     pub(super) now: Vec<f64>,
     pub(super) parts: Vec<[f64; Category::COUNT]>,
     pub(super) host_time: f64,
@@ -37,9 +39,15 @@ fn push(spans: &mut Vec<Span>, kind: &'static str, start: f64, end: f64) {
 }
 
 impl Clock {
-    pub(super) fn new(profile: &MachineProfile, nodes: usize, timeline: bool) -> Clock {
+    pub(super) fn new(
+        profile: &MachineProfile,
+        surfaces: u32,
+        nodes: usize,
+        timeline: bool,
+    ) -> Clock {
         Clock {
             profile: profile.clone(),
+            surfaces,
             now: vec![0.0; nodes],
             parts: vec![[0.0; Category::COUNT]; nodes],
             host_time: 0.0,
@@ -50,8 +58,8 @@ impl Clock {
 
     /// Seconds for a message of `len` bytes over `hops` hops.
     pub(super) fn transfer(&self, len: usize, hops: u32) -> f64 {
-        let m = &self.profile.messages;
-        // Message costs are the machine's own: `scale` calibrates only the tracer's compute.
+        let m = self.profile.message_costs();
+        // `scale` fits the tracer's compute only; `message_costs` carries the messages' own fit.
         m.latency + len as f64 * m.per_byte + f64::from(hops.saturating_sub(1)) * m.per_hop
     }
 
@@ -84,8 +92,8 @@ impl Clock {
         received: u64,
         sent: &mut [Envelope],
     ) {
-        let (m, scale) = (self.profile.messages, self.profile.scale);
-        let [interpolate, trace, shade] = self.profile.compute(&after.since(before));
+        let (m, scale) = (self.profile.message_costs(), self.profile.scale);
+        let [interpolate, trace, shade] = self.profile.compute(&after.since(before), self.surfaces);
         let mut parts = [0.0; Category::COUNT];
         parts[Category::Test as usize] = m.test + m.test_per_pending * pending as f64;
         parts[Category::Interpolate as usize] = interpolate;
@@ -100,7 +108,8 @@ impl Clock {
             .iter()
             .zip(self.parts[n].iter_mut().zip(parts))
         {
-            // `scale` calibrates the tracer's compute; message handling is the machine's own.
+            // `scale` fits the tracer's compute; message handling has its own factor, applied
+            // in `message_costs`.
             let part = if category.is_compute() {
                 part * scale
             } else {

@@ -28,6 +28,7 @@ use super::harness::{NodeWorker, Plan};
 use super::host::Host;
 use super::{Category, Distributed};
 use crate::dataset::{Volume, VolumeData};
+use crate::profile::MachineProfile;
 use crate::rng::SplitMix;
 use checks::{Event, EventLog};
 use clock::Clock;
@@ -167,10 +168,10 @@ impl<'a, 'c, T: Sample> Sim<'a, 'c, T> {
             stopped: vec![false; nodes],
             host: plan.host(),
             rng: SplitMix(cfg.schedule.seed),
-            clock: cfg
-                .time
-                .as_ref()
-                .map(|p| Clock::new(p, nodes, cfg.timeline)),
+            clock: cfg.time.as_ref().map(|p| {
+                let surfaces = MachineProfile::searched_surfaces(&plan.view);
+                Clock::new(p, surfaces, nodes, cfg.timeline)
+            }),
             log: EventLog::default(),
             messages: [0; 9],
             bytes: 0,
