@@ -700,8 +700,16 @@ mod tests {
         assert!(Msg::decode(&buf[..n - 1]).is_err());
     }
 
-    #[test]
-    fn every_kind_round_trips() {
+    fn reply() -> Reply {
+        Reply {
+            home: 3,
+            slot: 9,
+            hit: 1,
+            light: 2,
+        }
+    }
+
+    fn ray() -> Msg {
         let ray = RayState {
             kind: RayKind::Shadow,
             pixel: 7,
@@ -729,15 +737,15 @@ mod tests {
             weight: 0.25,
             color: Vec3::new(0.1, 0.2, 0.3),
         };
-        let reply = Reply {
-            home: 3,
-            slot: 9,
-            hit: 1,
-            light: 2,
-        };
-        roundtrip(Msg::Ray(Travel { ray, reply }));
-        roundtrip(Msg::Hit(HitRecord {
-            reply,
+        Msg::Ray(Travel {
+            ray,
+            reply: reply(),
+        })
+    }
+
+    fn hit() -> Msg {
+        Msg::Hit(HitRecord {
+            reply: reply(),
             pixel: 1,
             alpha: 0.5,
             ambient: Vec3::ONE,
@@ -745,28 +753,53 @@ mod tests {
             shadow_mask: 3,
             lights: 2,
             continues: true,
-        }));
+        })
+    }
+
+    fn resolved(outcome: Outcome) -> Msg {
+        Msg::Resolved(Resolved {
+            reply: reply(),
+            pixel: 2,
+            outcome,
+        })
+    }
+
+    fn pixels() -> Msg {
+        let mut set = PixelSet::default();
+        set.push(5, [1, 2, 3, 4]).unwrap();
+        Msg::Pixels(set)
+    }
+
+    fn planes() -> Msg {
+        Msg::Planes(PlaneChunk {
+            plane: 3,
+            offset: 256,
+            len: 10,
+            bytes: [7; PLANE_CHUNK],
+        })
+    }
+
+    const ACK: Msg = Msg::Ack {
+        from: 4,
+        class: 2,
+        count: 2,
+    };
+
+    #[test]
+    fn every_kind_round_trips() {
+        roundtrip(ray());
+        roundtrip(hit());
         for outcome in [
             Outcome::ChainEnd { hits: 4 },
             Outcome::Shadow { visibility: 0.5 },
             Outcome::Color(Vec3::ONE),
         ] {
-            roundtrip(Msg::Resolved(Resolved {
-                reply,
-                pixel: 2,
-                outcome,
-            }));
+            roundtrip(resolved(outcome));
         }
-        roundtrip(Msg::Ack {
-            from: 4,
-            class: 2,
-            count: 2,
-        });
+        roundtrip(ACK);
         roundtrip(Msg::Collect);
         roundtrip(Msg::Token { cluster: 1 });
-        let mut set = PixelSet::default();
-        set.push(5, [1, 2, 3, 4]).unwrap();
-        roundtrip(Msg::Pixels(set));
+        roundtrip(pixels());
         roundtrip(Msg::Stats(NodeStats {
             node: 2,
             forwarded_next: 9,
@@ -774,12 +807,43 @@ mod tests {
             peak_unacked: 3,
             ..NodeStats::default()
         }));
-        roundtrip(Msg::Planes(PlaneChunk {
-            plane: 3,
-            offset: 256,
-            len: 10,
-            bytes: [7; PLANE_CHUNK],
-        }));
+        roundtrip(planes());
+    }
+
+    /// Every range check of decoding, each shown by one out-of-range byte in an otherwise
+    /// valid message: with a check dropped, its case decodes and this test fails.
+    #[test]
+    fn every_range_check_refuses_its_field_by_name() {
+        // (message, byte offset of the field, tag included, out-of-range byte, field)
+        let cases: [(Msg, usize, u8, &str); 11] = [
+            (ray(), 1, 3, "kind"),
+            // `last`, little-endian at 54..58: its top byte makes it exceed MAX_SAMPLES.
+            (ray(), 57, 0xff, "last"),
+            (ray(), 58, 7, "entry"),
+            (ray(), 67, 4, "flags"),
+            (hit(), 75, 1 << MAX_LIGHTS, "lights"),
+            (hit(), 76, MAX_LIGHTS as u8 + 1, "lights"),
+            (hit(), 77, 2, "continues"),
+            (resolved(Outcome::Color(Vec3::ONE)), 11, 3, "outcome"),
+            (ACK, 3, crate::node::flow::CREDITS as u8, "class"),
+            (pixels(), 1, PIXELS_PER_SET as u8 + 1, "count"),
+            // `len`, little-endian at 9..11: its top byte makes it exceed PLANE_CHUNK.
+            (planes(), 10, 1, "len"),
+        ];
+        for (m, at, byte, field) in cases {
+            let mut buf = [0u8; MAX_MSG_LEN];
+            let n = m.encode(&mut buf);
+            assert_eq!(Msg::decode(&buf[..n]), Ok(m), "{field}: the valid message");
+            buf[at] = byte;
+            assert_eq!(
+                Msg::decode(&buf[..n]),
+                Err(DecodeError::Field {
+                    kind: m.kind(),
+                    field
+                }),
+                "{field}: byte {at} set to {byte}"
+            );
+        }
     }
 
     #[test]
