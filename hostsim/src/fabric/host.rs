@@ -168,3 +168,89 @@ pub fn missing_rows(image: &[Option<[u8; 4]>], width: u32) -> String {
     }
     out.join(", ")
 }
+
+#[cfg(test)]
+mod tests {
+    //! The host's rules, each by a direct test of its decision: drop a rule and its
+    //! assertion fails.
+    use super::*;
+    use voxcube_kernel::node::msg::PixelSet;
+
+    fn pixels(list: &[u32]) -> Msg {
+        let mut set = PixelSet::default();
+        for &p in list {
+            assert!(set.push(p, [p as u8, 0, 0, 255]).is_ok());
+        }
+        Msg::Pixels(set)
+    }
+
+    fn stats(node: u16, pixels_sent: u64) -> Msg {
+        Msg::Stats(NodeStats {
+            node,
+            pixels_sent,
+            ..NodeStats::default()
+        })
+    }
+
+    #[test]
+    fn a_pixel_arrives_once_and_inside_the_image() {
+        let mut host = Host::new(4, 2, 1, 1);
+        assert_eq!(host.receive(pixels(&[0, 3])), Ok(false));
+        let twice = host.receive(pixels(&[3])).unwrap_err();
+        assert!(twice.contains("pixel 3 reached the host twice"), "{twice}");
+        let outside = host.receive(pixels(&[4])).unwrap_err();
+        assert!(
+            outside.contains("pixel 4 is outside the image"),
+            "{outside}"
+        );
+        assert_eq!((host.received(), host.missing()), (2, 2));
+    }
+
+    #[test]
+    fn collection_starts_once_every_token_is_in_and_each_comes_once() {
+        let mut host = Host::new(1, 1, 2, 2);
+        assert_eq!(host.receive(Msg::Token { cluster: 1 }), Ok(false));
+        assert!(
+            host.receive(Msg::Token { cluster: 1 }).is_err(),
+            "a second token"
+        );
+        assert!(
+            host.receive(Msg::Token { cluster: 2 }).is_err(),
+            "an unknown cluster"
+        );
+        // Statistics before every token are a protocol breach.
+        let early = host.receive(stats(0, 0)).unwrap_err();
+        assert!(early.contains("before the host asked"), "{early}");
+        assert_eq!(
+            host.receive(Msg::Token { cluster: 0 }),
+            Ok(true),
+            "the last token"
+        );
+        assert_eq!(host.tokens(), 2);
+        assert_eq!(host.receive(stats(0, 0)), Ok(false), "asked only once");
+        assert!(host.receive(stats(0, 0)).is_err(), "a second report");
+        assert!(host.receive(stats(5, 0)).is_err(), "an unknown node");
+        assert!(host.receive(Msg::Collect).is_err(), "not a host's message");
+    }
+
+    #[test]
+    fn the_host_ends_only_with_every_report_and_every_pixel_they_count() {
+        let mut host = Host::new(3, 3, 1, 2);
+        assert_eq!(host.receive(pixels(&[0])), Ok(false));
+        assert_eq!(host.receive(Msg::Token { cluster: 0 }), Ok(true));
+        assert_eq!(host.receive(stats(0, 2)), Ok(false));
+        assert!(!host.done(), "a node has not reported");
+        assert_eq!(host.receive(stats(1, 1)), Ok(false));
+        // The reports count three pixels; one is in, two are still on their way.
+        assert!(!host.done(), "pixels the reports count are in flight");
+        assert_eq!(host.receive(pixels(&[1, 2])), Ok(false));
+        assert!(host.done());
+        let (image, reports) = host.finish().unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(image[2], [2, 0, 0, 255]);
+        assert_eq!(reports.len(), 2);
+        // Ending with a pixel missing is an error, whatever the reports said.
+        let mut short = Host::new(2, 2, 1, 1);
+        assert_eq!(short.receive(pixels(&[0])), Ok(false));
+        assert!(short.finish().unwrap_err().contains("1 of 2 pixels"));
+    }
+}
