@@ -257,7 +257,14 @@ impl<'v> Plan<'v> {
 mod tests {
     use super::*;
     use crate::dataset::VolumeData;
-    use voxcube_kernel::node::worker::Generation;
+    use glam::Vec3;
+    use voxcube_kernel::node::flow::Class;
+    use voxcube_kernel::node::msg::{Msg, Outcome, Reply, Resolved, Travel, NO_LIGHT};
+    use voxcube_kernel::node::port::{Dest, Port};
+    use voxcube_kernel::node::worker::{Generation, Progress};
+    use voxcube_kernel::trace::lattice::Lattice;
+    use voxcube_kernel::trace::ray::{Entry, Ray};
+    use voxcube_kernel::trace::state::{RayKind, RayState};
 
     /// Ring position 0's set-up in a ring of `size` over the default scene, handed to `check`.
     fn at_position_0(size: u32, rays_per_poll: u8, check: impl FnOnce(Setup<'_, u8>)) {
@@ -289,6 +296,112 @@ mod tests {
             generation: Generation::Distributed,
             flow,
             rays_per_poll,
+        });
+    }
+
+    /// A port that hands the worker what a test queued, by class, and records what it took.
+    #[derive(Default)]
+    struct Recording {
+        queues: [std::collections::VecDeque<(Dest, Msg)>; 7],
+        taken: Vec<Class>,
+        /// Messages counted as received but in no queue the worker reads.
+        unread: usize,
+    }
+
+    impl Recording {
+        fn queue(&mut self, from: u16, msg: Msg) {
+            self.queues[msg.class().index()].push_back((Dest::Node(from), msg));
+        }
+    }
+
+    impl Port for Recording {
+        fn try_send(&mut self, _: Dest, _: Msg) -> Result<(), Msg> {
+            Ok(())
+        }
+        fn peek(&mut self, class: Class) -> Option<&Msg> {
+            self.queues[class.index()].front().map(|(_, m)| m)
+        }
+        fn try_recv(&mut self, class: Class) -> Option<(Dest, Msg)> {
+            let m = self.queues[class.index()].pop_front()?;
+            self.taken.push(class);
+            Some(m)
+        }
+        fn pending(&self) -> usize {
+            self.queues.iter().map(|q| q.len()).sum::<usize>() + self.unread
+        }
+    }
+
+    #[test]
+    fn a_worker_reads_acks_then_results_then_rays_and_generates_only_when_nothing_waits() {
+        at_position_0(2, 1, |setup| {
+            let (me, next) = (setup.place.layout.node(0, 0), setup.place.layout.node(0, 1));
+            let end = setup.partition.planes(0).end as f32;
+            let checked = NodeWorker::check(setup).unwrap();
+            let mut worker = Box::write(Box::new_uninit(), NodeWorker::new(checked));
+            // A ray coming down from the next slab, queued first; then a result for this
+            // node, then an ack: the worker must read them in the paper's order all the same.
+            let dir = Vec3::new(-1.0, 0.0, 0.0);
+            let ray = RayState::new(
+                RayKind::Primary,
+                0,
+                Ray {
+                    origin: Vec3::new(end, 20.0, 20.0),
+                    dir,
+                    dir_world: dir,
+                },
+                Lattice::new(0.0, end, 0.5).unwrap(),
+                Entry::Inside,
+                0,
+            );
+            let mut port = Recording::default();
+            port.queue(
+                next,
+                Msg::Ray(Travel {
+                    ray,
+                    reply: Reply {
+                        home: next,
+                        slot: 0,
+                        hit: 0,
+                        light: NO_LIGHT,
+                    },
+                }),
+            );
+            port.queue(
+                next,
+                Msg::Resolved(Resolved {
+                    reply: Reply {
+                        home: me,
+                        slot: 0,
+                        hit: 0,
+                        light: NO_LIGHT,
+                    },
+                    pixel: 0,
+                    outcome: Outcome::Color(Vec3::ONE),
+                }),
+            );
+            port.queue(
+                next,
+                Msg::Ack {
+                    from: next,
+                    class: 0,
+                    count: 0,
+                },
+            );
+            assert_eq!(worker.poll(&mut port), Progress::Busy);
+            assert_eq!(port.taken, [Class::Ack, Class::Result, Class::RayDown]);
+        });
+        // Generation: none while anything at all is received and unread, then some.
+        at_position_0(2, 1, |setup| {
+            let checked = NodeWorker::check(setup).unwrap();
+            let mut worker = Box::write(Box::new_uninit(), NodeWorker::new(checked));
+            let mut port = Recording {
+                unread: 1,
+                ..Recording::default()
+            };
+            assert_eq!(worker.poll(&mut port), Progress::Idle);
+            assert_eq!(worker.counters().primary_rays, 0);
+            port.unread = 0;
+            assert_eq!(worker.poll(&mut port), Progress::Busy);
         });
     }
 
