@@ -133,6 +133,28 @@ fn mutant_early_token_is_caught() {
 }
 
 #[test]
+fn mutant_token_with_messages_unacknowledged_is_caught() {
+    caught(
+        "token while n_i > 0",
+        Mutants {
+            token_unquiet: true,
+            ..Mutants::default()
+        },
+    );
+}
+
+#[test]
+fn mutant_token_passed_against_the_rays_is_caught() {
+    caught(
+        "token passed the other way",
+        Mutants {
+            token_backwards: true,
+            ..Mutants::default()
+        },
+    );
+}
+
+#[test]
 fn mutant_early_pixel_is_caught() {
     caught(
         "pixel before its shadow rays return",

@@ -93,6 +93,12 @@ pub struct Mutants {
     pub early_token: bool,
     /// Finish a pixel as soon as its hits are in, before its shadow rays return.
     pub early_pixel: bool,
+    /// Pass the token once the pixels are final, with messages still unacknowledged or
+    /// queued (the token rule without its "every `n_i = 0`").
+    pub token_unquiet: bool,
+    /// Pass the token against the direction rays travel (it still starts at the ring end
+    /// nearest the viewpoint).
+    pub token_backwards: bool,
 }
 
 /// Where a worker sits.
@@ -929,6 +935,8 @@ impl<
         #[cfg(feature = "mutants")]
         let ready = if self.mutants.early_token {
             self.generation_done()
+        } else if self.mutants.token_unquiet {
+            self.pixels_final()
         } else {
             self.pixels_final() && self.quiet()
         };
@@ -939,7 +947,11 @@ impl<
         }
         self.token = Token::Passed;
         let (me, last) = (self.place.position, self.place.layout.size() - 1);
-        let next = if self.token_upward {
+        #[cfg(feature = "mutants")]
+        let upward = self.token_upward != self.mutants.token_backwards;
+        #[cfg(not(feature = "mutants"))]
+        let upward = self.token_upward;
+        let next = if upward {
             (me < last).then(|| me + 1)
         } else {
             me.checked_sub(1)

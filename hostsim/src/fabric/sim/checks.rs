@@ -2,7 +2,8 @@
 //! invariants checked after every event and when the host ends.
 //!
 //! After every event: no buffer holds more than its capacity; every `n_i` stays within
-//! `[0, i_max]` (with flow control on); messages are conserved (sent = delivered + in flight).
+//! `[0, i_max]` (with flow control on); a token passes only from a node whose `n_i` are all 0;
+//! messages are conserved (sent = delivered + in flight).
 //! The host itself refuses a pixel twice. When the host ends: no message is in flight, every
 //! `n_i` is 0 and no node counted a protocol error.
 
@@ -106,6 +107,25 @@ pub(super) fn after_step<T: Sample>(worker: &NodeWorker<'_, T>, i_max: u16) -> R
             "node {} has {} unacknowledged messages to one node in one class, i_max is {i_max}",
             worker.node(),
             worker.max_unacked()
+        )),
+        false => Ok(()),
+    }
+}
+
+/// After node `n`'s step, with flow control on: if it passed its cluster's token in `sent`
+/// (what the step sent), every message it had sent was acknowledged (the token rule's
+/// "every `n_i = 0`"; its "pixels final" shows at the host's end).
+pub(super) fn token_rule<T: Sample>(
+    worker: &NodeWorker<'_, T>,
+    sent: &[super::network::Envelope],
+) -> Result<(), String> {
+    let token = sent
+        .iter()
+        .any(|e| e.from == Some(worker.node()) && e.bytes[0] == MsgKind::Token as u8);
+    match token && worker.max_unacked() != 0 {
+        true => Err(format!(
+            "node {} passed its cluster's token with messages unacknowledged",
+            worker.node()
         )),
         false => Ok(()),
     }

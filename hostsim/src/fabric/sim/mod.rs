@@ -353,6 +353,7 @@ impl<'a, 'c, T: Sample> Sim<'a, 'c, T> {
             (pending, self.workers[n].counters(), self.net.inflight.len())
         });
         let capacity = self.net.capacity;
+        let sent_before = self.net.inflight.len();
         let mut port = SimPort {
             from: n as u16,
             net: &mut self.net,
@@ -385,6 +386,8 @@ impl<'a, 'c, T: Sample> Sim<'a, 'c, T> {
         }
         if self.cfg.flow_control {
             checks::after_step(&self.workers[n], self.i_max).map_err(|what| self.fail(what))?;
+            checks::token_rule(&self.workers[n], &self.net.inflight[sent_before..])
+                .map_err(|what| self.fail(what))?;
         }
         Ok(())
     }
