@@ -220,6 +220,10 @@ pub enum Command {
         /// Receive-buffer bytes per node for every configuration (default: each configuration's own).
         #[arg(long)]
         buffer: Option<usize>,
+        /// Instead: walk every schedule of rings of 2 and 3 nodes rendering a handful of rays
+        /// (states seen before pruned), and print the distinct states.
+        #[arg(long)]
+        exhaustive: bool,
     },
 }
 
@@ -468,10 +472,30 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             Ok(())
         }
         Command::Explore {
+            exhaustive: true, ..
+        } => {
+            let mut text = String::new();
+            let mut failed = false;
+            for (label, found, reference) in explore::exhaustive_walks()? {
+                let same = found.images.len() == 1 && found.images.contains(&reference);
+                failed |= found.deadlocks + found.violations > 0 || !same || found.truncated;
+                text += &format!(
+                    "{label}\n{found}\nthe direct render's image  {}\n\n",
+                    if same { "yes" } else { "no" }
+                );
+            }
+            stdout(&text)?;
+            if failed {
+                return Err("an exhaustive walk found a fault".into());
+            }
+            Ok(())
+        }
+        Command::Explore {
             seeds,
             configs,
             flow_control,
             buffer,
+            exhaustive: false,
         } => {
             let job = explore::scenes()?;
             let mut all = explore::configs(&job);

@@ -261,3 +261,63 @@ pub fn explore(
     }
     findings
 }
+
+/// The small machines walked exhaustively: a handful of rays with shadows and transparency
+/// (the built-in molecule, `width` × `height` pixels, a semi-transparent outer surface and an
+/// opaque inner one, one shadow-casting light).
+pub fn few_rays(width: u32, height: u32) -> Result<DatasetJob, SceneError> {
+    let text = format!(
+        r#"
+[[datasets]]
+name = "m"
+builtin = "molecule"
+[[datasets.views]]
+name = "few-rays"
+width = {width}
+height = {height}
+[[datasets.views.surfaces]]
+iso = 30.0
+transparency = 0.3
+[[datasets.views.surfaces]]
+iso = 60.0
+[[datasets.views.lights]]
+type = "directional"
+direction = [1.0, -0.3, -0.2]
+shadows = true
+"#
+    );
+    let mut jobs = Scene::parse(&text, "<few rays>", std::path::Path::new("."))?.load()?;
+    Ok(jobs.remove(0))
+}
+
+/// One ring of `size` on the smallest buffer that lets a ray with one shadow light start.
+pub fn tight_ring(size: u32) -> Result<RunConfig, RunError> {
+    Ok(RunConfig {
+        buffer_bytes: Some(flow::buffer_bytes(size as usize, flow::min_i_max(1))),
+        ..RunConfig::cluster(size, 0).map_err(|e| RunError::Host(e.to_string()))?
+    })
+}
+
+/// The small machines whose every schedule [`exhaustive_walks`] walks: (pixels wide, high,
+/// ring size).
+pub const SMALL_MACHINES: [(u32, u32, u32); 3] = [(2, 1, 2), (3, 2, 2), (2, 1, 3)];
+
+/// One small machine's walk: its label, what every schedule gave, and the direct render.
+pub type Walk = (String, sim::exhaustive::Exhaustive, Vec<[u8; 4]>);
+
+/// Every schedule of each of [`SMALL_MACHINES`], with the direct render of its view.
+pub fn exhaustive_walks() -> Result<Vec<Walk>, Box<dyn std::error::Error>> {
+    let mut out = Vec::new();
+    for (width, height, size) in SMALL_MACHINES {
+        let job = few_rays(width, height)?;
+        let view = &job.views[0].view;
+        let reference = render(&job.volume, view)?.pixels;
+        let found = sim::exhaustive::explore(&job.volume, view, &tight_ring(size)?, 2_000_000)?;
+        out.push((
+            format!("{width}x{height} pixels on a ring of {size}"),
+            found,
+            reference,
+        ));
+    }
+    Ok(out)
+}

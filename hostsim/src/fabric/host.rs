@@ -10,7 +10,7 @@ use voxcube_kernel::node::msg::Msg;
 use voxcube_kernel::node::stats::NodeStats;
 
 /// The host's state in one run.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub struct Host {
     image: Vec<Option<[u8; 4]>>,
     width: u32,
@@ -82,6 +82,24 @@ impl Host {
     pub fn done(&self) -> bool {
         self.reports.iter().all(Option::is_some)
             && self.received >= self.reports.iter().flatten().map(|s| s.pixels_sent).sum()
+    }
+
+    /// Feed into `h` what steers the host from here on: its pixels, tokens, whether it is
+    /// collecting, and which nodes have reported how many pixels (the rest of a report is
+    /// history).
+    pub fn digest<H: std::hash::Hasher>(&self, h: &mut H) {
+        let reports: Vec<Option<u64>> = self
+            .reports
+            .iter()
+            .map(|r| r.as_ref().map(|s| s.pixels_sent))
+            .collect();
+        h.write(
+            format!(
+                "{:?}|{:?}|{}|{reports:?}",
+                self.image, self.tokens, self.collecting
+            )
+            .as_bytes(),
+        );
     }
 
     /// Pixels received.

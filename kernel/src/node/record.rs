@@ -313,6 +313,22 @@ impl<const N: usize> Records<N> {
     pub fn in_use(&self) -> usize {
         self.in_use
     }
+
+    /// Write what steers the records from here on: each open slot's index and its record's
+    /// live parts (a closed slot, and a record's hits past `fresh`, are history).
+    pub(crate) fn digest(&self, w: &mut impl fmt::Write) -> fmt::Result {
+        for (slot, r) in self.slots.iter().enumerate() {
+            if self.open.get(slot) == Some(&true) {
+                let live = r.hits.get(..usize::from(r.fresh)).unwrap_or_default();
+                write!(
+                    w,
+                    "{slot}:{}:{}:{live:?}:{:?}:{:?};",
+                    r.pixel, r.fresh, r.chain, r.color
+                )?;
+            }
+        }
+        Ok(())
+    }
 }
 
 #[cfg(test)]

@@ -101,6 +101,41 @@ pub struct Mutants {
     pub token_backwards: bool,
 }
 
+/// `core::fmt::Write` into a hasher, in chunks: [`Worker::digest`] hashes `Debug` forms
+/// without allocating, and a hasher fed a few bytes a call spends most of its time per call.
+struct HashWriter<'h, H: core::hash::Hasher> {
+    hasher: &'h mut H,
+    chunk: [u8; 256],
+    len: usize,
+}
+
+impl<H: core::hash::Hasher> HashWriter<'_, H> {
+    fn flush(&mut self) {
+        self.hasher.write(&self.chunk[..self.len]);
+        self.len = 0;
+    }
+}
+
+impl<H: core::hash::Hasher> fmt::Write for HashWriter<'_, H> {
+    fn write_str(&mut self, s: &str) -> fmt::Result {
+        let mut rest = s.as_bytes();
+        while !rest.is_empty() {
+            if self.len == self.chunk.len() {
+                self.flush();
+            }
+            let n = (self.chunk.len() - self.len).min(rest.len());
+            if let (Some(to), Some(from)) =
+                (self.chunk.get_mut(self.len..self.len + n), rest.get(..n))
+            {
+                to.copy_from_slice(from);
+            }
+            self.len += n;
+            rest = rest.get(n..).unwrap_or_default();
+        }
+        Ok(())
+    }
+}
+
 /// Where a worker sits.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Place {
@@ -213,7 +248,7 @@ pub struct Checked<'a, T>(Setup<'a, T>);
 
 /// One node. `PENDING` bounds each direction's continuation queue, `RECORDS` the pixel
 /// records, `OUTBOX` the messages waiting for the port.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub struct Worker<
     'a,
     T,
@@ -402,6 +437,73 @@ impl<
     /// Whether this worker has sent its statistics to the host: its part is over.
     pub fn has_reported(&self) -> bool {
         self.reported
+    }
+
+    /// Feed into `h` everything of this worker that its future behaviour depends on, and
+    /// nothing else: two workers that feed the same bytes act alike from here on. The set-up
+    /// it was built with (view, slab, place, settings) is left out, being the same for every
+    /// state of one node; so are its statistics, history that never steers it, except the
+    /// pixels it has sent and the protocol errors it has counted, which its report carries.
+    /// An exhaustive explorer of schedules prunes states it has seen by this.
+    pub fn digest<H: core::hash::Hasher>(&self, h: &mut H) {
+        // Destructured without `..`: a field added to the worker must be placed here, in or
+        // out of the digest, or this does not compile.
+        let Worker {
+            view: _,
+            slab: _,
+            partition: _,
+            place: _,
+            node: _,
+            generation: _,
+            rays_per_poll: _,
+            cursor,
+            misses_until,
+            cluster_pixels,
+            pending_up,
+            pending_down,
+            records,
+            outbox,
+            batch,
+            flow: _,
+            shadow_lights: _,
+            unacked,
+            acks_due,
+            acks_owed,
+            token,
+            token_upward: _,
+            collecting,
+            reported,
+            stats,
+            #[cfg(feature = "mutants")]
+                mutants: _,
+        } = self;
+        let mut w = HashWriter {
+            hasher: h,
+            chunk: [0; 256],
+            len: 0,
+        };
+        // `Debug` forms are complete and exact (floats print their shortest exact form);
+        // writing into a hasher allocates nothing. Counters are written for the ring's
+        // positions only, pixel sets and records for their live entries only.
+        let _ = fmt::Write::write_fmt(
+            &mut w,
+            format_args!(
+                "{cursor}|{misses_until}|{cluster_pixels}|{pending_up:?}|{pending_down:?}|{outbox:?}|{:?}|{acks_owed}|{token:?}|{collecting}|{reported}|{}|{}|",
+                batch.entries(),
+                stats.pixels_sent,
+                stats.protocol_errors
+            ),
+        );
+        let _ = records.digest(&mut w);
+        for counts in [unacked, acks_due] {
+            for p in 0..counts.size() {
+                for class in CREDIT_CLASSES {
+                    let _ =
+                        fmt::Write::write_fmt(&mut w, format_args!("{},", counts.get(p, class)));
+                }
+            }
+        }
+        w.flush();
     }
 
     /// Whether every primary ray this worker generates is generated, its pixel final and sent.

@@ -62,7 +62,7 @@ impl fmt::Display for Event {
 }
 
 /// The last [`KEPT`] events of a run, oldest first.
-#[derive(Default)]
+#[derive(Clone, Default)]
 pub(super) struct EventLog(VecDeque<Event>);
 
 impl EventLog {

@@ -15,6 +15,7 @@ use voxcube_kernel::node::port::Dest;
 use voxcube_kernel::node::topology::hops;
 
 /// Virtual time of a timed run: every node's clock and its time by category.
+#[derive(Clone)]
 pub(super) struct Clock {
     pub(super) profile: MachineProfile,
     /// Iso-surfaces each taken sample is tested against.

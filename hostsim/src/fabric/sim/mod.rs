@@ -19,6 +19,7 @@
 
 mod checks;
 mod clock;
+pub mod exhaustive;
 mod network;
 mod schedule;
 
@@ -130,6 +131,7 @@ fn fail(cfg: &RunConfig, what: String, events: u64, log: &EventLog) -> RunError 
 }
 
 /// The whole simulated machine during a run.
+#[derive(Clone)]
 struct Sim<'a, 'c, T> {
     cfg: &'c RunConfig,
     workers: Vec<Box<NodeWorker<'a, T>>>,

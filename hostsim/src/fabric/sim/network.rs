@@ -10,6 +10,7 @@ use voxcube_kernel::node::flow::Class;
 use voxcube_kernel::node::msg::{Msg, MsgKind, MAX_MSG_LEN};
 use voxcube_kernel::node::port::{Dest, Port};
 
+#[derive(Clone)]
 pub(super) struct Envelope {
     pub(super) from: Option<u16>,
     pub(super) to: Dest,
@@ -28,7 +29,7 @@ pub(super) struct Delivered {
     pub(super) arrival: f64,
 }
 
-#[derive(Default)]
+#[derive(Clone, Default)]
 pub(super) struct Mailbox {
     pub(super) by_class: [VecDeque<(Dest, Msg)>; 7],
 }
@@ -42,6 +43,7 @@ pub(super) struct SimPort<'n> {
 }
 
 /// Messages in flight and what each node's buffer holds.
+#[derive(Clone)]
 pub(super) struct Network {
     pub(super) inflight: Vec<Envelope>,
     /// Bytes each node's receive buffer holds or has promised (in flight to it, or unread).
