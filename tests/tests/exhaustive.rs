@@ -74,3 +74,18 @@ fn negative_controls_a_broken_token_rule_is_found_by_the_walk() {
         );
     }
 }
+
+#[test]
+fn negative_control_a_node_that_stops_leaves_states_with_nothing_to_do() {
+    // The walk's deadlock detection: node 1 of a ring of 2 stops after its third step, so
+    // every schedule ends with the host waiting.
+    let job = few_rays(2, 1).unwrap_or_else(|e| panic!("{e}"));
+    let mut cfg = tight_ring(2).unwrap_or_else(|e| panic!("{e}"));
+    cfg.schedule.stop = Some((1, 3));
+    let found =
+        explore(&job.volume, &job.views[0].view, &cfg, 2_000_000).unwrap_or_else(|e| panic!("{e}"));
+    eprintln!("{found}");
+    assert!(found.deadlocks > 0 && found.ends == 0, "{found}");
+    let first = found.first_failure.unwrap_or_default();
+    assert!(first.contains("node 1"), "{first}");
+}

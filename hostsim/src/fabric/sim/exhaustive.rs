@@ -5,8 +5,9 @@
 //! Invariants: a state's digest covers everything that steers what follows — each worker's
 //! [`voxcube_kernel::node::worker::Worker::digest`], each mailbox, the multiset of messages
 //! in flight, each receive buffer's use, the host's [`crate::fabric::host::Host::digest`],
-//! and which nodes may step — and nothing that is only history (event counts, peaks, sequence
-//! numbers), so two schedules that reach the same state are explored once. The checks of
+//! and which nodes may step (and, with a node set to stop, each node's steps so far) — and
+//! nothing that is only history (event counts, peaks, sequence numbers), so two schedules
+//! that reach the same state are explored once. The checks of
 //! [`super::checks`] run after every event, the end's at every end; a state with no event
 //! possible and the host not done is a deadlock.
 
@@ -189,4 +190,8 @@ fn feed<T: Sample, H: Hasher>(h: &mut H, sim: &Sim<'_, '_, T>) {
     let mut active = sim.active.clone();
     active.sort_unstable();
     h.write(format!("{active:?}{:?}", sim.stopped).as_bytes());
+    // With a node set to stop after some steps, its steps so far steer what follows.
+    if sim.cfg.schedule.stop.is_some() {
+        h.write(format!("{:?}", sim.steps).as_bytes());
+    }
 }
