@@ -18,7 +18,6 @@ use crate::profile::MachineProfile;
 use crate::storage::SkipMode;
 use std::fmt;
 use voxcube_kernel::node::partition::Partition;
-use voxcube_kernel::node::topology::Layout;
 use voxcube_kernel::trace::view::{View, ViewSpec};
 
 /// Primary rays the probe traces, about: the paper's 32 × 32 grid, in the image's aspect.
@@ -163,17 +162,12 @@ pub fn probe(
 /// Each worker's busy seconds (work and message handling, not waiting), by ring position:
 /// node ids are Gray-coded, slabs go by position.
 fn by_position(time: &VirtualTime, size: u32) -> Result<Vec<f64>, BalanceError> {
-    let layout = Layout::new(1, size).map_err(|e| BalanceError::Setup(e.to_string()))?;
-    (0..size as u16)
-        .map(|j| {
-            time.parts
-                .get(usize::from(layout.node(0, j)))
-                .map(|p| {
-                    p.iter().sum::<f64>() - p[Category::Idle as usize] - p[Category::Test as usize]
-                })
-                .ok_or_else(|| BalanceError::Setup(format!("no time for ring position {j}")))
-        })
-        .collect()
+    Ok(time
+        .by_position(size)
+        .map_err(BalanceError::Setup)?
+        .iter()
+        .map(|p| p.iter().sum::<f64>() - p[Category::Idle as usize] - p[Category::Test as usize])
+        .collect())
 }
 
 /// Balance `view` of `volume` for clusters of `size`: probe with uniform slabs, propose cuts

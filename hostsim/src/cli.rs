@@ -181,7 +181,7 @@ pub enum Command {
         #[arg(long, default_value = "ncube2")]
         machine: String,
         /// First fit the profile's two constants (compute `scale`, `message_scale`) on
-        /// Table 1 alone, then predict Tables 2-4 with them (a few minutes).
+        /// Table 1 alone, then predict Tables 2-4 with them (about a minute more).
         #[arg(long)]
         fit: bool,
         /// Also write one row's timeline, `NODES/SIZE` (say 128/2: 128 nodes in clusters of

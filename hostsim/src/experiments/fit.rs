@@ -7,9 +7,7 @@
 //! finds for each node count); it minimises the sum of squared log-time errors, so a row
 //! 10% slow weighs what a row 10% fast does, whatever its size.
 
-use super::paper::PaperError;
-use crate::fabric::sim;
-use crate::fabric::RunConfig;
+use super::paper::{timed, PaperError};
 use crate::profile::MachineProfile;
 use crate::scene::DatasetJob;
 use std::collections::BTreeMap;
@@ -22,7 +20,8 @@ pub const SIZES: [u32; 5] = [1, 2, 4, 8, 16];
 type Timed = Result<((u32, u32), f64), PaperError>;
 
 /// Frame seconds of every shape `(nodes, cluster size)` with `nodes` in `node_counts` and a
-/// size of [`SIZES`] dividing it; the runs shared over this machine's cores.
+/// size of [`SIZES`] dividing it, each run as [`timed`] runs the paper's; the runs shared over
+/// this machine's cores.
 pub fn shapes(
     job: &DatasetJob,
     view: &View,
@@ -47,7 +46,9 @@ pub fn shapes(
                     todo.iter()
                         .skip(t)
                         .step_by(threads)
-                        .map(|&(p, s)| Ok(((p, s), frame(job, view, profile, p / s, s)?)))
+                        .map(|&(p, s)| {
+                            Ok(((p, s), timed(job, view, profile, p / s, s, None)?.frame))
+                        })
                         .collect::<Vec<_>>()
                 })
             })
@@ -61,28 +62,6 @@ pub fn shapes(
             .collect()
     });
     results.into_iter().collect()
-}
-
-/// The frame time of the view on `clusters` clusters of `size`, the paper's way: no
-/// empty-space skipping (its tracer had none).
-fn frame(
-    job: &DatasetJob,
-    view: &View,
-    profile: &MachineProfile,
-    clusters: u32,
-    size: u32,
-) -> Result<f64, PaperError> {
-    let base = RunConfig::machine(clusters, size, 1)
-        .map_err(|_| PaperError::Write(format!("no layout of {clusters} clusters of {size}")))?;
-    let cfg = RunConfig {
-        time: Some(profile.clone()),
-        skipping: crate::storage::SkipMode::OFF,
-        ..base
-    };
-    let run = sim::run(&job.volume, view, &cfg)?;
-    run.time
-        .map(|t| t.frame)
-        .ok_or_else(|| PaperError::Write("a timed run returned no time".into()))
 }
 
 /// For `nodes`, the best cluster size and its time among the shapes timed.
@@ -121,6 +100,8 @@ pub struct Fit {
     pub profile: MachineProfile,
     /// Table 1 under the fitted profile.
     pub rows: Vec<Row>,
+    /// Every shape's frame seconds under the fitted profile (what `rows` were picked from).
+    pub times: BTreeMap<(u32, u32), f64>,
     /// Root mean square of the rows' log-time errors.
     pub rms: f64,
     /// Table 1 evaluations the fit took.
@@ -143,12 +124,19 @@ pub fn table1(
     table: &[(u32, f64)],
 ) -> Result<Vec<Row>, PaperError> {
     let nodes: Vec<u32> = table.iter().map(|r| r.0).collect();
-    let times = shapes(job, view, profile, &nodes)?;
+    rows_of(&shapes(job, view, profile, &nodes)?, table)
+}
+
+/// Each node count's best shape among `times` against `table`.
+fn rows_of(
+    times: &BTreeMap<(u32, u32), f64>,
+    table: &[(u32, f64)],
+) -> Result<Vec<Row>, PaperError> {
     table
         .iter()
         .map(|&(p, paper)| {
             let (size, model) =
-                best(&times, p).ok_or_else(|| PaperError::Write(format!("no shape of {p}")))?;
+                best(times, p).ok_or_else(|| PaperError::Write(format!("no shape of {p}")))?;
             Ok(Row {
                 nodes: p,
                 size,
@@ -189,13 +177,17 @@ pub fn fit(
             message_scale,
             ..base.clone()
         };
-        let mut rows = Vec::new();
-        for _ in 0..3 {
-            rows = table1(job, view, &profile, table)?;
+        let nodes: Vec<u32> = table.iter().map(|r| r.0).collect();
+        let (mut rows, mut times) = (Vec::new(), BTreeMap::new());
+        for round in 0..3 {
+            times = shapes(job, view, &profile, &nodes)?;
+            rows = rows_of(&times, table)?;
             evaluations += 1;
             let mean = rows.iter().map(|r| (r.model / r.paper).ln()).sum::<f64>()
                 / rows.len().max(1) as f64;
-            if mean.abs() < 1e-3 {
+            // The profile returned is the one `rows` and `times` were timed with: no
+            // correction after the last round.
+            if mean.abs() < 1e-3 || round == 2 {
                 break;
             }
             profile.scale *= (-mean).exp();
@@ -206,6 +198,7 @@ pub fn fit(
             profile,
             rms,
             rows,
+            times,
             evaluations: 0,
             at_bound: false,
         })

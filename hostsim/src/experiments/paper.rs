@@ -290,8 +290,6 @@ pub fn slab_work(
     size: u32,
     cuts: Option<Vec<u32>>,
 ) -> Result<Vec<SlabWork>, PaperError> {
-    let layout = voxcube_kernel::node::topology::Layout::new(1, size)
-        .map_err(|e| PaperError::Write(e.to_string()))?;
     let nx = job.volume.grid.dims()[0];
     let planes: Vec<u32> = match &cuts {
         Some(cuts) => cuts.clone(),
@@ -307,21 +305,19 @@ pub fn slab_work(
         )));
     }
     let time = timed(job, view, profile, 1, size, cuts)?;
-    (0..size as u16)
-        .map(|position| {
-            let part = time
-                .parts
-                .get(usize::from(layout.node(0, position)))
-                .ok_or_else(|| PaperError::Write("a ring position without a node".into()))?;
+    let parts = time.by_position(size).map_err(PaperError::Write)?;
+    Ok(parts
+        .iter()
+        .zip(planes.windows(2))
+        .map(|(part, cut)| {
             let idle = part[Category::Idle as usize];
-            let i = usize::from(position);
-            Ok(SlabWork {
-                planes: (planes[i], planes[i + 1]),
+            SlabWork {
+                planes: (cut[0], cut[1]),
                 busy: part.iter().sum::<f64>() - idle,
                 idle,
-            })
+            }
         })
-        .collect()
+        .collect())
 }
 
 /// Picks one share out of a node's time by category.
@@ -341,7 +337,7 @@ pub fn run(
     std::fs::create_dir_all(dir)
         .map_err(|e| PaperError::Write(format!("{}: {e}", dir.display())))?;
     let fitted;
-    let profile = if fit {
+    let (profile, fitted_times) = if fit {
         let f = crate::experiments::fit::fit(job, view, profile, &TABLE1)?;
         let _ = writeln!(
             out,
@@ -360,9 +356,9 @@ pub fn run(
             }
         );
         fitted = f.profile;
-        &fitted
+        (&fitted, Some(f.times))
     } else {
-        profile
+        (profile, None)
     };
     let _ = writeln!(
         out,
@@ -376,8 +372,14 @@ pub fn run(
             "as the profile gives them; `voxcube paper --fit` fits them on Table 1"
         }
     );
-    let nodes: Vec<u32> = TABLE1.iter().map(|r| r.0).collect();
-    let times = crate::experiments::fit::shapes(job, view, profile, &nodes)?;
+    // The fit's last evaluation already timed every shape under the fitted profile.
+    let times = match fitted_times {
+        Some(times) => times,
+        None => {
+            let nodes: Vec<u32> = TABLE1.iter().map(|r| r.0).collect();
+            crate::experiments::fit::shapes(job, view, profile, &nodes)?
+        }
+    };
     let t1 = times
         .get(&(1, 1))
         .copied()

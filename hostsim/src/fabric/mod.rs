@@ -197,6 +197,22 @@ pub struct VirtualTime {
     pub timeline: Vec<Vec<Span>>,
 }
 
+impl VirtualTime {
+    /// The seconds by [`Category`] of each ring position of a run on one cluster of `size`
+    /// (node ids are Gray-coded; slabs go by ring position).
+    pub fn by_position(&self, size: u32) -> Result<Vec<[f64; Category::COUNT]>, String> {
+        let layout = Layout::new(1, size).map_err(|e| e.to_string())?;
+        (0..size as u16)
+            .map(|j| {
+                self.parts
+                    .get(usize::from(layout.node(0, j)))
+                    .copied()
+                    .ok_or_else(|| format!("no time for ring position {j}"))
+            })
+            .collect()
+    }
+}
+
 /// A stretch of a node's virtual time spent one way.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Span {

@@ -8,7 +8,7 @@
 use super::network::Envelope;
 use super::schedule::Choice;
 use crate::fabric::{Category, Span, VirtualTime};
-use crate::profile::MachineProfile;
+use crate::profile::{MachineProfile, MessageCosts};
 use voxcube_kernel::counters::Counters;
 use voxcube_kernel::node::msg::Msg;
 use voxcube_kernel::node::port::Dest;
@@ -18,6 +18,8 @@ use voxcube_kernel::node::topology::hops;
 #[derive(Clone)]
 pub(super) struct Clock {
     pub(super) profile: MachineProfile,
+    /// The profile's message costs with their fitted factor applied, once.
+    messages: MessageCosts,
     /// Iso-surfaces each taken sample is tested against.
     surfaces: u32,
     pub(super) now: Vec<f64>,
@@ -48,6 +50,7 @@ impl Clock {
     ) -> Clock {
         Clock {
             profile: profile.clone(),
+            messages: profile.message_costs(),
             surfaces,
             now: vec![0.0; nodes],
             parts: vec![[0.0; Category::COUNT]; nodes],
@@ -59,8 +62,7 @@ impl Clock {
 
     /// Seconds for a message of `len` bytes over `hops` hops.
     pub(super) fn transfer(&self, len: usize, hops: u32) -> f64 {
-        let m = self.profile.message_costs();
-        // `scale` fits the tracer's compute only; `message_costs` carries the messages' own fit.
+        let m = &self.messages;
         m.latency + len as f64 * m.per_byte + f64::from(hops.saturating_sub(1)) * m.per_hop
     }
 
@@ -93,7 +95,7 @@ impl Clock {
         received: u64,
         sent: &mut [Envelope],
     ) {
-        let (m, scale) = (self.profile.message_costs(), self.profile.scale);
+        let (m, scale) = (self.messages, self.profile.scale);
         let [interpolate, trace, shade] = self.profile.compute(&after.since(before), self.surfaces);
         let mut parts = [0.0; Category::COUNT];
         parts[Category::Test as usize] = m.test + m.test_per_pending * pending as f64;
@@ -109,8 +111,8 @@ impl Clock {
             .iter()
             .zip(self.parts[n].iter_mut().zip(parts))
         {
-            // `scale` fits the tracer's compute; message handling has its own factor, applied
-            // in `message_costs`.
+            // `scale` fits the tracer's compute; message handling has its own factor, already
+            // in `self.messages`.
             let part = if category.is_compute() {
                 part * scale
             } else {
