@@ -109,6 +109,16 @@ pub enum Command {
         /// changes no pixel, only the time).
         #[arg(long)]
         no_depths: bool,
+        /// Inject a fault (sim and threads): node NODE stops answering after STEPS of its
+        /// polls. The host declares it lost and the surviving clusters re-trace its cluster's
+        /// unfinished rows: the same image, the loss named in a warning and the report.
+        #[arg(long, value_name = "NODE@STEPS", value_parser = parse_stop)]
+        stop_node: Option<(u16, u64)>,
+        /// Seconds the threads and MPI hosts wait without hearing from a node before they
+        /// declare it lost (the simulator declares a stopped node lost once nothing else can
+        /// happen).
+        #[arg(long, value_name = "SECONDS", default_value_t = 2.0, value_parser = parse_seconds)]
+        lost_after: f64,
         /// The accuracy tier of every view, overriding each view's `accuracy`: exact (the
         /// reference image) or fast (the approximations production ray casters make, each
         /// named in the report).
@@ -337,6 +347,32 @@ fn machine(
     })
 }
 
+/// A positive, finite number of seconds.
+fn parse_seconds(text: &str) -> Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(s) if s.is_finite() && s > 0.0 && s <= 86_400.0 => Ok(s),
+        _ => Err(format!(
+            "`{text}`: expected seconds, more than 0 and at most a day"
+        )),
+    }
+}
+
+/// `NODE@STEPS` of `--stop-node`.
+fn parse_stop(text: &str) -> Result<(u16, u64), String> {
+    let (node, steps) = text
+        .split_once('@')
+        .ok_or_else(|| format!("`{text}`: expected NODE@STEPS, e.g. 3@200"))?;
+    let node = node
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{node}`: a node id, 0 to 65534"))?;
+    let steps = steps
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{steps}`: a number of polls"))?;
+    Ok((node, steps))
+}
+
 /// Run the command line; the process exit code.
 pub fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
@@ -546,6 +582,8 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             no_cell_leaps,
             no_row_leaps,
             no_depths,
+            stop_node,
+            lost_after,
             accuracy,
             orbit,
             trace,
@@ -595,6 +633,26 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                         ProfileArg::Modern => Profile::builtin("modern")
                             .ok_or("the shipped modern profile is missing")?,
                     };
+                    m.lost_after = Duration::from_secs_f64(lost_after);
+                    if let Some((node, _)) = stop_node {
+                        let name = m.fabric.name();
+                        if !matches!(m.fabric, Fabric::Sim | Fabric::Threads) {
+                            return Err(format!("{}/{}: --stop-node injects a fault on the sim and threads fabrics; this view runs on {name}", job.name, v.name).into());
+                        }
+                        if u32::from(node) >= m.nodes {
+                            return Err(format!(
+                                "{}/{}: --stop-node {node}: the machine has nodes 0 to {}",
+                                job.name,
+                                v.name,
+                                m.nodes - 1
+                            )
+                            .into());
+                        }
+                        if trace.is_some() {
+                            return Err("--stop-node: the timed simulator (--trace) does not recover a lost node; drop one of the two".into());
+                        }
+                        m.stop = stop_node;
+                    }
                     if trace.is_some() {
                         if m.fabric != Fabric::Sim {
                             return Err(format!(
@@ -736,6 +794,13 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 let mut warnings = crate::framing::blank_reasons(&job.volume, &v.view);
                 if warnings.is_empty() && pixels.chunks_exact(4).all(|p| p == &pixels[..4]) {
                     warnings.push("the view drew nothing: every pixel is the background".into());
+                }
+                if let Some(r) = rendered
+                    .distributed
+                    .as_ref()
+                    .and_then(|d| d.recovery.as_ref())
+                {
+                    warnings.push(r.to_string());
                 }
                 if !quiet {
                     for w in &warnings {

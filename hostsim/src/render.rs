@@ -74,6 +74,12 @@ pub struct Machine {
     /// Keep the simulator's timeline in virtual time on the machine profile of this name
     /// (`render --trace`).
     pub timeline: Option<&'static str>,
+    /// An injected fault (sim and threads): this node stops answering after this many of its
+    /// polls, and the surviving clusters re-trace its cluster's rows.
+    pub stop: Option<(u16, u64)>,
+    /// How long the threads and MPI hosts wait without hearing from a node before they
+    /// declare it lost.
+    pub lost_after: Duration,
 }
 
 impl Machine {
@@ -92,6 +98,8 @@ impl Machine {
             threads: 0,
             skipping: SkipMode::ALL,
             timeline: None,
+            stop: None,
+            lost_after: crate::fabric::config::DEFAULT_LOST_AFTER,
         }
     }
 
@@ -102,12 +110,18 @@ impl Machine {
 
     /// The simulator configuration for this machine (also the shape the other fabrics use).
     pub fn sim_config(&self) -> Result<RunConfig, LayoutError> {
+        let base = RunConfig::machine(self.clusters, self.cluster_size(), self.seed)?;
         Ok(RunConfig {
             generation: self.generation,
             buffer_bytes: self.buffer_bytes,
             flow_control: self.flow_control,
             skipping: self.skipping,
-            ..RunConfig::machine(self.clusters, self.cluster_size(), self.seed)?
+            schedule: crate::fabric::Schedule {
+                stop: self.stop,
+                ..base.schedule
+            },
+            lost_after: self.lost_after,
+            ..base
         })
     }
 }

@@ -201,7 +201,10 @@ pub struct ViewReport {
     pub pixels_sha256: String,
     /// Static load balancing, when the view asked for it.
     pub balance: Option<BalanceReport>,
-    /// Why the view draws nothing, or part of it nothing (also printed on stderr).
+    /// A node lost during the render and how its rows were re-traced (also a warning).
+    pub recovery: Option<crate::fabric::Recovery>,
+    /// Why the view draws nothing, or part of it nothing, and any node lost (also printed on
+    /// stderr).
     pub warnings: Vec<String>,
 }
 
@@ -333,6 +336,10 @@ impl ViewReport {
             wall_ms: rendered.wall.as_secs_f64() * 1e3,
             pixels_sha256: crate::output::pixels_sha256(&rendered.bytes()),
             balance: None,
+            recovery: rendered
+                .distributed
+                .as_ref()
+                .and_then(|d| d.recovery.clone()),
             warnings: Vec::new(),
         }
     }

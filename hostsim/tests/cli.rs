@@ -627,3 +627,86 @@ fn a_simulated_run_s_timeline_is_chrome_trace_json_covering_every_node_s_time() 
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--fabric sim"));
 }
+
+#[test]
+fn a_stopped_node_costs_no_pixel_and_is_named_in_a_warning_and_the_report() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let machine = ["--nodes", "8", "--clusters", "2"];
+    let (clean, _) = render_ok(
+        dir.path(),
+        &[&machine[..], &["--fabric", "sim"]].concat(),
+        "clean.json",
+    );
+    for fabric in ["sim", "threads"] {
+        let args = [
+            &machine[..],
+            &[
+                "--fabric",
+                fabric,
+                "--stop-node",
+                "5@60",
+                "--lost-after",
+                "1",
+            ],
+        ]
+        .concat();
+        let out = voxcube()
+            .arg("render")
+            .args(&args)
+            .arg("-o")
+            .arg(dir.path())
+            .arg("--report")
+            .arg(dir.path().join("lost.json"))
+            .output()
+            .expect("runs");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{fabric}: {stderr}");
+        assert!(
+            stderr.contains("warning: molecule/paper: node 5 (cluster 1) stopped answering"),
+            "{fabric}: {stderr}"
+        );
+        let lost: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(dir.path().join("lost.json")).expect("report"))
+                .expect("json");
+        let view = &lost["views"][0];
+        assert_eq!(
+            view["pixels_sha256"], clean["views"][0]["pixels_sha256"],
+            "{fabric}"
+        );
+        assert_eq!(view["recovery"]["node"], 5, "{fabric}");
+        assert_eq!(view["recovery"]["by"], serde_json::json!([0]), "{fabric}");
+        assert!(view["recovery"]["retraced"].as_u64() > Some(0), "{fabric}");
+    }
+    // Bad uses name the flag and what was expected.
+    for (args, expected) in [
+        (
+            vec!["--nodes", "8", "--clusters", "2", "--stop-node", "9@5"],
+            "--stop-node 9: the machine has nodes 0 to 7",
+        ),
+        (
+            vec!["--stop-node", "0@5"],
+            "injects a fault on the sim and threads fabrics",
+        ),
+        (
+            vec!["--nodes", "2", "--stop-node", "1"],
+            "expected NODE@STEPS",
+        ),
+        (
+            vec!["--nodes", "2", "--lost-after", "0"],
+            "expected seconds",
+        ),
+    ] {
+        let out = voxcube()
+            .arg("render")
+            .args(&args)
+            .arg("-o")
+            .arg(dir.path().join("bad"))
+            .output()
+            .expect("runs");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && stderr.contains(expected),
+            "{args:?}: {stderr}"
+        );
+    }
+}

@@ -13,6 +13,10 @@ use voxcube_kernel::node::partition::{Partition, PartitionError};
 use voxcube_kernel::node::topology::{Layout, LayoutError};
 use voxcube_kernel::node::worker::Generation;
 
+/// How long a node may go unheard before the host declares it lost: long against a poll
+/// (microseconds) and against the OS taking a core from a thread on a busy machine.
+pub const DEFAULT_LOST_AFTER: std::time::Duration = std::time::Duration::from_secs(2);
+
 /// `i_max` the default receive buffer is sized for.
 pub const DEFAULT_I_MAX: usize = 8;
 
@@ -53,7 +57,8 @@ pub struct Schedule {
     pub seed: u64,
     /// Scheduler policy.
     pub scheduler: Scheduler,
-    /// A fault to inject: this node stops answering after this many of its own steps.
+    /// A fault to inject: this node stops answering after this many of its own steps (the
+    /// simulator) or polls (threads).
     pub stop: Option<(u16, u64)>,
 }
 
@@ -84,6 +89,9 @@ pub struct RunConfig {
     pub skipping: SkipMode,
     /// The simulator's event order.
     pub schedule: Schedule,
+    /// How long the threads and MPI hosts wait without hearing from a node before they
+    /// declare it lost (the simulator declares it once nothing else can happen).
+    pub lost_after: std::time::Duration,
     /// Test-only faults, applied to every worker.
     #[cfg(feature = "mutants")]
     pub mutants: voxcube_kernel::node::worker::Mutants,
@@ -113,6 +121,7 @@ impl RunConfig {
                 scheduler: Scheduler::Uniform,
                 stop: None,
             },
+            lost_after: DEFAULT_LOST_AFTER,
             #[cfg(feature = "mutants")]
             mutants: Default::default(),
         })

@@ -249,6 +249,7 @@ impl<'v> Plan<'v> {
             wall: self.start.elapsed(),
             time: None,
             shift,
+            recovery: None,
         }
     }
 }

@@ -1,10 +1,13 @@
 //! The host's side of the protocol, one implementation for every fabric: it takes pixel sets
 //! and tokens, asks for statistics once it holds every cluster's token, and ends when it
-//! holds every node's statistics and every pixel they count.
+//! holds every node's statistics and every pixel they count. A cluster declared lost (one of
+//! its nodes stopped answering) is waited for no more: neither its token nor its nodes'
+//! statistics.
 //!
 //! Invariants (each breach is an error naming it): a pixel arrives once and inside the image;
 //! a cluster's token arrives once; a node reports once, and only after the host asked. The
-//! host ends with every pixel of the image.
+//! host ends with every pixel of the image, or, with a cluster lost, hands what it holds to
+//! the recovery that completes it.
 
 use voxcube_kernel::node::msg::Msg;
 use voxcube_kernel::node::stats::NodeStats;
@@ -16,6 +19,8 @@ pub struct Host {
     width: u32,
     received: u64,
     tokens: Vec<bool>,
+    /// By cluster: declared lost.
+    lost: Vec<bool>,
     reports: Vec<Option<NodeStats>>,
     collecting: bool,
 }
@@ -28,9 +33,48 @@ impl Host {
             width,
             received: 0,
             tokens: vec![false; clusters],
+            lost: vec![false; clusters],
             reports: vec![None; nodes],
             collecting: false,
         }
+    }
+
+    /// The cluster of node `n` (node ids run cluster by cluster).
+    fn cluster_of(&self, n: usize) -> usize {
+        let size = self.reports.len() / self.tokens.len().max(1);
+        n / size.max(1)
+    }
+
+    /// Whether the host waits for node `n`'s statistics: it is in a cluster not lost.
+    pub fn expects_report(&self, n: usize) -> bool {
+        n < self.reports.len() && !self.lost[self.cluster_of(n)]
+    }
+
+    /// Wait no more for `cluster`, one of whose nodes stopped answering. `Ok(true)` means
+    /// every other token is now in: send every node [`Host::expects_report`] a `Collect`.
+    pub fn declare_lost(&mut self, cluster: u16) -> Result<bool, String> {
+        match self.lost.get_mut(usize::from(cluster)) {
+            Some(lost @ false) => *lost = true,
+            _ => return Err(format!("cluster {cluster} is unknown or already lost")),
+        }
+        Ok(self.start_collecting())
+    }
+
+    /// Start collecting once every cluster's token is in or the cluster is lost.
+    fn start_collecting(&mut self) -> bool {
+        let settled = self.tokens.iter().zip(&self.lost).all(|(&t, &l)| t || l);
+        if !self.collecting && settled {
+            self.collecting = true;
+            return true;
+        }
+        false
+    }
+
+    /// The clusters declared lost.
+    pub fn lost_clusters(&self) -> Vec<u16> {
+        (0..self.lost.len() as u16)
+            .filter(|&c| self.lost[usize::from(c)])
+            .collect()
     }
 
     /// Take one message. `Ok(true)` means every token is now in: send every node a `Collect`.
@@ -71,16 +115,13 @@ impl Host {
             }
             other => return Err(format!("the host got an unexpected {:?}", other.kind())),
         }
-        if !self.collecting && self.tokens.iter().all(|&t| t) {
-            self.collecting = true;
-            return Ok(true);
-        }
-        Ok(false)
+        Ok(self.start_collecting())
     }
 
-    /// Whether the run is over: every report in, and every pixel the reports count.
+    /// Whether the run is over: every report the host waits for in, and every pixel the
+    /// reports count.
     pub fn done(&self) -> bool {
-        self.reports.iter().all(Option::is_some)
+        (0..self.reports.len()).all(|n| self.has_report(n) || !self.expects_report(n))
             && self.received >= self.reports.iter().flatten().map(|s| s.pixels_sent).sum()
     }
 
@@ -95,8 +136,8 @@ impl Host {
             .collect();
         h.write(
             format!(
-                "{:?}|{:?}|{}|{reports:?}",
-                self.image, self.tokens, self.collecting
+                "{:?}|{:?}|{:?}|{}|{reports:?}",
+                self.image, self.tokens, self.lost, self.collecting
             )
             .as_bytes(),
         );
@@ -130,6 +171,11 @@ impl Host {
     /// The rows still missing pixels, summarised.
     pub fn missing_rows(&self) -> String {
         missing_rows(&self.image, self.width)
+    }
+
+    /// What the host holds, pixels and reports, each `None` where it has none.
+    pub fn into_parts(self) -> (Vec<Option<[u8; 4]>>, Vec<Option<NodeStats>>) {
+        (self.image, self.reports)
     }
 
     /// The image and the reports, in node order; an error if a pixel is missing.
@@ -270,5 +316,26 @@ mod tests {
         let mut short = Host::new(2, 2, 1, 1);
         assert_eq!(short.receive(pixels(&[0])), Ok(false));
         assert!(short.finish().unwrap_err().contains("1 of 2 pixels"));
+    }
+
+    #[test]
+    fn a_lost_cluster_is_waited_for_no_more_and_only_once() {
+        // Two clusters of two nodes: nodes 2 and 3 are cluster 1's.
+        let mut host = Host::new(4, 2, 2, 4);
+        assert_eq!(host.receive(Msg::Token { cluster: 0 }), Ok(false));
+        assert_eq!(host.declare_lost(1), Ok(true), "every other token is in");
+        assert!(host.declare_lost(1).is_err(), "lost once");
+        assert!(host.declare_lost(2).is_err(), "an unknown cluster");
+        assert!((host.expects_report(0), host.expects_report(1)) == (true, true));
+        assert!(!host.expects_report(2) && !host.expects_report(3));
+        assert_eq!(host.receive(stats(0, 0)), Ok(false));
+        assert!(!host.done(), "node 1 has not reported");
+        assert_eq!(host.receive(stats(1, 0)), Ok(false));
+        assert!(host.done(), "the lost cluster's reports are not waited for");
+        assert_eq!(host.lost_clusters(), vec![1]);
+        // Declared lost before the others' tokens: collection waits for them.
+        let mut early = Host::new(4, 2, 2, 4);
+        assert_eq!(early.declare_lost(0), Ok(false));
+        assert_eq!(early.receive(Msg::Token { cluster: 1 }), Ok(true));
     }
 }

@@ -12,6 +12,7 @@ pub mod harness;
 pub mod host;
 #[cfg(feature = "mpi")]
 pub mod mpi;
+pub mod recovery;
 pub mod shift;
 pub mod sim;
 pub mod threads;
@@ -247,6 +248,59 @@ pub struct Distributed {
     pub time: Option<VirtualTime>,
     /// The plane shift before rendering, when the nodes moved to balanced cuts by message.
     pub shift: Option<shift::ShiftReport>,
+    /// A node lost during the run and how the frame was completed without it.
+    pub recovery: Option<Recovery>,
+}
+
+/// How a run lost a node and completed its frame: the surviving clusters re-traced the lost
+/// cluster's unfinished rows. Every pixel reached the image once: a re-traced pixel the host
+/// already held is dropped and counted.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Recovery {
+    /// The node that stopped answering.
+    pub node: u16,
+    /// Its cluster, waited for no more.
+    pub cluster: u16,
+    /// When the host declared it lost: events run (simulator).
+    pub declared_after_events: Option<u64>,
+    /// When the host declared it lost: milliseconds from the start of the run (threads and
+    /// MPI, after not hearing from it for the configured time).
+    pub declared_after_ms: Option<f64>,
+    /// The rows still missing pixels then, summarised.
+    pub rows: String,
+    /// The clusters that re-traced them.
+    pub by: Vec<u16>,
+    /// Pixels the re-trace filled.
+    pub retraced: u64,
+    /// Pixels re-traced that the host already held, dropped.
+    pub dropped: u64,
+    /// Messages from the lost cluster that reached the host after it was declared lost,
+    /// dropped (none in the simulator, which declares a node lost only once nothing else
+    /// can happen).
+    pub late: u64,
+}
+
+impl std::fmt::Display for Recovery {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let by: Vec<String> = self.by.iter().map(u16::to_string).collect();
+        let when = match (self.declared_after_events, self.declared_after_ms) {
+            (Some(events), _) => format!("{events} events"),
+            (None, Some(ms)) => format!("{ms:.0} ms"),
+            (None, None) => "an unknown time".into(),
+        };
+        write!(
+            f,
+            "node {} (cluster {}) stopped answering and was declared lost after {}; clusters {} re-traced rows {}: {} pixels filled, {} already held dropped, {} late messages of its cluster dropped",
+            self.node,
+            self.cluster,
+            when,
+            by.join(", "),
+            self.rows,
+            self.retraced,
+            self.dropped,
+            self.late
+        )
+    }
 }
 
 impl Distributed {

@@ -18,12 +18,13 @@
 
 use super::harness::{NodeWorker, Plan};
 use super::host::Host;
+use super::recovery::{self, LostNode, Retraced};
 use super::shift::{self as planes, Counted, ShiftFailure, ShiftJob, ShiftReport};
 use super::{Distributed, RunConfig, RunError};
 use crate::dataset::{Volume, VolumeData};
 use crossbeam_queue::SegQueue;
 use std::collections::VecDeque;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::mpsc;
 use std::sync::{Mutex, PoisonError};
 use std::time::{Duration, Instant};
@@ -31,7 +32,6 @@ use voxcube_kernel::node::flow::Class;
 use voxcube_kernel::node::msg::Msg;
 use voxcube_kernel::node::partition::Partition;
 use voxcube_kernel::node::port::{Dest, Port};
-use voxcube_kernel::node::stats::NodeStats;
 use voxcube_kernel::node::topology::Layout;
 use voxcube_kernel::node::worker::Progress;
 use voxcube_kernel::trace::view::View;
@@ -110,7 +110,7 @@ struct ThreadPort<'s> {
     node: u16,
     buffers: &'s [Buffer],
     capacity: usize,
-    host: mpsc::Sender<Msg>,
+    host: mpsc::Sender<(u16, Msg)>,
     local: [VecDeque<(Dest, Msg)>; 7],
 }
 
@@ -149,7 +149,7 @@ impl Port for ThreadPort<'_> {
         match to {
             Dest::Host => {
                 // The host is always there to take pixels, tokens and statistics.
-                self.host.send(msg).map_err(|e| e.0)
+                self.host.send((self.node, msg)).map_err(|e| e.0 .1)
             }
             Dest::Node(n) => {
                 let Some(buffer) = self.buffers.get(usize::from(n)) else {
@@ -222,19 +222,97 @@ fn run_typed<T: Sample + Send + Sync>(
 ) -> Result<Distributed, RunError> {
     let grid = volume.grid;
     let plan = Plan::new(&grid, view, cfg)?;
+    let ran = run_hosted(&plan, &grid, data, cfg, threads, progress)?;
+    let Ran {
+        host,
+        lost,
+        late,
+        mut peaks,
+        busy,
+        shifted,
+    } = ran;
+    let (image, reports, recovered) = match lost {
+        None => {
+            let (image, reports) = host.finish().map_err(host_failure)?;
+            (image, reports, None)
+        }
+        Some(lost) => {
+            let already = host.received();
+            let retrace = |survivors: &RunConfig| {
+                let plan = Plan::new(&grid, view, survivors)?;
+                let again = run_hosted(&plan, &grid, data, survivors, threads, &|n| {
+                    progress(already + n)
+                })?;
+                Ok(Retraced {
+                    host: again.host,
+                    peaks: again.peaks,
+                    messages: [0; 9],
+                    bytes: 0,
+                    events: 0,
+                })
+            };
+            let mut done = recovery::complete(view, cfg, lost, host, &retrace)?;
+            for (peak, more) in peaks.iter_mut().zip(&done.peaks) {
+                *peak = (*peak).max(*more);
+            }
+            done.recovery.late = late;
+            (done.image, done.stats, Some(done.recovery))
+        }
+    };
+    let mut run = plan.finish(
+        cfg,
+        &grid,
+        size_of::<T>(),
+        image,
+        reports,
+        &|n| peaks[n],
+        &|n| busy[n],
+        shifted,
+    );
+    run.recovery = recovered;
+    Ok(run)
+}
+
+/// What one run on the threads left: its host, the node it declared lost, each node's peak
+/// buffer and busy time, and the plane shift's report.
+struct Ran {
+    host: Host,
+    lost: Option<LostNode>,
+    /// Messages of the lost cluster that came after it was declared lost, dropped.
+    late: u64,
+    peaks: Vec<usize>,
+    busy: Vec<Duration>,
+    shifted: Option<ShiftReport>,
+}
+
+/// Run `plan` on the threads until the host ends: with every pixel, or with a cluster lost.
+fn run_hosted<T: Sample + Send + Sync>(
+    plan: &Plan<'_>,
+    grid: &Grid,
+    data: &[T],
+    cfg: &RunConfig,
+    threads: usize,
+    progress: &dyn Fn(u64),
+) -> Result<Ran, RunError> {
     let (nodes, capacity) = (plan.nodes(), plan.capacity);
     let threads = match threads {
         0 => std::thread::available_parallelism().map_or(1, usize::from),
         t => t,
     }
     .clamp(1, nodes);
-    let (storage, shifted) = plan.load(&grid, data, cfg, threads, |job| {
+    let (storage, shifted) = plan.load(grid, data, cfg, threads, |job| {
         Ok(shift(job, data, threads)?)
     })?;
     let workers = plan.workers(&storage, cfg)?;
     let buffers: Vec<Buffer> = (0..nodes).map(|_| Buffer::new()).collect();
+    let last: Vec<AtomicU64> = (0..nodes).map(|_| AtomicU64::new(0)).collect();
+    let beats = Beats {
+        last: &last,
+        epoch: Instant::now(),
+        stop: cfg.schedule.stop,
+    };
     let done = AtomicBool::new(false);
-    let (host_tx, host_rx) = mpsc::channel::<Msg>();
+    let (host_tx, host_rx) = mpsc::channel::<(u16, Msg)>();
     // Deal the nodes out to the threads; the calling thread takes the first share.
     let mut shares: Vec<Vec<Box<NodeWorker<'_, T>>>> = (0..threads).map(|_| Vec::new()).collect();
     for (i, w) in workers.into_iter().enumerate() {
@@ -242,14 +320,20 @@ fn run_typed<T: Sample + Send + Sync>(
     }
     let mut shares = shares
         .into_iter()
-        .map(|share| Crew::new(share, &buffers, capacity, &host_tx));
-    let mut own = shares.next().unwrap_or_else(Crew::empty);
+        .map(|share| Crew::new(share, &buffers, capacity, &host_tx, beats));
+    let mut own = shares.next().unwrap_or_else(|| Crew::empty(beats));
     let others: Vec<_> = shares.collect();
     // The ports hold the only senders: should every port go with its failed thread, the host
     // hears so at once rather than after STALL.
     drop(host_tx);
     let mut busy = vec![Duration::ZERO; nodes];
-    let host = Mutex::new(HostLoop::new(host_rx, plan.host()));
+    let host = Mutex::new(HostLoop::new(
+        host_rx,
+        plan.host(),
+        beats,
+        cfg.lost_after,
+        plan.layout,
+    ));
     let outcome = std::thread::scope(|scope| {
         let (done, host, buffers) = (&done, &host, &buffers);
         let handles: Vec<_> = others
@@ -299,20 +383,18 @@ fn run_typed<T: Sample + Send + Sync>(
         result
     });
     outcome?;
-    let (image, reports) = host
-        .into_inner()
-        .unwrap_or_else(PoisonError::into_inner)
-        .finish()?;
-    Ok(plan.finish(
-        cfg,
-        &grid,
-        size_of::<T>(),
-        image,
-        reports,
-        &|n| buffers[n].peak.load(Ordering::Relaxed),
-        &|n| busy[n],
+    let host = host.into_inner().unwrap_or_else(PoisonError::into_inner);
+    Ok(Ran {
+        host: host.host,
+        lost: host.lost,
+        late: host.late,
+        peaks: buffers
+            .iter()
+            .map(|b| b.peak.load(Ordering::Relaxed))
+            .collect(),
+        busy,
         shifted,
-    ))
+    })
 }
 
 /// A thread's nodes during the shift: id and storage.
@@ -335,7 +417,7 @@ pub fn shift<T: Sample + Send + Sync>(
     let threads = threads.clamp(1, nodes);
     let buffers: Vec<Buffer> = (0..nodes).map(|_| Buffer::new()).collect();
     // The shift sends nothing to the host; the ports still need somewhere to send it.
-    let (host, _unused) = mpsc::channel::<Msg>();
+    let (host, _unused) = mpsc::channel::<(u16, Msg)>();
     let mut shares: Vec<Share<T>> = (0..threads).map(|_| Vec::new()).collect();
     for node in 0..nodes as u16 {
         let storage = planes::load(grid, data, layout, &job.old, ghost, node);
@@ -495,6 +577,47 @@ struct Crew<'s, 'v, T: Sample> {
     busy: Vec<Duration>,
     /// When the rounds without progress began; `None` after one with progress.
     idle_since: Option<Instant>,
+    /// Each node's polls so far, and its heartbeat.
+    polls: Vec<u64>,
+    beats: Beats<'s>,
+}
+
+/// Every node's heartbeat: microseconds from `epoch` to its last poll, and the injected
+/// fault, a node that stops being polled after so many polls.
+#[derive(Clone, Copy)]
+struct Beats<'s> {
+    last: &'s [AtomicU64],
+    epoch: Instant,
+    stop: Option<(u16, u64)>,
+}
+
+impl Beats<'_> {
+    /// Whether `node`, polled `polls` times so far, has stopped (the injected fault).
+    fn stopped(&self, node: u16, polls: u64) -> bool {
+        self.stop
+            .is_some_and(|(n, after)| n == node && polls >= after)
+    }
+
+    /// Record a poll of `node` at `now`.
+    fn beat(&self, node: u16, now: Instant) {
+        if let Some(b) = self.last.get(usize::from(node)) {
+            let at = now.saturating_duration_since(self.epoch).as_micros() as u64;
+            b.store(at, Ordering::Relaxed);
+        }
+    }
+
+    /// The node heard from least recently, and how long ago, if it is longer than `limit`.
+    fn silent(&self, limit: Duration) -> Option<(u16, Duration)> {
+        let now = self.epoch.elapsed().as_micros() as u64;
+        let (node, last) = self
+            .last
+            .iter()
+            .map(|b| b.load(Ordering::Relaxed))
+            .enumerate()
+            .min_by_key(|&(_, at)| at)?;
+        let silent = Duration::from_micros(now.saturating_sub(last));
+        (silent > limit).then_some((node as u16, silent))
+    }
 }
 
 impl<'s, 'v, T: Sample> Crew<'s, 'v, T> {
@@ -502,7 +625,8 @@ impl<'s, 'v, T: Sample> Crew<'s, 'v, T> {
         workers: Vec<Box<NodeWorker<'v, T>>>,
         buffers: &'s [Buffer],
         capacity: usize,
-        host: &mpsc::Sender<Msg>,
+        host: &mpsc::Sender<(u16, Msg)>,
+        beats: Beats<'s>,
     ) -> Crew<'s, 'v, T> {
         let ports = workers
             .iter()
@@ -515,21 +639,26 @@ impl<'s, 'v, T: Sample> Crew<'s, 'v, T> {
             })
             .collect();
         let busy = vec![Duration::ZERO; workers.len()];
+        let polls = vec![0; workers.len()];
         Crew {
             workers,
             ports,
             busy,
             idle_since: None,
+            polls,
+            beats,
         }
     }
 
     /// A crew of no nodes, for a calling thread dealt none.
-    fn empty() -> Crew<'s, 'v, T> {
+    fn empty(beats: Beats<'s>) -> Crew<'s, 'v, T> {
         Crew {
             workers: Vec::new(),
             ports: Vec::new(),
             busy: Vec::new(),
             idle_since: None,
+            polls: Vec::new(),
+            beats,
         }
     }
 
@@ -539,13 +668,24 @@ impl<'s, 'v, T: Sample> Crew<'s, 'v, T> {
         // The clock is read once per burst: a poll is one to four rays, too little work to
         // read the clock around. Each burst's time runs from the previous read.
         let mut t = Instant::now();
+        let beats = self.beats;
         let nodes = self.workers.iter_mut().zip(&mut self.ports);
-        for ((w, port), spent) in nodes.zip(&mut self.busy) {
+        for (((w, port), spent), total) in nodes.zip(&mut self.busy).zip(&mut self.polls) {
+            let node = w.node();
+            if beats.stopped(node, *total) {
+                // The injected fault: no longer polled, no heartbeat.
+                continue;
+            }
             let mut polls = 0;
-            while polls < BURST && w.poll(port) == Progress::Busy {
+            while polls < BURST && !beats.stopped(node, *total) {
+                *total += 1;
+                if w.poll(port) != Progress::Busy {
+                    break;
+                }
                 polls += 1;
             }
             let now = Instant::now();
+            beats.beat(node, now);
             if polls > 0 {
                 progressed = true;
                 *spent += now - t;
@@ -584,22 +724,40 @@ impl<'s, 'v, T: Sample> Crew<'s, 'v, T> {
 /// each polls it after its own round when no other thread is at it (the calling thread waits
 /// its turn), so the host's work falls on every core rather than delaying one thread's
 /// nodes while the others wait idle at the end.
-struct HostLoop {
-    rx: mpsc::Receiver<Msg>,
+struct HostLoop<'s> {
+    rx: mpsc::Receiver<(u16, Msg)>,
     host: Host,
     heard: Instant,
     /// The first break of the host's protocol, or a stall, for the calling thread to end the
     /// run with.
     failure: Option<RunError>,
+    /// Lost nodes: the heartbeats, how long a node may be silent, the machine, the node
+    /// declared lost and the messages of its cluster dropped since.
+    beats: Beats<'s>,
+    lost_after: Duration,
+    layout: Layout,
+    lost: Option<LostNode>,
+    late: u64,
 }
 
-impl HostLoop {
-    fn new(rx: mpsc::Receiver<Msg>, host: Host) -> HostLoop {
+impl<'s> HostLoop<'s> {
+    fn new(
+        rx: mpsc::Receiver<(u16, Msg)>,
+        host: Host,
+        beats: Beats<'s>,
+        lost_after: Duration,
+        layout: Layout,
+    ) -> HostLoop<'s> {
         HostLoop {
             rx,
             host,
             heard: Instant::now(),
             failure: None,
+            beats,
+            lost_after,
+            layout,
+            lost: None,
+            late: 0,
         }
     }
 
@@ -624,13 +782,16 @@ impl HostLoop {
     fn take(&mut self, buffers: &[Buffer], capacity: usize) -> Result<bool, RunError> {
         let mut heard = false;
         loop {
-            let msg = match self.rx.try_recv() {
-                Ok(msg) => msg,
+            let (from, msg) = match self.rx.try_recv() {
+                Ok(message) => message,
                 Err(mpsc::TryRecvError::Empty) if heard => {
                     self.heard = Instant::now();
                     break;
                 }
-                Err(mpsc::TryRecvError::Empty) if self.heard.elapsed() < STALL => break,
+                Err(mpsc::TryRecvError::Empty) if self.heard.elapsed() < STALL => {
+                    self.watch(buffers, capacity)?;
+                    break;
+                }
                 Err(_) => {
                     return Err(host_failure(format!(
                         "threads stalled: no message for {STALL:?}; {} of {} pixels",
@@ -640,27 +801,70 @@ impl HostLoop {
                 }
             };
             heard = true;
+            if self
+                .lost
+                .is_some_and(|l| self.layout.place(from).0 == l.cluster)
+            {
+                // A late message of a cluster declared lost: its rows are re-traced.
+                self.late += 1;
+                continue;
+            }
             if self.host.receive(msg).map_err(host_failure)? {
-                for b in buffers {
-                    // The control reserve of every buffer has room for this request.
-                    if !b.reserve(Msg::Collect.kind().encoded_len(), capacity) {
-                        return Err(host_failure("no room for the host's request".into()));
-                    }
-                    b.push(Dest::Host, Msg::Collect);
-                }
+                self.collect(buffers, capacity)?;
             }
         }
         Ok(heard)
     }
 
+    /// Ask every node the host waits for for its statistics.
+    fn collect(&self, buffers: &[Buffer], capacity: usize) -> Result<(), RunError> {
+        for (n, b) in buffers.iter().enumerate() {
+            if !self.host.expects_report(n) {
+                continue;
+            }
+            // The control reserve of every buffer has room for this request.
+            if !b.reserve(Msg::Collect.kind().encoded_len(), capacity) {
+                return Err(host_failure("no room for the host's request".into()));
+            }
+            b.push(Dest::Host, Msg::Collect);
+        }
+        Ok(())
+    }
+
+    /// With nothing to take: declare a node not polled for `lost_after` lost, once. With
+    /// another cluster to re-trace its rows, the host waits for its cluster no more;
+    /// without, the run fails naming it.
+    fn watch(&mut self, buffers: &[Buffer], capacity: usize) -> Result<(), RunError> {
+        if self.lost.is_some() || self.host.done() {
+            return Ok(());
+        }
+        let Some((node, _)) = self.beats.silent(self.lost_after) else {
+            return Ok(());
+        };
+        let cluster = self.layout.place(node).0;
+        if self.layout.clusters() < 2 {
+            return Err(RunError::Lost {
+                node,
+                waiting: 0,
+                missing: self.host.missing(),
+                rows: self.host.missing_rows(),
+            });
+        }
+        self.lost = Some(LostNode {
+            node,
+            cluster,
+            events: None,
+            after: Some(self.beats.epoch.elapsed()),
+        });
+        if self.host.declare_lost(cluster).map_err(host_failure)? {
+            self.collect(buffers, capacity)?;
+        }
+        Ok(())
+    }
+
     /// Whether every pixel and every node's statistics are in.
     fn done(&self) -> bool {
         self.host.done()
-    }
-
-    /// The image and the nodes' statistics.
-    fn finish(self) -> Result<(Vec<[u8; 4]>, Vec<NodeStats>), RunError> {
-        self.host.finish().map_err(host_failure)
     }
 }
 
@@ -680,19 +884,26 @@ mod tests {
     #[test]
     fn the_host_keeps_its_first_failure_and_takes_nothing_after_it() {
         let (tx, rx) = mpsc::channel();
-        let mut host = HostLoop::new(rx, Host::new(4, 2, 1, 1));
+        let last = [AtomicU64::new(0)];
+        let beats = Beats {
+            last: &last,
+            epoch: Instant::now(),
+            stop: None,
+        };
+        let layout = Layout::new(1, 1).expect("one node");
+        let mut host = HostLoop::new(rx, Host::new(4, 2, 1, 1), beats, STALL, layout);
         let buffers = [Buffer::new()];
         let set = |pixel: u32| {
             let mut set = PixelSet::default();
             set.push(pixel, [1, 2, 3, 4]).expect("room for one pixel");
             Msg::Pixels(set)
         };
-        tx.send(set(1)).expect("the host listens");
+        tx.send((0, set(1))).expect("the host listens");
         assert!(host.poll(&buffers, 1024), "a pixel was heard");
         assert!(host.failure.is_none());
         // Pixel 1 again, then a new one.
-        tx.send(set(1)).expect("the host listens");
-        tx.send(set(2)).expect("the host listens");
+        tx.send((0, set(1))).expect("the host listens");
+        tx.send((0, set(2))).expect("the host listens");
         assert!(!host.poll(&buffers, 1024));
         let kept = host.failure.as_ref().map(ToString::to_string);
         assert!(
@@ -705,5 +916,51 @@ mod tests {
         );
         assert_eq!(host.host.received(), 1);
         assert!(host.rx.try_recv().is_ok(), "pixel 2 still waits");
+    }
+
+    /// A node unheard for longer than the limit is declared lost once, its cluster's later
+    /// messages are dropped and counted, and the host then waits for the others alone.
+    #[test]
+    fn a_silent_node_is_declared_lost_and_its_cluster_s_late_messages_dropped() {
+        let (tx, rx) = mpsc::channel();
+        let last = [AtomicU64::new(0), AtomicU64::new(0)];
+        let epoch = Instant::now()
+            .checked_sub(Duration::from_secs(5))
+            .expect("a clock five seconds old");
+        // Node 0 polled just now, node 1 not since the start.
+        last[0].store(5_000_000, Ordering::Relaxed);
+        let beats = Beats {
+            last: &last,
+            epoch,
+            stop: None,
+        };
+        let layout = Layout::new(2, 1).expect("two clusters of one");
+        let mut host = HostLoop::new(
+            rx,
+            Host::new(2, 1, 2, 2),
+            beats,
+            Duration::from_secs(1),
+            layout,
+        );
+        let buffers = [Buffer::new(), Buffer::new()];
+        assert!(!host.poll(&buffers, 1024));
+        assert!(host.failure.is_none(), "{:?}", host.failure);
+        let lost = host.lost.expect("node 1 declared lost");
+        assert_eq!((lost.node, lost.cluster), (1, 1));
+        let mut set = PixelSet::default();
+        set.push(1, [1, 2, 3, 4]).expect("room for one pixel");
+        tx.send((1, Msg::Pixels(set))).expect("the host listens");
+        tx.send((0, Msg::Token { cluster: 0 }))
+            .expect("the host listens");
+        assert!(host.poll(&buffers, 1024));
+        assert_eq!(
+            (host.late, host.host.received()),
+            (1, 0),
+            "the late pixel dropped"
+        );
+        // Node 0 alone is asked for its statistics; node 1's buffer gets no request.
+        assert_eq!(buffers[0].queued.load(Ordering::Acquire), 1);
+        assert_eq!(buffers[1].queued.load(Ordering::Acquire), 0);
+        assert!(host.host.expects_report(0) && !host.host.expects_report(1));
     }
 }

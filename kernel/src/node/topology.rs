@@ -36,11 +36,13 @@ impl fmt::Display for LayoutError {
 
 impl core::error::Error for LayoutError {}
 
-/// Clusters and their rings.
+/// Clusters and their rings, and the image rows the machine traces (every row, unless it
+/// re-traces a lost cluster's: [`Layout::with_rows`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Layout {
     clusters: u16,
     size: u16,
+    rows: Rows,
 }
 
 impl Layout {
@@ -57,7 +59,15 @@ impl Layout {
         Ok(Layout {
             clusters: clusters as u16,
             size: size as u16,
+            rows: Rows::ALL,
         })
+    }
+
+    /// The same machine tracing only `rows`, dealt among its clusters in turn: how surviving
+    /// clusters share the rows of a cluster that lost a node. A pixel's colour does not
+    /// depend on which cluster traces it, so the rows come out the same bits.
+    pub fn with_rows(self, rows: Rows) -> Layout {
+        Layout { rows, ..self }
     }
 
     /// Number of clusters, `m`.
@@ -106,10 +116,10 @@ impl Layout {
         (node / self.size, position)
     }
 
-    /// The image rows `cluster` renders: the clusters take rows in turn ([`Rows::of_cluster`];
-    /// a layout has at least one cluster).
+    /// The image rows `cluster` renders: the clusters take the machine's rows in turn
+    /// ([`Rows::deal`]; with every row, [`Rows::of_cluster`]).
     pub fn cluster_rows(&self, cluster: u16) -> Rows {
-        Rows::of_cluster(cluster, self.clusters).unwrap_or(Rows::ALL)
+        self.rows.deal(cluster, self.clusters)
     }
 
     /// Rows of a `height`-row image that `cluster` renders.
@@ -143,12 +153,39 @@ impl Rows {
     pub const ALL: Rows = Rows { first: 0, step: 1 };
 
     /// The rows of cluster `cluster` of `clusters` (`None` for no clusters): the clusters
-    /// take rows in turn. The one rule that deals them, [`Layout::cluster_rows`]'s too.
+    /// take every row in turn ([`Rows::deal`], the one rule that deals rows).
     pub fn of_cluster(cluster: u16, clusters: u16) -> Option<Rows> {
-        (clusters > 0).then_some(Rows {
-            first: u32::from(cluster),
-            step: u32::from(clusters),
-        })
+        (clusters > 0).then(|| Rows::ALL.deal(cluster, clusters))
+    }
+
+    /// Rows `first`, `first + step`, … (a step of 0 is taken as 1).
+    pub fn new(first: u32, step: u32) -> Rows {
+        Rows {
+            first,
+            step: step.max(1),
+        }
+    }
+
+    /// The first row.
+    pub fn first(&self) -> u32 {
+        self.first
+    }
+
+    /// Rows from one to the next.
+    pub fn step(&self) -> u32 {
+        self.step
+    }
+
+    /// The `part`-th of `parts` who take these rows in turn (all of them for no parts).
+    pub fn deal(&self, part: u16, parts: u16) -> Rows {
+        match parts {
+            0 => *self,
+            _ => Rows::new(
+                self.first
+                    .saturating_add(u32::from(part).saturating_mul(self.step)),
+                self.step.saturating_mul(u32::from(parts)),
+            ),
+        }
     }
 
     /// How many of them an image of `height` rows has.
@@ -226,6 +263,35 @@ pub const fn hops(from: u16, to: u16) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Survivors dealing a lost cluster's rows trace each of them once, and nothing else.
+    #[test]
+    fn survivors_deal_a_lost_cluster_s_rows_each_once() {
+        let height = 251;
+        for (clusters, lost) in [(2u16, 1u16), (4, 0), (4, 3), (8, 5)] {
+            let rows = Rows::of_cluster(lost, clusters).unwrap();
+            let survivors = Layout::new(u32::from(clusters) - 1, 4)
+                .unwrap()
+                .with_rows(rows);
+            let mut traced = [0u8; 251];
+            for k in 0..survivors.clusters() {
+                for i in 0..survivors.rows(k, height) {
+                    traced[survivors.row(k, i) as usize] += 1;
+                }
+            }
+            for (row, &n) in traced.iter().enumerate() {
+                let wanted = rows.index(row as u32).is_some();
+                assert_eq!(
+                    n,
+                    u8::from(wanted),
+                    "row {row}, cluster {lost} of {clusters}"
+                );
+            }
+        }
+        // Every row, by the plain layout, as before.
+        let plain = Layout::new(3, 2).unwrap();
+        assert_eq!(plain.cluster_rows(2), Rows::new(2, 3));
+    }
 
     #[test]
     fn rows_interleave_and_cover_the_image_once() {

@@ -130,7 +130,7 @@ fn explore_typed<T: Sample + Sync>(
         found.states += 1;
         if child.host.done() {
             found.ends += 1;
-            let end = checks::at_end(&child.net, &child.workers)
+            let end = checks::at_end(&child.net, &child.workers, &|_| false)
                 .map_err(|what| child.fail(what))
                 .and_then(|()| child.host.clone().finish().map_err(|what| child.fail(what)));
             match end {

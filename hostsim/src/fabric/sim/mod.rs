@@ -27,6 +27,7 @@ use super::config::RunConfig;
 use super::error::RunError;
 use super::harness::{NodeWorker, Plan};
 use super::host::Host;
+use super::recovery::{self, LostNode, Retraced};
 use super::{Category, Distributed};
 use crate::dataset::{Volume, VolumeData};
 use crate::profile::MachineProfile;
@@ -79,16 +80,38 @@ fn run_typed<T: Sample + Sync>(
         host,
         net,
         clock,
-        messages,
-        bytes,
-        events,
+        mut messages,
+        mut bytes,
+        mut events,
         log,
+        lost,
         ..
     } = sim;
-    let (image, stats) = host
-        .finish()
-        .map_err(|what| fail(cfg, what, events, &log))?;
-    let peaks = &net.peak;
+    let mut peaks = net.peak;
+    let (image, stats, recovered) = match lost {
+        None => {
+            let (image, stats) = host
+                .finish()
+                .map_err(|what| fail(cfg, what, events, &log))?;
+            (image, stats, None)
+        }
+        Some(lost) => {
+            let already = host.received();
+            let retrace = |survivors: &RunConfig| {
+                simulate(volume, data, view, survivors, &|n| progress(already + n))
+            };
+            let done = recovery::complete(view, cfg, lost, host, &retrace)?;
+            for (kind, more) in messages.iter_mut().zip(done.messages) {
+                *kind += more;
+            }
+            bytes += done.bytes;
+            events += done.events;
+            for (peak, more) in peaks.iter_mut().zip(&done.peaks) {
+                *peak = (*peak).max(*more);
+            }
+            (done.image, done.stats, Some(done.recovery))
+        }
+    };
     let mut run = plan.finish(
         cfg,
         &grid,
@@ -103,6 +126,7 @@ fn run_typed<T: Sample + Sync>(
     run.messages = messages;
     run.bytes = bytes;
     run.events = events;
+    run.recovery = recovered;
     run.time = clock.map(Clock::finish);
     if let (Some(t), Some(report)) = (&mut run.time, &run.shift) {
         // The render starts once every node has shifted: each node's own sends and
@@ -117,6 +141,32 @@ fn run_typed<T: Sample + Sync>(
         t.end += whole;
     }
     Ok(run)
+}
+
+/// One untimed, unshifted simulation of `cfg` to its end: a re-trace on surviving clusters.
+fn simulate<T: Sample + Sync>(
+    volume: &Volume,
+    data: &[T],
+    view: &View,
+    cfg: &RunConfig,
+    progress: &dyn Fn(u64),
+) -> Result<Retraced, RunError> {
+    let grid = volume.grid;
+    let plan = Plan::new(&grid, view, cfg)?;
+    let (storage, _) = plan.load(&grid, data, cfg, 1, |_| {
+        Err(RunError::Host(
+            "a re-trace loads its slabs, it does not shift them".into(),
+        ))
+    })?;
+    let mut sim = Sim::new(&plan, plan.workers(&storage, cfg)?, cfg);
+    sim.run(progress)?;
+    Ok(Retraced {
+        host: sim.host,
+        peaks: sim.net.peak,
+        messages: sim.messages,
+        bytes: sim.bytes,
+        events: sim.events,
+    })
 }
 
 /// An invariant broken after `events` events, with the seed, scheduler and last events.
@@ -152,8 +202,11 @@ struct Sim<'a, 'c, T> {
     bytes: u64,
     events: u64,
     i_max: u16,
+    layout: voxcube_kernel::node::topology::Layout,
     /// Events past which a run is a livelock: far more than its work can need.
     limit: u64,
+    /// The node declared lost, its cluster, and the events run by then.
+    lost: Option<LostNode>,
 }
 
 impl<'a, 'c, T: Sample> Sim<'a, 'c, T> {
@@ -179,7 +232,9 @@ impl<'a, 'c, T: Sample> Sim<'a, 'c, T> {
             bytes: 0,
             events: 0,
             i_max: plan.flow.i_max,
+            layout: plan.layout,
             limit: 10_000_000 + 4_000 * plan.view.pixel_count() * nodes as u64,
+            lost: None,
         }
     }
 
@@ -192,7 +247,8 @@ impl<'a, 'c, T: Sample> Sim<'a, 'c, T> {
         // The host ends once it has every report and every pixel the reports say were sent.
         while !self.host.done() {
             if self.net.inflight.is_empty() && self.active.is_empty() {
-                return Err(self.stuck());
+                self.declare_lost()?;
+                continue;
             }
             self.events += 1;
             if self.events > self.limit {
@@ -218,7 +274,48 @@ impl<'a, 'c, T: Sample> Sim<'a, 'c, T> {
             }
             checks::after_event(&self.net).map_err(|what| self.fail(what))?;
         }
-        checks::at_end(&self.net, &self.workers).map_err(|what| self.fail(what))
+        let layout = self.layout;
+        let lost = self.lost.map(|l| l.cluster);
+        let in_lost = |node: u16| lost == Some(layout.place(node).0);
+        checks::at_end(&self.net, &self.workers, &in_lost).map_err(|what| self.fail(what))
+    }
+
+    /// Nothing can happen and the host has not ended. When a node has stopped and other
+    /// clusters may finish the frame (an untimed run), the host declares its cluster lost,
+    /// stops waiting for it and collects the others' statistics; their re-trace of its rows
+    /// follows ([`run_typed`]). Otherwise the run fails: a lost node, or a deadlock.
+    fn declare_lost(&mut self) -> Result<(), RunError> {
+        let stopped = self.stopped.iter().position(|&s| s);
+        let recoverable = self.cfg.time.is_none() && self.layout.clusters() > 1;
+        let (Some(n), true, None) = (stopped, recoverable, self.lost) else {
+            return Err(self.stuck());
+        };
+        let cluster = self.layout.place(n as u16).0;
+        self.lost = Some(LostNode {
+            node: n as u16,
+            cluster,
+            events: Some(self.events),
+            after: None,
+        });
+        match self.host.declare_lost(cluster) {
+            Ok(true) => self.collect(),
+            Ok(false) => {}
+            Err(what) => return Err(self.fail(what)),
+        }
+        Ok(())
+    }
+
+    /// Ask every node the host waits for for its statistics.
+    fn collect(&mut self) {
+        for n in 0..self.workers.len() as u16 {
+            if !self.host.expects_report(usize::from(n)) {
+                continue;
+            }
+            self.net.push(None, Dest::Node(n), &Msg::Collect);
+            if let (Some(clock), Some(env)) = (&self.clock, self.net.inflight.last_mut()) {
+                env.arrival = clock.host_time + clock.transfer(env.len, 1);
+            }
+        }
     }
 
     /// No event is possible and the host has not ended: a node lost, or a deadlock.
@@ -299,14 +396,7 @@ impl<'a, 'c, T: Sample> Sim<'a, 'c, T> {
                 if collect {
                     // Every cluster's token: every pixel is final (some may still be on their
                     // way here); ask every worker for its statistics.
-                    for n in 0..self.workers.len() as u16 {
-                        self.net.push(None, Dest::Node(n), &Msg::Collect);
-                        if let (Some(clock), Some(env)) =
-                            (&self.clock, self.net.inflight.last_mut())
-                        {
-                            env.arrival = clock.host_time + clock.transfer(env.len, 1);
-                        }
-                    }
+                    self.collect();
                 }
             }
             Dest::Node(n) => {

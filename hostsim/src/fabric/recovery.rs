@@ -1,0 +1,196 @@
+//! Completing a frame without a lost cluster: the surviving clusters re-trace its unfinished
+//! rows, and the host merges what they send into what it already holds.
+//!
+//! Invariants: every cluster holds the whole volume in the same slabs, and a pixel's colour
+//! does not depend on which cluster traces it, so the re-traced rows are the fault-free bits.
+//! Every pixel reaches the image once: a re-traced pixel the host already held is dropped and
+//! counted, never taken twice; a pixel still missing after the re-trace is an error.
+
+use crate::fabric::config::RunConfig;
+use crate::fabric::error::RunError;
+use crate::fabric::host::{missing_rows, Host};
+use crate::fabric::Recovery;
+use std::time::Duration;
+use voxcube_kernel::node::stats::NodeStats;
+use voxcube_kernel::node::topology::{Layout, Rows};
+use voxcube_kernel::trace::view::View;
+
+/// A node the host declared lost, and when.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LostNode {
+    /// The node.
+    pub node: u16,
+    /// Its cluster.
+    pub cluster: u16,
+    /// Events run by then (simulator, which declares a node lost once nothing else can
+    /// happen: no message of its cluster can come late).
+    pub events: Option<u64>,
+    /// Time from the start of the run (threads and MPI, which declare a node lost when it
+    /// has not been heard for the configured time).
+    pub after: Option<Duration>,
+}
+
+/// What a re-trace on the surviving clusters left: its host, each of its nodes' peak buffer,
+/// and the traffic its fabric counted itself (the simulator: messages by kind, bytes,
+/// events; others count messages from the nodes' statistics).
+#[derive(Debug)]
+pub struct Retraced {
+    /// The re-trace's host, holding the pixels it got.
+    pub host: Host,
+    /// Peak receive-buffer bytes by node of the re-trace's machine.
+    pub peaks: Vec<usize>,
+    /// Messages delivered by kind.
+    pub messages: [u64; 9],
+    /// Bytes delivered.
+    pub bytes: u64,
+    /// Events run.
+    pub events: u64,
+}
+
+/// What the recovery adds to a run: the image, each node's statistics with its share of the
+/// re-trace, the record, and the re-trace's own traffic.
+#[derive(Debug)]
+pub struct Completed {
+    /// The whole image.
+    pub image: Vec<[u8; 4]>,
+    /// Each node's statistics, a survivor's with its share of the re-trace added.
+    pub stats: Vec<NodeStats>,
+    /// What was lost and re-traced.
+    pub recovery: Recovery,
+    /// The re-trace's messages by kind, bytes and events, as its fabric counted them.
+    pub messages: [u64; 9],
+    /// See `messages`.
+    pub bytes: u64,
+    /// See `messages`.
+    pub events: u64,
+    /// Peak receive-buffer bytes of each node in the re-trace, by node id of the machine.
+    pub peaks: Vec<usize>,
+}
+
+/// The frame completed: `lost`'s cluster's rows from its first unfinished one re-traced by
+/// `retrace` on the other clusters of `cfg`'s layout (a configuration of those clusters, the
+/// rows dealt among them in turn), merged into `held`, what the host holds.
+pub fn complete(
+    view: &View,
+    cfg: &RunConfig,
+    lost: LostNode,
+    held: Host,
+    retrace: &dyn Fn(&RunConfig) -> Result<Retraced, RunError>,
+) -> Result<Completed, RunError> {
+    let layout = cfg.layout;
+    let width = view.spec().width;
+    let (mut image, reports) = held.into_parts();
+    let rows = missing_rows(&image, width);
+    let survivors: Vec<u16> = (0..layout.clusters())
+        .filter(|&c| c != lost.cluster)
+        .collect();
+    let own = layout.cluster_rows(lost.cluster);
+    let unfinished = (0..own.count(view.spec().height))
+        .map(|i| own.row(i))
+        .find(|&row| {
+            let start = row as usize * width as usize;
+            image[start..start + width as usize]
+                .iter()
+                .any(Option::is_none)
+        });
+    let mut done = Completed {
+        image: Vec::new(),
+        stats: Vec::new(),
+        recovery: Recovery {
+            node: lost.node,
+            cluster: lost.cluster,
+            declared_after_events: lost.events,
+            declared_after_ms: lost.after.map(|d| d.as_secs_f64() * 1e3),
+            rows,
+            by: Vec::new(),
+            retraced: 0,
+            dropped: 0,
+            late: 0,
+        },
+        messages: [0; 9],
+        bytes: 0,
+        events: 0,
+        peaks: vec![0; layout.nodes() as usize],
+    };
+    let mut stats: Vec<NodeStats> = reports
+        .into_iter()
+        .enumerate()
+        .map(|(n, r)| {
+            r.unwrap_or(NodeStats {
+                node: n as u16,
+                ..NodeStats::default()
+            })
+        })
+        .collect();
+    if let Some(first) = unfinished {
+        let machine = Layout::new(survivors.len() as u32, u32::from(layout.size()))
+            .map_err(|e| RunError::Host(format!("the surviving clusters: {e}")))?
+            .with_rows(Rows::new(first, own.step()));
+        let survivors_cfg = RunConfig {
+            layout: machine,
+            shift: false,
+            schedule: crate::fabric::Schedule {
+                stop: None,
+                ..cfg.schedule
+            },
+            ..cfg.clone()
+        };
+        let again = retrace(&survivors_cfg)?;
+        let (peaks, messages, bytes, events) =
+            (again.peaks, again.messages, again.bytes, again.events);
+        let (pixels, reports) = again.host.into_parts();
+        for (slot, again) in image.iter_mut().zip(pixels) {
+            match (slot.is_some(), again) {
+                (true, Some(_)) => done.recovery.dropped += 1,
+                (false, Some(rgba)) => {
+                    *slot = Some(rgba);
+                    done.recovery.retraced += 1;
+                }
+                (_, None) => {}
+            }
+        }
+        // Each re-tracing node is the node at its ring position of a surviving cluster.
+        for (r, report) in reports.into_iter().enumerate() {
+            let (k, position) = machine.place(r as u16);
+            let node = usize::from(layout.node(survivors[usize::from(k)], position));
+            if let (Some(report), Some(total)) = (report, stats.get_mut(node)) {
+                absorb(total, &report);
+            }
+            if let Some(peak) = done.peaks.get_mut(node) {
+                *peak = peaks.get(r).copied().unwrap_or(0);
+            }
+        }
+        (done.messages, done.bytes, done.events) = (messages, bytes, events);
+        done.recovery.by = survivors;
+    }
+    let missing = image.iter().filter(|p| p.is_none()).count() as u64;
+    if missing > 0 {
+        return Err(RunError::Lost {
+            node: lost.node,
+            waiting: 0,
+            missing,
+            rows: missing_rows(&image, width),
+        });
+    }
+    done.image = image.into_iter().map(Option::unwrap_or_default).collect();
+    done.stats = stats;
+    Ok(done)
+}
+
+/// `total` with `more`'s work and traffic added: one node's statistics over two runs.
+fn absorb(total: &mut NodeStats, more: &NodeStats) {
+    total.counters.add(&more.counters);
+    total.forwarded_next += more.forwarded_next;
+    total.forwarded_prev += more.forwarded_prev;
+    total.forwarded_far += more.forwarded_far;
+    total.returned += more.returned;
+    for (t, m) in total.sent.iter_mut().zip(more.sent) {
+        *t += m;
+    }
+    total.protocol_errors += more.protocol_errors;
+    total.peak_pending = total.peak_pending.max(more.peak_pending);
+    total.peak_records = total.peak_records.max(more.peak_records);
+    total.peak_outbox = total.peak_outbox.max(more.peak_outbox);
+    total.peak_unacked = total.peak_unacked.max(more.peak_unacked);
+    total.pixels_sent += more.pixels_sent;
+}
