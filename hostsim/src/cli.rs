@@ -730,7 +730,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                                 job.name,
                                 v.name
                             );
-                            world.abort(1);
+                            world.abort(0);
                         }
                     }
                     return Ok(());
@@ -845,6 +845,12 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             if let Some(path) = report {
                 let json = serde_json::to_string_pretty(&Report { scene: name, views })?;
                 write_atomic(&path, json.as_bytes())?;
+            }
+            // Every rank finalises together; a hung rank never would: with everything written,
+            // the job then ends here, successfully (the warnings named what was lost).
+            #[cfg(feature = "mpi")]
+            if let Some(world) = &mpi_world {
+                crate::fabric::mpi::end(world);
             }
             Ok(())
         }

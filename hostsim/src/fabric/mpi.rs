@@ -23,28 +23,36 @@
 //! hook `VOXCUBE_MPI_STOP=<rank>:<milliseconds>[:exit]` makes a rank hang (or die) mid-render.
 
 use super::harness::{node_worker, Plan};
+use super::recovery::{self, LostNode, Retraced};
 use super::shift::{self as planes, Counted, ShiftFailure, ShiftReport};
-use super::{Distributed, RunConfig, RunError};
+use super::{Distributed, Recovery, RunConfig, RunError};
 use crate::dataset::{Volume, VolumeData};
-use mpi::collective::{CommunicatorCollectives, Root};
 use mpi::datatype::Equivalence;
 use mpi::point_to_point::{Destination, Source};
 use mpi::topology::{Communicator, SimpleCommunicator};
 use std::collections::VecDeque;
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::{Mutex, PoisonError};
 use std::time::{Duration, Instant};
 use voxcube_kernel::node::flow::Class;
 use voxcube_kernel::node::msg::{Msg, MAX_MSG_LEN};
 use voxcube_kernel::node::partition::Partition;
 use voxcube_kernel::node::port::{Dest, Port};
-use voxcube_kernel::node::topology::Layout;
+use voxcube_kernel::node::topology::{Layout, Rows};
 use voxcube_kernel::node::worker::Progress;
 use voxcube_kernel::trace::view::View;
 use voxcube_kernel::volume::grid::Grid;
 use voxcube_kernel::volume::sample::Sample;
 use voxcube_kernel::volume::slab::{stored_planes, Slab};
 
-/// Tag of kernel messages.
-const TAG_MSG: i32 = 1;
+/// Tag of the host's [`Start`] of a phase.
+const TAG_START: i32 = 1;
+/// Tag of a phase's ranks, by node, after its start.
+const TAG_RANKS: i32 = 4;
+/// Tag of a phase's slab cuts, after its ranks.
+const TAG_CUTS: i32 = 5;
+/// Kernel messages of phase `e` go under tag `TAG_MSG_BASE + e` ([`phase_tag`]).
+const TAG_MSG_BASE: i32 = 1000;
 /// Tag of heartbeats.
 const TAG_BEAT: i32 = 2;
 /// Tag of a node's account of its plane shift: messages, bytes, peak samples, rounds.
@@ -58,6 +66,9 @@ pub const TIMEOUT: Duration = Duration::from_secs(3);
 
 struct MpiPort<'w> {
     world: &'w SimpleCommunicator,
+    /// Where each node of the phase runs, and the phase's tag.
+    ranks: PhaseRanks,
+    tag: i32,
     local: [VecDeque<(Dest, Msg)>; 7],
     used: usize,
     peak: usize,
@@ -72,7 +83,7 @@ impl MpiPort<'_> {
         while let Some((message, status)) = self
             .world
             .any_process()
-            .immediate_matched_probe_with_tag(TAG_MSG)
+            .immediate_matched_probe_with_tag(self.tag)
         {
             let from = status.source_rank();
             let len = status.count(u8::equivalent_datatype()) as usize;
@@ -82,10 +93,11 @@ impl MpiPort<'_> {
                     from: from as u16,
                     error,
                 })?;
-            let source = if from == 0 {
-                Dest::Host
-            } else {
-                Dest::Node((from - 1) as u16)
+            let source = match (from, self.ranks.node(from)) {
+                (0, _) => Dest::Host,
+                (_, Some(n)) => Dest::Node(n),
+                // No node of this phase runs there: not a message of this phase.
+                (_, None) => continue,
             };
             self.used += msg.kind().encoded_len();
             self.peak = self.peak.max(self.used);
@@ -100,13 +112,16 @@ impl Port for MpiPort<'_> {
     fn try_send(&mut self, to: Dest, msg: Msg) -> Result<(), Msg> {
         let rank = match to {
             Dest::Host => 0,
-            Dest::Node(n) => i32::from(n) + 1,
+            Dest::Node(n) => match self.ranks.rank(n) {
+                Some(rank) => rank,
+                None => return Err(msg),
+            },
         };
         let mut buf = [0u8; MAX_MSG_LEN];
         let len = msg.encode(&mut buf);
         self.world
             .process_at_rank(rank)
-            .send_with_tag(&buf[..len], TAG_MSG);
+            .send_with_tag(&buf[..len], self.tag);
         Ok(())
     }
 
@@ -257,7 +272,110 @@ fn stop_hook(rank: i32) -> Option<(Duration, bool)> {
     (r == rank).then_some((Duration::from_millis(ms), die))
 }
 
-/// On a node rank: run this rank's worker for `view` until it has reported to the host.
+/// What the host tells a node rank before each phase of a view: a phase to run, or the view
+/// is over for it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Start {
+    /// Run node `node` of a machine of `clusters` clusters of `size` tracing the rows from
+    /// `first` every `step`, its kernel messages under `tag`; `shift`: start on uniform slabs
+    /// and shift to the cuts that follow ([`TAG_CUTS`]); `cuts`: load those cuts' slabs.
+    Phase {
+        tag: i32,
+        clusters: u32,
+        size: u32,
+        rows: Rows,
+        node: u16,
+        cuts: bool,
+        shift: bool,
+    },
+    /// This view is over for this rank (or it sits it out: its cluster lost a node).
+    Over,
+}
+
+impl Start {
+    fn encode(self) -> [u32; 8] {
+        match self {
+            Start::Over => [0; 8],
+            Start::Phase {
+                tag,
+                clusters,
+                size,
+                rows,
+                node,
+                cuts,
+                shift,
+            } => [
+                1 + u32::from(cuts) * 2 + u32::from(shift) * 4,
+                tag as u32,
+                clusters,
+                size,
+                rows.first(),
+                rows.step(),
+                u32::from(node),
+                0,
+            ],
+        }
+    }
+
+    fn decode(words: [u32; 8]) -> Start {
+        match words[0] & 1 {
+            0 => Start::Over,
+            _ => Start::Phase {
+                tag: words[1] as i32,
+                clusters: words[2],
+                size: words[3],
+                rows: Rows::new(words[4], words[5]),
+                node: words[6] as u16,
+                cuts: words[0] & 2 != 0,
+                shift: words[0] & 4 != 0,
+            },
+        }
+    }
+}
+
+/// The kernel-message tag of phase `epoch`: phases never share one, so a message of an
+/// abandoned phase (a lost cluster's) is never taken by a later one.
+fn phase_tag(epoch: u32) -> i32 {
+    TAG_MSG_BASE + (epoch % 30_000) as i32
+}
+
+/// Phases the host has begun, across views.
+static EPOCH: AtomicU32 = AtomicU32::new(0);
+
+/// Nodes (of the configured machine) lost in this run: they stay lost for every later view.
+static LOST: Mutex<Vec<u16>> = Mutex::new(Vec::new());
+
+/// Whether a node was lost during this run: the host must then end the job itself (a hung
+/// rank never finalises).
+pub fn any_lost() -> bool {
+    !LOST
+        .lock()
+        .unwrap_or_else(PoisonError::into_inner)
+        .is_empty()
+}
+
+/// On a node rank, after its last view: wait for the host's word before finalising MPI. A
+/// rank in `MPI_Finalize` waits for every other, a hung one too, and Open MPI then failed to
+/// end the job when the host aborted it; a rank polling here is ended cleanly.
+pub fn await_end(world: &SimpleCommunicator) {
+    let mut beat = Instant::now();
+    let _ = receive_start(world, &mut beat);
+}
+
+/// On the host, after the last view: let every node rank finalise (none was lost), or end
+/// the job, successfully, with everything written (a hung rank never finalises).
+pub fn end(world: &SimpleCommunicator) {
+    if any_lost() {
+        world.abort(0);
+    }
+    for rank in 1..world.size() {
+        send_start(world, rank, Start::Over);
+    }
+}
+
+/// On a node rank: serve `view`, phase by phase as the host starts them, until the host says
+/// the view is over for this rank. A phase started while one runs ends the running one
+/// unreported: its cluster was declared lost.
 pub fn serve(
     world: &SimpleCommunicator,
     volume: &Volume,
@@ -278,39 +396,114 @@ fn serve_typed<T: Sample + Sync>(
     view: &View,
     cfg: &RunConfig,
 ) -> Result<(), RunError> {
+    let host = world.process_at_rank(0);
+    let mut beat = Instant::now();
+    host.send_with_tag(&[0u8][..], TAG_BEAT);
+    let mut next = receive_start(world, &mut beat);
+    loop {
+        let Start::Phase {
+            tag,
+            clusters,
+            size,
+            rows,
+            node,
+            cuts,
+            shift,
+        } = next
+        else {
+            return Ok(());
+        };
+        let layout = Layout::new(clusters, size)
+            .map_err(|e| RunError::Host(format!("the host's phase: {e}")))?
+            .with_rows(rows);
+        let mut by_node = vec![0i32; layout.nodes() as usize];
+        host.receive_into_with_tag(&mut by_node[..], TAG_RANKS);
+        let ranks = PhaseRanks { by_node };
+        let cuts = match cuts {
+            true => {
+                let mut cuts = vec![0u32; size as usize + 1];
+                host.receive_into_with_tag(&mut cuts[..], TAG_CUTS);
+                Some(cuts)
+            }
+            false => None,
+        };
+        let phase = RunConfig {
+            layout,
+            cuts,
+            shift,
+            ..cfg.clone()
+        };
+        let at = (node, tag, &ranks);
+        next = match serve_phase(world, volume, data, view, &phase, at, &mut beat)? {
+            Some(start) => start,
+            None => receive_start(world, &mut beat),
+        };
+    }
+}
+
+/// Wait for the host's next [`Start`], heartbeating meanwhile.
+fn receive_start(world: &SimpleCommunicator, beat: &mut Instant) -> Start {
+    loop {
+        if let Some(start) = try_start(world) {
+            return start;
+        }
+        heartbeat(world, beat);
+        std::thread::sleep(Duration::from_micros(50));
+    }
+}
+
+/// The host's next [`Start`], if it has come.
+fn try_start(world: &SimpleCommunicator) -> Option<Start> {
+    let (message, _) = world
+        .process_at_rank(0)
+        .immediate_matched_probe_with_tag(TAG_START)?;
+    let mut words = [0u32; 8];
+    message.matched_receive_into(&mut words[..]);
+    Some(Start::decode(words))
+}
+
+/// Run node `node` of `cfg`'s machine for one phase until it has reported; `Some` start when
+/// the host started another phase first (this node's cluster was declared lost).
+fn serve_phase<T: Sample + Sync>(
+    world: &SimpleCommunicator,
+    volume: &Volume,
+    data: &[T],
+    view: &View,
+    cfg: &RunConfig,
+    (node, tag, ranks): (u16, i32, &PhaseRanks),
+    beat: &mut Instant,
+) -> Result<Option<Start>, RunError> {
     let grid = volume.grid;
     let plan = Plan::new(&grid, view, cfg)?;
     let (view, flow, capacity, ghost) = (&*plan.view, plan.flow, plan.capacity, plan.ghost);
     let layout = cfg.layout;
     let rank = world.rank();
-    let node = (rank - 1) as u16;
     let (nx, size) = (grid.dims()[0], usize::from(layout.size()));
     let uniform = Partition::uniform(nx, size)?;
     let position = layout.place(node).1;
     let j = usize::from(position);
     let plane = grid.plane_len();
-    let mut beat = Instant::now();
     let host = world.process_at_rank(0);
-    host.send_with_tag(&[0u8][..], TAG_BEAT);
-    // Balanced: the host's cuts, reached from the uniform slab by shifting planes.
-    let (partition, shifted) = if cfg.shift {
-        let mut cuts = vec![0u32; size + 1];
-        host.broadcast_into(&mut cuts[..]);
-        let partition = Partition::new(&cuts, nx)?;
-        let (storage, account) = shift(
-            world,
-            &grid,
-            data,
-            layout,
-            node,
-            (&uniform, &partition),
-            ghost,
-            &mut beat,
-        )?;
-        host.send_with_tag(&account[..], TAG_SHIFT_REPORT);
-        (partition, Some(storage))
-    } else {
-        (uniform, None)
+    // Balanced: the host's cuts, reached from the uniform slab by shifting planes (or, in a
+    // re-trace, loaded at once).
+    let (partition, shifted) = match (&cfg.cuts, cfg.shift) {
+        (Some(cuts), true) => {
+            let partition = Partition::new(cuts, nx)?;
+            let (storage, account) = shift(
+                world,
+                &grid,
+                data,
+                layout,
+                node,
+                (&uniform, &partition),
+                ghost,
+                beat,
+            )?;
+            host.send_with_tag(&account[..], TAG_SHIFT_REPORT);
+            (partition, Some(storage))
+        }
+        (Some(cuts), false) => (Partition::new(cuts, nx)?, None),
+        (None, _) => (uniform, None),
     };
     let stored = stored_planes(&grid, partition.planes(j), ghost);
     // This node's slab only.
@@ -330,6 +523,8 @@ fn serve_typed<T: Sample + Sync>(
     let mut worker = node_worker(view, slab, &partition, cfg, node, flow)?;
     let mut port = MpiPort {
         world,
+        ranks: ranks.clone(),
+        tag,
         local: Default::default(),
         used: 0,
         peak: 0,
@@ -351,6 +546,9 @@ fn serve_typed<T: Sample + Sync>(
                 }
             }
         }
+        if let Some(start) = try_start(world) {
+            return Ok(Some(start));
+        }
         port.pump()?;
         if port.overflow {
             return Err(RunError::Buffer {
@@ -362,18 +560,41 @@ fn serve_typed<T: Sample + Sync>(
             });
         }
         let progress = worker.poll(&mut port);
-        heartbeat(world, &mut beat);
+        heartbeat(world, beat);
         if progress == Progress::Idle {
             std::thread::sleep(Duration::from_micros(20));
         }
     }
-    // Views are separated: no node starts the next view before the host has ended this one.
-    world.barrier();
-    Ok(())
+    Ok(None)
+}
+
+/// Which world rank runs each node of a phase's machine: rank `n + 1` runs node `n` of the
+/// configured machine; a re-trace's node `r` runs on the rank of the surviving node at its
+/// ring position.
+#[derive(Clone, Debug, PartialEq, Eq)]
+struct PhaseRanks {
+    by_node: Vec<i32>,
+}
+
+impl PhaseRanks {
+    /// The rank of node `n`.
+    fn rank(&self, n: u16) -> Option<i32> {
+        self.by_node.get(usize::from(n)).copied()
+    }
+
+    /// The node a rank runs, if it runs one.
+    fn node(&self, rank: i32) -> Option<u16> {
+        self.by_node
+            .iter()
+            .position(|&r| r == rank)
+            .map(|n| n as u16)
+    }
 }
 
 /// On rank 0: be the host for `view`: collect pixels, tokens and statistics; declare lost any
-/// node not heard from for [`TIMEOUT`].
+/// node not heard from for the configured time (`RunConfig::lost_after`). With another
+/// cluster to spare, the surviving clusters re-trace the lost cluster's unfinished rows, and
+/// every later view runs on the clusters that lost no node; without, the run fails.
 pub fn host(
     world: &SimpleCommunicator,
     volume: &Volume,
@@ -381,106 +602,79 @@ pub fn host(
     cfg: &RunConfig,
 ) -> Result<Distributed, RunError> {
     let grid = volume.grid;
-    let plan = Plan::new(&grid, view, cfg)?;
     let layout = cfg.layout;
-    let nodes = plan.nodes();
-    let mut host = plan.host();
-    let failed = RunError::Host;
-    let size = usize::from(layout.size());
-    // Balanced: every node takes the cuts, and shifts to them before rendering.
-    if let (Some(cuts), true) = (&cfg.cuts, cfg.shift) {
-        if plan.partition.slabs() != size {
-            return Err(failed(format!(
-                "{} cuts for clusters of {size}",
-                cuts.len()
-            )));
-        }
-        let mut cuts = cuts.clone();
-        world.process_at_rank(0).broadcast_into(&mut cuts[..]);
+    let epoch = EPOCH.fetch_add(2, Ordering::Relaxed);
+    let lost_before: Vec<u16> = LOST.lock().unwrap_or_else(PoisonError::into_inner).clone();
+    let lost_clusters: Vec<u16> = lost_before.iter().map(|&n| layout.place(n).0).collect();
+    let live: Vec<u16> = (0..layout.clusters())
+        .filter(|c| !lost_clusters.contains(c))
+        .collect();
+    if live.is_empty() {
+        return Err(RunError::Host(
+            "every cluster lost a node in an earlier view: none is left to render".into(),
+        ));
     }
-    let mut accounts: Vec<Option<[u64; 4]>> = vec![None; if cfg.shift { nodes } else { 0 }];
-    let mut heard = vec![Instant::now(); nodes];
-    let mut buf = [0u8; MAX_MSG_LEN];
-    while !host.done() {
-        let mut any = false;
-        while let Some((message, status)) = world
-            .any_process()
-            .immediate_matched_probe_with_tag(TAG_SHIFT_REPORT)
-        {
-            let mut account = [0u64; 4];
-            message.matched_receive_into(&mut account[..]);
-            let n = (status.source_rank() - 1) as usize;
-            if let Some(a) = accounts.get_mut(n) {
-                *a = Some(account);
-            }
-            if let Some(h) = heard.get_mut(n) {
-                *h = Instant::now();
-            }
-            any = true;
+    // A node lost in an earlier view: this view runs on the clusters that lost none.
+    let (run_cfg, ranks) = match lost_before.is_empty() {
+        true => (cfg.clone(), (1..=layout.nodes() as i32).collect()),
+        false => survivors(cfg, &live, Rows::ALL)?,
+    };
+    let plan = Plan::new(&grid, view, &run_cfg)?;
+    let mut phase = run_phase(world, &plan, &run_cfg, &ranks, phase_tag(epoch))?;
+    // Ranks the phase left out sit this view out; the lost ones get nothing.
+    let sitting_out = (1..world.size()).filter(|r| !ranks.contains(r));
+    for rank in sitting_out.filter(|r| !lost_before.contains(&((r - 1) as u16))) {
+        send_start(world, rank, Start::Over);
+    }
+    let (image, reports, recovered) = match phase.lost {
+        None => {
+            let (image, reports) = phase.host.finish().map_err(RunError::Host)?;
+            (image, reports, None)
         }
-        while let Some((message, status)) = world
-            .any_process()
-            .immediate_matched_probe_with_tag(TAG_BEAT)
-        {
-            let mut beat = [0u8; 1];
-            message.matched_receive_into(&mut beat[..]);
-            if let Some(h) = heard.get_mut((status.source_rank() - 1) as usize) {
-                *h = Instant::now();
-            }
-            any = true;
-        }
-        while let Some((message, status)) = world
-            .any_process()
-            .immediate_matched_probe_with_tag(TAG_MSG)
-        {
-            let from = status.source_rank();
-            let len = status.count(u8::equivalent_datatype()) as usize;
-            message.matched_receive_into(&mut buf[..]);
-            if let Some(h) = heard.get_mut((from - 1) as usize) {
-                *h = Instant::now();
-            }
-            any = true;
-            let msg =
-                Msg::decode(&buf[..len.min(MAX_MSG_LEN)]).map_err(|error| RunError::Decode {
-                    from: from as u16,
-                    error,
-                })?;
-            if host.receive(msg).map_err(failed)? {
-                let mut out = [0u8; MAX_MSG_LEN];
-                let len = Msg::Collect.encode(&mut out);
-                for n in 0..nodes {
-                    world
-                        .process_at_rank(n as i32 + 1)
-                        .send_with_tag(&out[..len], TAG_MSG);
+        Some(lost) => {
+            LOST.lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .push(lost.node);
+            let kept: Vec<u16> = live
+                .iter()
+                .copied()
+                .filter(|&c| c != lost.cluster)
+                .collect();
+            let retrace = |survivors_cfg: &RunConfig| {
+                let by_node = ranks_of(layout, survivors_cfg.layout, &kept);
+                let plan = Plan::new(&grid, view, survivors_cfg)?;
+                let again = run_phase(world, &plan, survivors_cfg, &by_node, phase_tag(epoch + 1))?;
+                if let Some(also) = again.lost {
+                    return Err(RunError::Lost {
+                        node: also.node,
+                        waiting: 0,
+                        missing: again.host.missing(),
+                        rows: again.host.missing_rows(),
+                    });
                 }
-            }
+                Ok(Retraced {
+                    host: again.host,
+                    peaks: vec![plan.capacity; by_node.len()],
+                    messages: [0; 9],
+                    bytes: 0,
+                    events: 0,
+                })
+            };
+            let mut done = recovery::complete(view, &run_cfg, lost, phase.host, &retrace)?;
+            done.recovery.late = phase.late;
+            phase.accounts.clear();
+            (done.image, done.stats, Some(done.recovery))
         }
-        if let Some(n) = (0..nodes).find(|&n| !host.has_report(n) && heard[n].elapsed() > TIMEOUT) {
-            return Err(RunError::Lost {
-                node: n as u16,
-                waiting: 0,
-                missing: host.missing(),
-                rows: host.missing_rows(),
-            });
-        }
-        if !any {
-            std::thread::sleep(Duration::from_micros(50));
-        }
-    }
-    let (image, reports) = host.finish().map_err(failed)?;
-    // A node that reported its statistics sent its shift account before them: waiting for
-    // it cannot hang.
-    for (n, account) in accounts.iter_mut().enumerate() {
-        if account.is_none() {
-            let mut a = [0u64; 4];
-            world
-                .process_at_rank(n as i32 + 1)
-                .receive_into_with_tag(&mut a[..], TAG_SHIFT_REPORT);
-            *account = Some(a);
+    };
+    // The view is over: every rank not lost goes on to the next.
+    let lost_now: Vec<u16> = LOST.lock().unwrap_or_else(PoisonError::into_inner).clone();
+    for &rank in &ranks {
+        if !lost_now.contains(&((rank - 1) as u16)) {
+            send_start(world, rank, Start::Over);
         }
     }
-    let shift = (!accounts.is_empty()).then(|| {
-        let all = accounts.iter().flatten();
+    let shift = (!phase.accounts.is_empty()).then(|| {
+        let all = phase.accounts.iter().flatten();
         ShiftReport {
             messages: all.clone().map(|a| a[0]).sum(),
             bytes: all.clone().map(|a| a[1]).sum(),
@@ -490,11 +684,9 @@ pub fn host(
             rounds: all.map(|a| a[3] as u32).max().unwrap_or(0),
         }
     });
-    // Views are separated: every node waits here until the host has ended this view.
-    world.barrier();
     let capacity = plan.capacity;
-    Ok(plan.finish(
-        cfg,
+    let mut run = plan.finish(
+        &run_cfg,
         &grid,
         volume.data.kind().bytes(),
         image,
@@ -502,5 +694,224 @@ pub fn host(
         &|_| capacity,
         &|_| Duration::ZERO,
         shift,
+    );
+    run.recovery = match (recovered, lost_before.first()) {
+        (Some(r), _) => Some(r),
+        (None, Some(&node)) => Some(Recovery {
+            node,
+            cluster: layout.place(node).0,
+            declared_after_events: None,
+            declared_after_ms: None,
+            rows: "every row (the node was lost in an earlier view)".into(),
+            by: live,
+            retraced: view.pixel_count(),
+            dropped: 0,
+            late: 0,
+        }),
+        (None, None) => None,
+    };
+    Ok(run)
+}
+
+/// The clusters `live` of `cfg`'s machine as a machine of their own tracing `rows`, and the
+/// world rank of each of its nodes.
+fn survivors(cfg: &RunConfig, live: &[u16], rows: Rows) -> Result<(RunConfig, Vec<i32>), RunError> {
+    let layout = cfg.layout;
+    let machine = Layout::new(live.len() as u32, u32::from(layout.size()))
+        .map_err(|e| RunError::Host(format!("the surviving clusters: {e}")))?
+        .with_rows(rows);
+    Ok((
+        RunConfig {
+            layout: machine,
+            ..cfg.clone()
+        },
+        ranks_of(layout, machine, live),
     ))
+}
+
+/// The world rank of each node of `machine`, whose cluster `k` is `layout`'s cluster
+/// `kept[k]`: the node at each ring position runs where that cluster's node does.
+fn ranks_of(layout: Layout, machine: Layout, kept: &[u16]) -> Vec<i32> {
+    (0..machine.nodes() as u16)
+        .map(|r| {
+            let (k, p) = machine.place(r);
+            let c = kept.get(usize::from(k)).copied().unwrap_or(k);
+            i32::from(layout.node(c, p)) + 1
+        })
+        .collect()
+}
+
+/// Tell `rank` what to do next.
+fn send_start(world: &SimpleCommunicator, rank: i32, start: Start) {
+    world
+        .process_at_rank(rank)
+        .send_with_tag(&start.encode()[..], TAG_START);
+}
+
+/// What the host holds after one phase: its host, the node it declared lost, and each node's
+/// plane-shift account.
+struct PhaseEnd {
+    host: crate::fabric::host::Host,
+    lost: Option<LostNode>,
+    /// Messages of the lost cluster that came after it was declared lost, dropped.
+    late: u64,
+    accounts: Vec<Option<[u64; 4]>>,
+}
+
+/// Start `plan`'s machine (`cfg`) on `ranks` under `tag` and be its host until it ends: with
+/// every pixel, or with a cluster declared lost (when another can re-trace its rows).
+fn run_phase(
+    world: &SimpleCommunicator,
+    plan: &Plan<'_>,
+    cfg: &RunConfig,
+    ranks: &[i32],
+    tag: i32,
+) -> Result<PhaseEnd, RunError> {
+    let layout = cfg.layout;
+    let nodes = plan.nodes();
+    let mut host = plan.host();
+    let failed = RunError::Host;
+    let size = usize::from(layout.size());
+    let ranks = PhaseRanks {
+        by_node: ranks.to_vec(),
+    };
+    if cfg.cuts.is_some() && plan.partition.slabs() != size {
+        return Err(failed(format!("the cuts are not for clusters of {size}")));
+    }
+    for n in 0..nodes as u16 {
+        let start = Start::Phase {
+            tag,
+            clusters: u32::from(layout.clusters()),
+            size: size as u32,
+            rows: layout.traced(),
+            node: n,
+            cuts: cfg.cuts.is_some(),
+            shift: cfg.shift,
+        };
+        let rank = ranks
+            .rank(n)
+            .ok_or_else(|| failed(format!("no rank for node {n}")))?;
+        send_start(world, rank, start);
+        world
+            .process_at_rank(rank)
+            .send_with_tag(&ranks.by_node[..], TAG_RANKS);
+        if let Some(cuts) = &cfg.cuts {
+            world
+                .process_at_rank(rank)
+                .send_with_tag(&cuts[..], TAG_CUTS);
+        }
+    }
+    let mut accounts: Vec<Option<[u64; 4]>> = vec![None; if cfg.shift { nodes } else { 0 }];
+    let started = Instant::now();
+    let mut heard = vec![Instant::now(); nodes];
+    let mut lost: Option<LostNode> = None;
+    let mut late = 0;
+    let mut buf = [0u8; MAX_MSG_LEN];
+    let send_collect = |host: &crate::fabric::host::Host| {
+        let mut out = [0u8; MAX_MSG_LEN];
+        let len = Msg::Collect.encode(&mut out);
+        for n in (0..nodes).filter(|&n| host.expects_report(n)) {
+            if let Some(rank) = ranks.rank(n as u16) {
+                world.process_at_rank(rank).send_with_tag(&out[..len], tag);
+            }
+        }
+    };
+    while !host.done() {
+        let mut any = false;
+        while let Some((message, status)) = world
+            .any_process()
+            .immediate_matched_probe_with_tag(TAG_SHIFT_REPORT)
+        {
+            let mut account = [0u64; 4];
+            message.matched_receive_into(&mut account[..]);
+            if let Some(n) = ranks.node(status.source_rank()).map(usize::from) {
+                if let Some(a) = accounts.get_mut(n) {
+                    *a = Some(account);
+                }
+                heard[n] = Instant::now();
+            }
+            any = true;
+        }
+        while let Some((message, status)) = world
+            .any_process()
+            .immediate_matched_probe_with_tag(TAG_BEAT)
+        {
+            let mut beat = [0u8; 1];
+            message.matched_receive_into(&mut beat[..]);
+            if let Some(n) = ranks.node(status.source_rank()) {
+                heard[usize::from(n)] = Instant::now();
+            }
+            any = true;
+        }
+        while let Some((message, status)) =
+            world.any_process().immediate_matched_probe_with_tag(tag)
+        {
+            let from = status.source_rank();
+            let len = status.count(u8::equivalent_datatype()) as usize;
+            message.matched_receive_into(&mut buf[..]);
+            any = true;
+            let Some(n) = ranks.node(from) else {
+                continue;
+            };
+            heard[usize::from(n)] = Instant::now();
+            if lost.is_some_and(|l| layout.place(n).0 == l.cluster) {
+                // A late message of a cluster declared lost: its rows are re-traced.
+                late += 1;
+                continue;
+            }
+            let msg =
+                Msg::decode(&buf[..len.min(MAX_MSG_LEN)]).map_err(|error| RunError::Decode {
+                    from: from as u16,
+                    error,
+                })?;
+            if host.receive(msg).map_err(failed)? {
+                send_collect(&host);
+            }
+        }
+        let silent = (0..nodes).find(|&n| {
+            host.expects_report(n) && !host.has_report(n) && heard[n].elapsed() > cfg.lost_after
+        });
+        if let Some(n) = silent {
+            let cluster = layout.place(n as u16).0;
+            if layout.clusters() < 2 || lost.is_some() {
+                return Err(RunError::Lost {
+                    node: ranks.rank(n as u16).map_or(n as u16, |r| (r - 1) as u16),
+                    waiting: 0,
+                    missing: host.missing(),
+                    rows: host.missing_rows(),
+                });
+            }
+            lost = Some(LostNode {
+                node: ranks.rank(n as u16).map_or(n as u16, |r| (r - 1) as u16),
+                cluster,
+                events: None,
+                after: Some(started.elapsed()),
+            });
+            if host.declare_lost(cluster).map_err(failed)? {
+                send_collect(&host);
+            }
+        }
+        if !any {
+            std::thread::sleep(Duration::from_micros(50));
+        }
+    }
+    // A node that reported its statistics sent its shift account before them: waiting for
+    // it cannot hang. A lost cluster's nodes owe none.
+    for (n, account) in accounts.iter_mut().enumerate() {
+        if account.is_none() && host.expects_report(n) {
+            let mut a = [0u64; 4];
+            if let Some(rank) = ranks.rank(n as u16) {
+                world
+                    .process_at_rank(rank)
+                    .receive_into_with_tag(&mut a[..], TAG_SHIFT_REPORT);
+            }
+            *account = Some(a);
+        }
+    }
+    Ok(PhaseEnd {
+        host,
+        lost,
+        late,
+        accounts,
+    })
 }

@@ -116,6 +116,11 @@ impl Layout {
         (node / self.size, position)
     }
 
+    /// The image rows the machine traces, before they are dealt to its clusters.
+    pub fn traced(&self) -> Rows {
+        self.rows
+    }
+
     /// The image rows `cluster` renders: the clusters take the machine's rows in turn
     /// ([`Rows::deal`]; with every row, [`Rows::of_cluster`]).
     pub fn cluster_rows(&self, cluster: u16) -> Rows {
