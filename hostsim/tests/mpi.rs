@@ -184,17 +184,24 @@ fn a_rank_that_hangs_or_dies_ends_the_run_within_seconds() {
     }
 }
 
-/// A rank that hangs mid-render in a machine of two clusters: the host declares its node lost,
-/// the other cluster re-traces its cluster's unfinished rows and renders every later view
-/// alone, and every image equals the simulator's fault-free one. The job then ends by
-/// `MPI_Abort` with status 0 (the hung rank never finalises). Open MPI 4.1.4's `mpirun`
-/// sometimes crashes in its own teardown after that abort (a segfault in
-/// `PMIx_server_finalize`, after every output is written): such a run is retried, any other
-/// failure is one.
+/// A rank that hangs mid-render in a machine of two clusters, and one that dies under
+/// `mpirun --enable-recovery` (without it `mpirun` ends the whole job at once): the host
+/// declares its node lost, the other cluster re-traces its cluster's unfinished rows and
+/// renders every later view alone, and every image equals the simulator's fault-free one.
+/// The host then says everything is written and ends the job by `MPI_Abort` with status 0 (a
+/// hung rank never finalises). Open MPI 4.1.4's `mpirun` does not always end cleanly after
+/// that abort: here it sometimes segfaults or hangs in its own teardown
+/// (`PMIx_server_finalize`). So `mpirun` runs under `timeout`; what is asserted is what
+/// voxcube controls: the host announced the end with everything written, the images and the
+/// report. `mpirun`'s exit status after the abort is printed, not asserted.
 #[test]
-fn a_hung_rank_s_rows_are_re_traced_by_the_other_cluster() {
+fn a_hung_or_dead_rank_s_rows_are_re_traced_by_the_other_cluster() {
     let dir = tempfile::tempdir().expect("tempdir");
-    for scene in scenes() {
+    let cases = scenes()
+        .into_iter()
+        .map(|scene| (scene, "6:150", &[][..]))
+        .chain([(String::new(), "6:150:exit", &["--enable-recovery"][..])]);
+    for (scene, hook, flags) in cases {
         let mut common = vec!["render", "--nodes", "8", "--clusters", "2", "-q"];
         if !scene.is_empty() {
             common.insert(1, &scene);
@@ -212,18 +219,36 @@ fn a_hung_rank_s_rows_are_re_traced_by_the_other_cluster() {
             "--report",
             &report,
         ]);
-        let mut tries = 0;
-        let out = loop {
-            tries += 1;
-            let out = mpirun(9, &args, Some(("VOXCUBE_MPI_STOP", "6:150")));
-            let err = String::from_utf8_lossy(&out.stderr).to_string();
-            let mpirun_crashed = !out.status.success() && err.contains("PMIx_server_finalize");
-            if !mpirun_crashed || tries == 3 {
-                break out;
-            }
-        };
+        let mut wrapped = vec!["-s", "KILL", "60", "mpirun"];
+        wrapped.extend(flags);
+        let out = Command::new("timeout")
+            .args(&wrapped)
+            .args([
+                "--allow-run-as-root",
+                "--oversubscribe",
+                "-np",
+                "9",
+                "-x",
+                "VOXCUBE_MPI_STOP",
+            ])
+            .arg(env!("CARGO_BIN_EXE_voxcube"))
+            .args(&args)
+            .env("VOXCUBE_MPI_STOP", hook)
+            .output()
+            .expect("mpirun runs (install Open MPI)");
         let err = String::from_utf8_lossy(&out.stderr);
-        assert!(out.status.success(), "{scene}: {err}");
+        let announced = err.contains(voxcube::fabric::mpi::ENDING);
+        assert!(
+            announced,
+            "{scene} {hook}: the host never ended the job: {err}"
+        );
+        if !out.status.success() {
+            eprintln!(
+                "{scene} {hook}: mpirun failed after the host ended the job: {:?}",
+                out.status
+            );
+        }
+
         let sim_report = dir.path().join("sim.json");
         let sim = Command::new(env!("CARGO_BIN_EXE_voxcube"))
             .args(&common)

@@ -345,6 +345,10 @@ static EPOCH: AtomicU32 = AtomicU32::new(0);
 /// Nodes (of the configured machine) lost in this run: they stay lost for every later view.
 static LOST: Mutex<Vec<u16>> = Mutex::new(Vec::new());
 
+/// What the host says before it ends a job that lost a node: everything is written by then,
+/// whatever `mpirun` does next.
+pub const ENDING: &str = "voxcube: every output is written; a node was lost, so the host ends the job (MPI_Abort, status 0)";
+
 /// Whether a node was lost during this run: the host must then end the job itself (a hung
 /// rank never finalises).
 pub fn any_lost() -> bool {
@@ -366,6 +370,7 @@ pub fn await_end(world: &SimpleCommunicator) {
 /// the job, successfully, with everything written (a hung rank never finalises).
 pub fn end(world: &SimpleCommunicator) {
     if any_lost() {
+        eprintln!("{ENDING}");
         world.abort(0);
     }
     for rank in 1..world.size() {
