@@ -234,6 +234,10 @@ pub enum Command {
         /// (states seen before pruned), and print the distinct states.
         #[arg(long)]
         exhaustive: bool,
+        /// Stop a node at a random step of every run (machines of two clusters or more):
+        /// every run must end with the fault-free image, the lost cluster's rows re-traced.
+        #[arg(long)]
+        faults: bool,
     },
 }
 
@@ -532,6 +536,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             flow_control,
             buffer,
             exhaustive: false,
+            faults,
         } => {
             let job = explore::scenes()?;
             let mut all = explore::configs(&job);
@@ -547,8 +552,16 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                     c.buffer = bytes;
                 }
             }
+            if faults {
+                all = explore::recoverable(&all);
+            }
             let on = flow_control == Switch::On;
-            let found = explore::explore(&job, &all, seeds, &|cfg| cfg.flow_control = on);
+            let found = explore::explore(&job, &all, seeds, &|cfg| {
+                cfg.flow_control = on;
+                if faults {
+                    explore::inject_stop(cfg);
+                }
+            });
             stdout(&format!(
                 "flow control          {}\n{found}",
                 if on { "on" } else { "off" }

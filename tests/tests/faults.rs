@@ -132,3 +132,22 @@ fn on_threads_a_silent_node_is_declared_lost_and_its_rows_re_traced() {
         other => panic!("one cluster cannot recover: {other:?}"),
     }
 }
+
+/// Exploration with a node stopped at a random step of every run, on every configuration of
+/// two clusters or more: no run fails, every image is the fault-free one, and some runs had
+/// rows to re-trace (the others' node stopped after its work was done).
+#[test]
+fn explored_with_a_node_stopped_in_every_run_no_pixel_is_lost() {
+    use voxcube::experiments::explore::{configs, explore, inject_stop, recoverable, scenes};
+    let job = scenes().expect("exploration scenes");
+    let all = recoverable(&configs(&job));
+    assert!(all.len() >= 20, "{} configurations", all.len());
+    let found = explore(&job, &all, 1, &inject_stop);
+    eprintln!("{found}");
+    assert_eq!(found.failures(), 0, "{found}");
+    assert_eq!(found.faults, found.runs);
+    assert!(
+        found.recovered > found.runs / 4 && found.retraced > 0,
+        "{found}"
+    );
+}

@@ -115,6 +115,14 @@ pub struct Findings {
     pub differing: u64,
     /// Highest peak receive-buffer occupancy over capacity, with the bytes.
     pub worst_occupancy: (usize, usize),
+    /// Runs with a node stopped (`--faults`), runs whose frame was completed by re-tracing
+    /// its cluster's rows, and the pixels re-traced (runs that failed are violations: a
+    /// lost pixel fails the run).
+    pub faults: u64,
+    /// See `faults`.
+    pub recovered: u64,
+    /// See `faults`.
+    pub retraced: u64,
     /// The first failure, with everything needed to replay it.
     pub first_failure: Option<String>,
 }
@@ -140,6 +148,12 @@ impl fmt::Display for Findings {
             0.0
         };
         writeln!(f, "worst buffer use      {peak} of {cap} bytes ({pct:.0}%)")?;
+        if self.faults > 0 {
+            writeln!(f, "nodes stopped         {}", self.faults)?;
+            writeln!(f, "frames re-traced      {}", self.recovered)?;
+            writeln!(f, "pixels re-traced      {}", self.retraced)?;
+            writeln!(f, "pixels lost           {}", self.violations)?;
+        }
         if let Some(first) = &self.first_failure {
             writeln!(f, "first failure:\n{first}")?;
         }
@@ -222,8 +236,13 @@ pub fn explore(
                 cfg.schedule.scheduler = scheduler;
                 adjust(&mut cfg);
                 findings.runs += 1;
+                findings.faults += u64::from(cfg.schedule.stop.is_some());
                 let failure = match sim::run(&job.volume, &view.view, &cfg) {
                     Ok(run) => {
+                        if let Some(r) = &run.recovery {
+                            findings.recovered += 1;
+                            findings.retraced += r.retraced;
+                        }
                         for n in &run.nodes {
                             let (peak, cap) = findings.worst_occupancy;
                             if cap == 0 || n.peak_buffer * cap > peak * run.buffer_capacity {
@@ -260,6 +279,25 @@ pub fn explore(
         }
     }
     findings
+}
+
+/// A node stop for `cfg`'s run, drawn from its seed and shape: a node of any cluster, after
+/// 1 to 600 of its steps (some nodes finish sooner: those stops cost nothing).
+pub fn inject_stop(cfg: &mut RunConfig) {
+    let nodes = cfg.layout.nodes() as usize;
+    let mut rng = crate::rng::SplitMix(cfg.schedule.seed ^ (nodes as u64) << 32 ^ 0x5709);
+    let node = rng.below(nodes) as u16;
+    let after = 1 + rng.below(600) as u64;
+    cfg.schedule.stop = Some((node, after));
+}
+
+/// The configurations a stopped node can be recovered in: two clusters or more.
+pub fn recoverable(configs: &[Config]) -> Vec<Config> {
+    configs
+        .iter()
+        .filter(|c| c.clusters >= 2)
+        .cloned()
+        .collect()
 }
 
 /// The small machines walked exhaustively: a handful of rays with shadows and transparency
