@@ -194,3 +194,73 @@ fn absorb(total: &mut NodeStats, more: &NodeStats) {
     total.peak_unacked = total.peak_unacked.max(more.peak_unacked);
     total.pixels_sent += more.pixels_sent;
 }
+
+#[cfg(test)]
+mod tests {
+    //! The merge's rule, by a direct test of [`complete`]: a pixel the host holds is kept and
+    //! its re-traced copy dropped and counted, a hole is filled, and a hole the re-trace left
+    //! is an error.
+    use super::*;
+    use voxcube_kernel::node::msg::{Msg, PixelSet};
+
+    fn pixels(list: &[u32], shade: u8) -> Msg {
+        let mut set = PixelSet::default();
+        for &p in list {
+            assert!(set.push(p, [shade, p as u8, 0, 255]).is_ok());
+        }
+        Msg::Pixels(set)
+    }
+
+    #[test]
+    fn held_pixels_are_kept_holes_filled_and_a_hole_left_is_an_error() {
+        let job = crate::experiments::explore::few_rays(4, 3).expect("a tiny view");
+        let view = &job.views[0].view;
+        // Two clusters of one node: cluster 0 traces rows 0 and 2, cluster 1 row 1.
+        let cfg = RunConfig::machine(2, 1, 0).expect("layout");
+        let lost = LostNode {
+            node: 1,
+            cluster: 1,
+            events: Some(9),
+            after: None,
+        };
+        let held = || {
+            let mut host = Host::new(12, 4, 2, 2);
+            let own = [0, 1, 2, 3, 8, 9, 10, 11];
+            assert_eq!(host.receive(pixels(&own, 1)), Ok(false));
+            // One pixel of the lost cluster's row came before it stopped.
+            assert_eq!(host.receive(pixels(&[5], 1)), Ok(false));
+            host
+        };
+        // The survivors re-trace row 1 (shade 2, so a kept pixel shows which copy it is).
+        let retrace = |row: &[u32]| {
+            let row = row.to_vec();
+            move |survivors: &RunConfig| {
+                assert_eq!(survivors.layout.cluster_rows(0), Rows::new(1, 2));
+                let mut host = Host::new(12, 4, 1, 1);
+                assert_eq!(host.receive(pixels(&row, 2)), Ok(false));
+                Ok(Retraced {
+                    host,
+                    peaks: vec![0],
+                    messages: [0; 9],
+                    bytes: 0,
+                    events: 0,
+                })
+            }
+        };
+        let done = complete(view, &cfg, lost, held(), &retrace(&[4, 5, 6, 7]))
+            .unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!((done.recovery.retraced, done.recovery.dropped), (3, 1));
+        assert_eq!(done.image[5], [1, 5, 0, 255], "the held copy is kept");
+        assert_eq!(done.image[6], [2, 6, 0, 255], "a hole is filled");
+        assert_eq!(done.recovery.by, vec![0]);
+        // A re-trace that leaves a hole: an error naming the node and the pixels missing.
+        match complete(view, &cfg, lost, held(), &retrace(&[4, 6])) {
+            Err(RunError::Lost {
+                node: 1,
+                missing: 1,
+                ..
+            }) => {}
+            other => panic!("a hole must be an error: {other:?}"),
+        }
+    }
+}
