@@ -67,6 +67,15 @@ pub struct Completed {
     pub peaks: Vec<usize>,
 }
 
+impl Completed {
+    /// Raise each node's peak receive-buffer bytes in `peaks` to its peak in the re-trace.
+    pub fn raise_peaks(&self, peaks: &mut [usize]) {
+        for (peak, more) in peaks.iter_mut().zip(&self.peaks) {
+            *peak = (*peak).max(*more);
+        }
+    }
+}
+
 /// The frame completed: `lost`'s cluster's rows from its first unfinished one re-traced by
 /// `retrace` on the other clusters of `cfg`'s layout (a configuration of those clusters, the
 /// rows dealt among them in turn), merged into `held`, what the host holds.

@@ -252,9 +252,7 @@ fn run_typed<T: Sample + Send + Sync>(
                 })
             };
             let mut done = recovery::complete(view, cfg, lost, host, &retrace)?;
-            for (peak, more) in peaks.iter_mut().zip(&done.peaks) {
-                *peak = (*peak).max(*more);
-            }
+            done.raise_peaks(&mut peaks);
             done.recovery.late = late;
             (done.image, done.stats, Some(done.recovery))
         }

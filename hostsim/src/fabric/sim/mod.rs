@@ -106,9 +106,7 @@ fn run_typed<T: Sample + Sync>(
             }
             bytes += done.bytes;
             events += done.events;
-            for (peak, more) in peaks.iter_mut().zip(&done.peaks) {
-                *peak = (*peak).max(*more);
-            }
+            done.raise_peaks(&mut peaks);
             (done.image, done.stats, Some(done.recovery))
         }
     };
