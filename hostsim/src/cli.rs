@@ -746,6 +746,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                             world.abort(0);
                         }
                     }
+                    crate::fabric::mpi::await_end(world);
                     return Ok(());
                 }
             }
@@ -946,6 +947,7 @@ fn mpi_start(
             ));
         }
     }
+    crate::fabric::mpi::enroll(&world);
     Ok(Some(universe))
 }
 

@@ -7,19 +7,23 @@
 //! its received messages in per-class queues with the simulator's byte capacity: exceeding it
 //! would be an error, never silent.
 //!
-//! Views run one after another; a barrier ends each, so no message of the next view reaches a
-//! host still ending this one.
+//! The host starts every phase of a view itself ([`Start`]: the machine, the rows it traces,
+//! the node each rank runs, and a message tag of its own), so a message of an abandoned
+//! phase is never taken by a later one and no barrier, which a hung rank would never reach,
+//! is needed.
 //!
-//! Balanced views (`RunConfig::shift`): the host broadcasts the cuts it chose, and every node
+//! Balanced views (`RunConfig::shift`): the host sends the cuts it chose, and every node
 //! starts on its uniform slab and shifts planes to its neighbours by slab-plane messages
 //! before rendering, round `r` under its own tag ([`TAG_SHIFT`]` + r`), so a chunk sent by a
-//! node already in the next round waits in MPI's queue until its receiver gets there: no
-//! barrier is needed. Each node then tells the host what it sent.
+//! node already in the next round waits in MPI's queue until its receiver gets there. Each
+//! node then tells the host what it sent.
 //!
 //! Faults: every node sends the host a heartbeat every [`HEARTBEAT`]. A node the host has not
-//! heard from for [`TIMEOUT`], before it reported, is declared lost. The host names it and the
-//! pixels it lacks, and the run fails (the caller aborts the job, so no rank hangs). A rank that
-//! dies outright is caught by `mpirun` itself, which ends the whole job with an error. The test
+//! heard from for `RunConfig::lost_after`, before it reported, is declared lost; the other
+//! clusters re-trace its cluster's unfinished rows and render every later view alone
+//! (`super::recovery`). With no cluster left the run fails, naming the lost pixels. How the
+//! job then ends, with a rank that never finalises, is [`end`]'s to decide. A rank that dies
+//! outright ends the whole job unless `mpirun --enable-recovery` keeps it alive. The test
 //! hook `VOXCUBE_MPI_STOP=<rank>:<milliseconds>[:exit]` makes a rank hang (or die) mid-render.
 
 use super::harness::{node_worker, Plan};
@@ -61,8 +65,6 @@ const TAG_SHIFT_REPORT: i32 = 3;
 pub const TAG_SHIFT: i32 = 16;
 /// How often a node tells the host it is alive.
 pub const HEARTBEAT: Duration = Duration::from_millis(250);
-/// How long the host waits for a node before declaring it lost.
-pub const TIMEOUT: Duration = Duration::from_secs(3);
 
 struct MpiPort<'w> {
     world: &'w SimpleCommunicator,
@@ -290,12 +292,16 @@ enum Start {
     },
     /// This view is over for this rank (or it sits it out: its cluster lost a node).
     Over,
+    /// The job is over: exit without finalising MPI (a lost rank would never join
+    /// `MPI_Finalize`, and under `--enable-recovery` `mpirun` accepts such an exit).
+    Exit,
 }
 
 impl Start {
     fn encode(self) -> [u32; 8] {
         match self {
             Start::Over => [0; 8],
+            Start::Exit => [8, 0, 0, 0, 0, 0, 0, 0],
             Start::Phase {
                 tag,
                 clusters,
@@ -319,6 +325,7 @@ impl Start {
 
     fn decode(words: [u32; 8]) -> Start {
         match words[0] & 1 {
+            0 if words[0] & 8 != 0 => Start::Exit,
             0 => Start::Over,
             _ => Start::Phase {
                 tag: words[1] as i32,
@@ -345,8 +352,8 @@ static EPOCH: AtomicU32 = AtomicU32::new(0);
 /// Nodes (of the configured machine) lost in this run: they stay lost for every later view.
 static LOST: Mutex<Vec<u16>> = Mutex::new(Vec::new());
 
-/// What the host says before it ends a job that lost a node: everything is written by then,
-/// whatever `mpirun` does next.
+/// What the host says before it ends a job that lost a node by aborting it: everything is
+/// written by then, whatever `mpirun` does next.
 pub const ENDING: &str = "voxcube: every output is written; a node was lost, so the host ends the job (MPI_Abort, status 0)";
 
 /// Whether a node was lost during this run: the host must then end the job itself (a hung
@@ -358,23 +365,126 @@ pub fn any_lost() -> bool {
         .is_empty()
 }
 
-/// On a node rank, after its last view: wait for the host's word before finalising MPI. A
-/// rank in `MPI_Finalize` waits for every other, a hung one too, and Open MPI then failed to
-/// end the job when the host aborted it; a rank polling here is ended cleanly.
-pub fn await_end(world: &SimpleCommunicator) {
-    let mut beat = Instant::now();
-    let _ = receive_start(world, &mut beat);
+/// Each rank's process, by rank, as the host learnt it at start-up: its pid and a hash of its
+/// machine's name. The host fences a lost rank with it.
+static PROCESSES: Mutex<Vec<Process>> = Mutex::new(Vec::new());
+
+/// A rank's process: where it runs, so that the host can fence it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Process {
+    pid: u32,
+    machine: u64,
 }
 
-/// On the host, after the last view: let every node rank finalise (none was lost), or end
-/// the job, successfully, with everything written (a hung rank never finalises).
-pub fn end(world: &SimpleCommunicator) {
-    if any_lost() {
-        eprintln!("{ENDING}");
-        world.abort(0);
+impl Process {
+    /// This process.
+    fn me() -> Self {
+        use std::hash::{Hash, Hasher};
+        // `DefaultHasher::new` has fixed keys: every rank hashes a name to the same value.
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        mpi::environment::processor_name()
+            .unwrap_or_default()
+            .hash(&mut h);
+        Self {
+            pid: std::process::id(),
+            machine: h.finish(),
+        }
     }
-    for rank in 1..world.size() {
-        send_start(world, rank, Start::Over);
+}
+
+/// At start-up, on every rank: tell the host where this rank's process runs.
+pub fn enroll(world: &SimpleCommunicator) {
+    use mpi::collective::Root;
+    let me = Process::me();
+    let words = [u64::from(me.pid), me.machine];
+    let root = world.process_at_rank(0);
+    if world.rank() == 0 {
+        let mut all = vec![0u64; 2 * world.size() as usize];
+        root.gather_into_root(&words[..], &mut all[..]);
+        *PROCESSES.lock().unwrap_or_else(PoisonError::into_inner) = all
+            .chunks_exact(2)
+            .map(|w| Process {
+                pid: w[0] as u32,
+                machine: w[1],
+            })
+            .collect();
+    } else {
+        root.gather_into(&words[..]);
+    }
+}
+
+/// On a node rank, after its last view: wait for the host's word before finalising MPI, and
+/// exit without finalising if the host says so ([`end`]). A rank in `MPI_Finalize` waits for
+/// every other, a hung one too, and Open MPI 4.1 then fails to end the job when the host
+/// aborts it (its `mpirun` crashes or hangs); a rank polling here is ended cleanly.
+pub fn await_end(world: &SimpleCommunicator) {
+    let mut beat = Instant::now();
+    if receive_start(world, &mut beat) == Start::Exit {
+        std::process::exit(0);
+    }
+}
+
+/// On the host, after the last view: let every live node rank finalise, or end the job,
+/// successfully, with everything written.
+///
+/// With a node lost, `MPI_Finalize` would wait for it forever, so the job ends one of two
+/// ways. Under `mpirun --enable-recovery` (the only way a job outlives a dead rank) the host
+/// fences each lost rank (kills its process, which must run on the host's machine), and every
+/// rank then exits without finalising, which that `mpirun` accepts; it would hang on an
+/// abort, and after a death `MPI_Finalize` sometimes never returns. Otherwise a lost rank is
+/// hung, not dead (a death would have ended the job), and the host aborts the job with
+/// status 0.
+pub fn end(world: &SimpleCommunicator) {
+    let lost: Vec<u16> = LOST.lock().unwrap_or_else(PoisonError::into_inner).clone();
+    let live = (1..world.size()).filter(|&rank| !lost.iter().any(|&n| i32::from(n) + 1 == rank));
+    if lost.is_empty() {
+        live.for_each(|rank| send_start(world, rank, Start::Over));
+        return;
+    }
+    if recovery_enabled() && lost.iter().all(|&n| fence(i32::from(n) + 1)) {
+        live.for_each(|rank| send_start(world, rank, Start::Exit));
+        use std::io::Write;
+        let _ = std::io::stdout().flush();
+        std::process::exit(0);
+    }
+    eprintln!("{ENDING}");
+    world.abort(0);
+}
+
+/// Whether `mpirun` runs this job with `--enable-recovery`: a rank's death does not end it.
+fn recovery_enabled() -> bool {
+    std::env::var("OMPI_MCA_orte_enable_recovery").is_ok_and(|v| v == "1" || v == "true")
+}
+
+/// Make sure lost rank `rank` runs no more: kill its process if it still runs. Only a process
+/// on the host's machine can be fenced; `false` for one elsewhere. A pid whose executable is
+/// not this one's is gone (its number reused) and left alone.
+fn fence(rank: i32) -> bool {
+    let processes = PROCESSES.lock().unwrap_or_else(PoisonError::into_inner);
+    let (Some(me), Some(lost)) = (processes.first(), processes.get(rank as usize)) else {
+        return false;
+    };
+    if lost.machine != me.machine {
+        return false;
+    }
+    let exe = |pid: u32| std::fs::read_link(format!("/proc/{pid}/exe")).ok();
+    if exe(lost.pid).is_none() || exe(lost.pid) != exe(me.pid) {
+        return true;
+    }
+    let Some(pid) = rustix::process::Pid::from_raw(lost.pid as i32) else {
+        return false;
+    };
+    match rustix::process::kill_process(pid, rustix::process::Signal::KILL) {
+        Ok(()) => {
+            eprintln!(
+                "voxcube: warning: rank {rank} (pid {}) was lost and is stopped (SIGKILL) so that the job can end",
+                lost.pid
+            );
+            true
+        }
+        // Gone in between.
+        Err(rustix::io::Errno::SRCH) => true,
+        Err(_) => false,
     }
 }
 
