@@ -7,7 +7,7 @@ use crate::experiments::bench;
 use crate::experiments::explore;
 use crate::output::{check_writable, stdout, write_atomic, write_png};
 use crate::render::{preflight, render_cut, Fabric, Machine};
-use crate::report::{summary, BalanceReport, Report, ViewReport};
+use crate::report::{summary, BalanceReport, FailedView, LostPixels, Report, ViewReport};
 use crate::scene::{Scene, ViewJob, DEFAULT_SCENE};
 use crate::storage::SkipMode;
 use clap::{Parser, Subcommand};
@@ -796,11 +796,51 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                     #[cfg(feature = "mpi")]
                     Fabric::Mpi => {
                         let world = mpi_world.as_ref().ok_or("MPI is not initialised")?;
-                        mpi_host(world, &job.volume, &v.view, &machine, cuts)
-                            .map_err(|e| format!("{}/{}: {e}", job.name, v.name))?
+                        mpi_host(world, &job.volume, &v.view, &machine, cuts).map_err(|e| {
+                            let lost = e
+                                .downcast_ref::<crate::fabric::RunError>()
+                                .and_then(LostPixels::of);
+                            (e.to_string(), lost)
+                        })
                     }
-                    _ => render_cut(&job.volume, &v.view, &machine, cuts, &progress)
-                        .map_err(|e| format!("{}/{}: {e}", job.name, v.name))?,
+                    _ => render_cut(&job.volume, &v.view, &machine, cuts, &progress).map_err(|e| {
+                        let lost = match &e {
+                            crate::render::RenderError::Run { source, .. } => {
+                                LostPixels::of(source)
+                            }
+                            _ => None,
+                        };
+                        (e.to_string(), lost)
+                    }),
+                };
+                let rendered = match rendered {
+                    Ok(rendered) => rendered,
+                    Err((error, lost)) => {
+                        let error = format!("{}/{}: {error}", job.name, v.name);
+                        // The views before this one stand: the report says what was written
+                        // and what this view lost.
+                        if let Some(path) = &report {
+                            let failed = FailedView {
+                                dataset: job.name.clone(),
+                                view: v.name.clone(),
+                                error: error.clone(),
+                                lost,
+                            };
+                            let json = serde_json::to_string_pretty(&Report {
+                                scene: name,
+                                views,
+                                failed: Some(failed),
+                            })?;
+                            write_atomic(path, json.as_bytes())?;
+                        }
+                        // Stop every rank: nothing may hang on a lost node.
+                        #[cfg(feature = "mpi")]
+                        if let Some(world) = &mpi_world {
+                            eprintln!("voxcube: error: {error}");
+                            mpi::topology::Communicator::abort(world, 1);
+                        }
+                        return Err(error.into());
+                    }
                 };
                 bar.finish_and_clear();
                 let image = out.join(format!("{}-{}.png", job.name, v.name));
@@ -857,7 +897,11 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 stdout(&summary(&views))?;
             }
             if let Some(path) = report {
-                let json = serde_json::to_string_pretty(&Report { scene: name, views })?;
+                let json = serde_json::to_string_pretty(&Report {
+                    scene: name,
+                    views,
+                    failed: None,
+                })?;
                 write_atomic(&path, json.as_bytes())?;
             }
             // Every rank finalises together; a hung rank never would: with everything written,
@@ -976,19 +1020,12 @@ fn mpi_host(
     machine: &Machine,
     cuts: Option<&[u32]>,
 ) -> Result<crate::render::Rendered, Box<dyn std::error::Error>> {
-    use mpi::topology::Communicator;
     let cfg = crate::fabric::RunConfig {
         cuts: cuts.map(<[u32]>::to_vec),
         shift: cuts.is_some(),
         skipping: crate::render::node_skipping(volume, view, machine, cuts.is_some()),
         ..machine.sim_config()?
     };
-    match crate::fabric::mpi::host(world, volume, view, &cfg) {
-        Ok(run) => Ok(crate::render::Rendered::from_run(view, run)),
-        Err(e) => {
-            eprintln!("voxcube: error: {e}");
-            // Stop every rank: nothing may hang on a lost node.
-            world.abort(1)
-        }
-    }
+    let run = crate::fabric::mpi::host(world, volume, view, &cfg)?;
+    Ok(crate::render::Rendered::from_run(view, run))
 }

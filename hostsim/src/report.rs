@@ -350,8 +350,54 @@ impl ViewReport {
 pub struct Report {
     /// The scene file.
     pub scene: String,
-    /// One entry per view, in scene order.
+    /// One entry per view, in scene order: the views rendered, when one failed.
     pub views: Vec<ViewReport>,
+    /// The view that failed and ended the run, if one did.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub failed: Option<FailedView>,
+}
+
+/// A view that failed: the run wrote the views before it and ends with an error.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct FailedView {
+    /// Dataset name.
+    pub dataset: String,
+    /// View name.
+    pub view: String,
+    /// What went wrong, as the error line says it.
+    pub error: String,
+    /// When a node was lost and no cluster survived to re-trace its rows: what was lost.
+    pub lost: Option<LostPixels>,
+}
+
+/// The pixels of a view that a lost node took with it.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct LostPixels {
+    /// The node that stopped.
+    pub node: u16,
+    /// Pixels the host lacks.
+    pub pixels: u64,
+    /// The rows they are in, summarised.
+    pub rows: String,
+}
+
+impl LostPixels {
+    /// What `error` lost, if it is a lost node's error.
+    pub fn of(error: &crate::fabric::RunError) -> Option<Self> {
+        match error {
+            crate::fabric::RunError::Lost {
+                node,
+                missing,
+                rows,
+                ..
+            } => Some(Self {
+                node: *node,
+                pixels: *missing,
+                rows: rows.clone(),
+            }),
+            _ => None,
+        }
+    }
 }
 
 fn count(n: u64) -> String {

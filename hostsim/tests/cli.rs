@@ -628,6 +628,58 @@ fn a_simulated_run_s_timeline_is_chrome_trace_json_covering_every_node_s_time() 
     assert!(String::from_utf8_lossy(&out.stderr).contains("--fabric sim"));
 }
 
+/// With one cluster nobody can re-trace a lost node's rows: the run fails (exit 1), the views
+/// before it are written, and the report lists them and names what the failed view lost.
+#[test]
+fn a_lost_node_with_no_cluster_left_fails_with_the_finished_views_written_and_the_loss_reported() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene =
+        String::from_utf8(voxcube().arg("scene").output().expect("runs").stdout).expect("utf-8");
+    let at = scene.find("[[datasets.views]]").expect("a view");
+    let paper = &scene[at..];
+    let small = paper
+        .replace("name = \"paper\"", "name = \"small\"")
+        .replace("width = 350", "width = 24")
+        .replace("height = 250", "height = 16");
+    let path = dir.path().join("two.toml");
+    std::fs::write(&path, format!("{}{small}\n{paper}", &scene[..at])).expect("write");
+    for fabric in ["sim", "threads"] {
+        let out_dir = dir.path().join(fabric);
+        let report = dir.path().join(format!("{fabric}.json"));
+        // Node 1 takes fewer than 300 steps in the small view, far more in the paper's.
+        let out = voxcube()
+            .arg("render")
+            .arg(&path)
+            .args(["--nodes", "4", "--fabric", fabric, "--stop-node", "1@300"])
+            .args(["--lost-after", "1", "-o"])
+            .arg(&out_dir)
+            .arg("--report")
+            .arg(&report)
+            .output()
+            .expect("runs");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{fabric}: {stderr}");
+        assert!(
+            stderr.contains("molecule/paper") && stderr.contains("node 1 stopped answering"),
+            "{fabric}: {stderr}"
+        );
+        assert!(out_dir.join("molecule-small.png").is_file(), "{fabric}");
+        assert!(!out_dir.join("molecule-paper.png").exists(), "{fabric}");
+        let json: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&report).expect("report")).expect("json");
+        assert_eq!(json["views"].as_array().map(Vec::len), Some(1), "{fabric}");
+        assert_eq!(json["views"][0]["view"], "small", "{fabric}");
+        let failed = &json["failed"];
+        assert_eq!(failed["view"], "paper", "{fabric}: {failed}");
+        assert_eq!(failed["lost"]["node"], 1, "{fabric}: {failed}");
+        assert!(
+            failed["lost"]["pixels"].as_u64() > Some(0),
+            "{fabric}: {failed}"
+        );
+        assert!(failed["lost"]["rows"].is_string(), "{fabric}: {failed}");
+    }
+}
+
 #[test]
 fn a_stopped_node_costs_no_pixel_and_is_named_in_a_warning_and_the_report() {
     let dir = tempfile::tempdir().expect("tempdir");

@@ -162,11 +162,23 @@ fn balanced_mpi_nodes_shift_the_simulator_s_planes() {
 fn a_rank_that_hangs_or_dies_ends_the_run_within_seconds() {
     let dir = tempfile::tempdir().expect("tempdir");
     let out_dir = dir.path().join("out").display().to_string();
+    let report = dir.path().join("failed.json");
+    let report_arg = report.display().to_string();
     for (hook, expect) in [("2:200", "stopped answering"), ("3:200:exit", "")] {
         let start = Instant::now();
         let out = mpirun(
             5,
-            &["render", "--fabric", "mpi", "--nodes", "4", "-o", &out_dir],
+            &[
+                "render",
+                "--fabric",
+                "mpi",
+                "--nodes",
+                "4",
+                "-o",
+                &out_dir,
+                "--report",
+                &report_arg,
+            ],
             Some(("VOXCUBE_MPI_STOP", hook)),
         );
         let took = start.elapsed();
@@ -176,6 +188,13 @@ fn a_rank_that_hangs_or_dies_ends_the_run_within_seconds() {
         assert!(err.contains(expect), "{hook}: {err}");
         if !expect.is_empty() {
             assert!(err.contains("pixels are lost"), "{err}");
+            // A hung rank leaves the host alive to report what was lost.
+            let json = read_report(&report);
+            assert_eq!(json["failed"]["lost"]["node"], 1, "{json}");
+            assert!(
+                json["failed"]["lost"]["pixels"].as_u64() > Some(0),
+                "{json}"
+            );
         }
         assert!(
             !Path::new(&out_dir).join("molecule-paper.png").exists(),
