@@ -109,11 +109,12 @@ pub enum Command {
         /// changes no pixel, only the time).
         #[arg(long)]
         no_depths: bool,
-        /// Inject a fault (sim and threads): node NODE stops answering after STEPS of its
-        /// polls. The host declares it lost and the surviving clusters re-trace its cluster's
-        /// unfinished rows: the same image, the loss named in a warning and the report.
-        #[arg(long, value_name = "NODE@STEPS", value_parser = parse_stop)]
-        stop_node: Option<(u16, u64)>,
+        /// Inject a fault: node NODE stops answering after STEPS of its polls (with `:exit`,
+        /// on MPI, its rank's process exits instead: a crash). The host declares it lost and
+        /// the surviving clusters re-trace its cluster's unfinished rows: the same image, the
+        /// loss named in a warning and the report.
+        #[arg(long, value_name = "NODE@STEPS[:exit]", value_parser = parse_stop)]
+        stop_node: Option<(u16, u64, bool)>,
         /// Seconds the threads and MPI hosts wait without hearing from a node before they
         /// declare it lost (the simulator declares a stopped node lost once nothing else can
         /// happen).
@@ -361,11 +362,15 @@ fn parse_seconds(text: &str) -> Result<f64, String> {
     }
 }
 
-/// `NODE@STEPS` of `--stop-node`.
-fn parse_stop(text: &str) -> Result<(u16, u64), String> {
+/// `NODE@STEPS[:exit]` of `--stop-node`: the node, its steps, and whether it crashes.
+fn parse_stop(text: &str) -> Result<(u16, u64, bool), String> {
+    let (text, crash) = match text.strip_suffix(":exit") {
+        Some(stop) => (stop, true),
+        None => (text, false),
+    };
     let (node, steps) = text
         .split_once('@')
-        .ok_or_else(|| format!("`{text}`: expected NODE@STEPS, e.g. 3@200"))?;
+        .ok_or_else(|| format!("`{text}`: expected NODE@STEPS[:exit], e.g. 3@200"))?;
     let node = node
         .trim()
         .parse()
@@ -374,7 +379,7 @@ fn parse_stop(text: &str) -> Result<(u16, u64), String> {
         .trim()
         .parse()
         .map_err(|_| format!("`{steps}`: a number of polls"))?;
-    Ok((node, steps))
+    Ok((node, steps, crash))
 }
 
 /// Run the command line; the process exit code.
@@ -647,10 +652,10 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                             .ok_or("the shipped modern profile is missing")?,
                     };
                     m.lost_after = Duration::from_secs_f64(lost_after);
-                    if let Some((node, _)) = stop_node {
+                    if let Some((node, steps, crash)) = stop_node {
                         let name = m.fabric.name();
-                        if !matches!(m.fabric, Fabric::Sim | Fabric::Threads) {
-                            return Err(format!("{}/{}: --stop-node injects a fault on the sim and threads fabrics; this view runs on {name}", job.name, v.name).into());
+                        if m.fabric == Fabric::Direct {
+                            return Err(format!("{}/{}: --stop-node injects a fault into a machine of nodes (sim, threads, mpi); this view renders on {name}", job.name, v.name).into());
                         }
                         if u32::from(node) >= m.nodes {
                             return Err(format!(
@@ -664,7 +669,8 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                         if trace.is_some() {
                             return Err("--stop-node: the timed simulator (--trace) does not recover a lost node; drop one of the two".into());
                         }
-                        m.stop = stop_node;
+                        m.stop = Some((node, steps));
+                        m.crash = crash;
                     }
                     if trace.is_some() {
                         if m.fabric != Fabric::Sim {

@@ -74,9 +74,11 @@ pub struct Machine {
     /// Keep the simulator's timeline in virtual time on the machine profile of this name
     /// (`render --trace`).
     pub timeline: Option<&'static str>,
-    /// An injected fault (sim and threads): this node stops answering after this many of its
+    /// An injected fault: this node stops answering after this many of its
     /// polls, and the surviving clusters re-trace its cluster's rows.
     pub stop: Option<(u16, u64)>,
+    /// With `stop`, on MPI: the node's process exits instead of hanging.
+    pub crash: bool,
     /// How long the threads and MPI hosts wait without hearing from a node before they
     /// declare it lost.
     pub lost_after: Duration,
@@ -99,6 +101,7 @@ impl Machine {
             skipping: SkipMode::ALL,
             timeline: None,
             stop: None,
+            crash: false,
             lost_after: crate::fabric::config::DEFAULT_LOST_AFTER,
         }
     }
@@ -118,6 +121,7 @@ impl Machine {
             skipping: self.skipping,
             schedule: crate::fabric::Schedule {
                 stop: self.stop,
+                crash: self.crash,
                 ..base.schedule
             },
             lost_after: self.lost_after,

@@ -737,7 +737,7 @@ fn a_stopped_node_costs_no_pixel_and_is_named_in_a_warning_and_the_report() {
         ),
         (
             vec!["--stop-node", "0@5"],
-            "injects a fault on the sim and threads fabrics",
+            "injects a fault into a machine of nodes",
         ),
         (
             vec!["--nodes", "2", "--stop-node", "1"],

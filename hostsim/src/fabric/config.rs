@@ -58,8 +58,11 @@ pub struct Schedule {
     /// Scheduler policy.
     pub scheduler: Scheduler,
     /// A fault to inject: this node stops answering after this many of its own steps (the
-    /// simulator) or polls (threads).
+    /// simulator) or polls (threads, MPI).
     pub stop: Option<(u16, u64)>,
+    /// With `stop`, on MPI: the stopped node's process exits (a crash) instead of hanging.
+    /// The other fabrics cannot tell the two apart.
+    pub crash: bool,
 }
 
 /// How to run a view, on any fabric.
@@ -120,6 +123,7 @@ impl RunConfig {
                 seed,
                 scheduler: Scheduler::Uniform,
                 stop: None,
+                crash: false,
             },
             lost_after: DEFAULT_LOST_AFTER,
             #[cfg(feature = "mutants")]

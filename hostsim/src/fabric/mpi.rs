@@ -23,8 +23,8 @@
 //! clusters re-trace its cluster's unfinished rows and render every later view alone
 //! (`super::recovery`). With no cluster left the run fails, naming the lost pixels. How the
 //! job then ends, with a rank that never finalises, is [`end`]'s to decide. A rank that dies
-//! outright ends the whole job unless `mpirun --enable-recovery` keeps it alive. The test
-//! hook `VOXCUBE_MPI_STOP=<rank>:<milliseconds>[:exit]` makes a rank hang (or die) mid-render.
+//! outright ends the whole job unless `mpirun --enable-recovery` keeps it alive.
+//! `--stop-node NODE@STEPS[:exit]` makes a node's rank hang (or exit) after so many polls.
 
 use super::harness::{node_worker, Plan};
 use super::recovery::{self, LostNode, Retraced};
@@ -261,17 +261,6 @@ fn shift<T: Sample>(
         account[1] += port.sent_bytes;
     }
     Ok((storage, account))
-}
-
-/// The test hook: `VOXCUBE_MPI_STOP=<rank>:<ms>[:exit]` stops that rank after `ms`
-/// milliseconds, hanging (stops answering) or, with `:exit`, exiting at once (dies).
-fn stop_hook(rank: i32) -> Option<(Duration, bool)> {
-    let spec = std::env::var("VOXCUBE_MPI_STOP").ok()?;
-    let mut parts = spec.split(':');
-    let r: i32 = parts.next()?.trim().parse().ok()?;
-    let ms: u64 = parts.next()?.trim().parse().ok()?;
-    let die = parts.next().is_some_and(|p| p.trim() == "exit");
-    (r == rank).then_some((Duration::from_millis(ms), die))
 }
 
 /// What the host tells a node rank before each phase of a view: a phase to run, or the view
@@ -542,10 +531,20 @@ fn serve_typed<T: Sample + Sync>(
             }
             false => None,
         };
+        // The injected fault stops its node in the configured machine only (a re-trace's node
+        // numbers are another machine's).
+        let stop = cfg
+            .schedule
+            .stop
+            .filter(|&(n, _)| n == node && layout == cfg.layout);
         let phase = RunConfig {
             layout,
             cuts,
             shift,
+            schedule: super::Schedule {
+                stop,
+                ..cfg.schedule
+            },
             ..cfg.clone()
         };
         let at = (node, tag, &ranks);
@@ -592,7 +591,6 @@ fn serve_phase<T: Sample + Sync>(
     let plan = Plan::new(&grid, view, cfg)?;
     let (view, flow, capacity, ghost) = (&*plan.view, plan.flow, plan.capacity, plan.ghost);
     let layout = cfg.layout;
-    let rank = world.rank();
     let (nx, size) = (grid.dims()[0], usize::from(layout.size()));
     let uniform = Partition::uniform(nx, size)?;
     let position = layout.place(node).1;
@@ -646,21 +644,19 @@ fn serve_phase<T: Sample + Sync>(
         capacity,
         overflow: false,
     };
-    let start = Instant::now();
-    let stop = stop_hook(rank);
+    let mut polls = 0u64;
     while !worker.has_reported() || port.pending() > 0 {
-        if let Some((after, die)) = stop {
-            if start.elapsed() >= after {
-                if die {
-                    // The test hook: die, as a crashed node would.
-                    std::process::exit(3);
-                }
-                // The test hook: stop answering, as a hung node would.
-                loop {
-                    std::thread::sleep(Duration::from_secs(1));
-                }
+        if cfg.schedule.stop.is_some_and(|(_, after)| polls >= after) {
+            if cfg.schedule.crash {
+                // The injected fault: die, as a crashed node would.
+                std::process::exit(3);
+            }
+            // The injected fault: stop answering, as a hung node would.
+            loop {
+                std::thread::sleep(Duration::from_secs(1));
             }
         }
+        polls += 1;
         if let Some(start) = try_start(world) {
             return Ok(Some(start));
         }
