@@ -666,9 +666,6 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                             )
                             .into());
                         }
-                        if trace.is_some() {
-                            return Err("--stop-node: the timed simulator (--trace) does not recover a lost node; drop one of the two".into());
-                        }
                         m.stop = Some((node, steps));
                         m.crash = crash;
                     }

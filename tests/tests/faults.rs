@@ -151,3 +151,54 @@ fn explored_with_a_node_stopped_in_every_run_no_pixel_is_lost() {
         "{found}"
     );
 }
+
+/// In virtual time a loss costs time, and what it costs adds up: the host declares the node
+/// lost `lost_after` after it stopped (or once the others are done), the survivors re-trace
+/// after that, the image is the fault-free one, every node's categories still cover the
+/// frame, and the timeline shows the lost node silent from its stop and the re-tracers busy
+/// after the declaration.
+#[test]
+fn a_timed_run_recovers_and_prices_the_loss() {
+    let jobs = default_scene();
+    let job = &jobs[0];
+    let view = &job.views[0].view;
+    let timed = |stop| {
+        let mut cfg = RunConfig {
+            time: Some(voxcube::profile::MachineProfile::ncube2()),
+            timeline: true,
+            ..RunConfig::machine(2, 4, 3).expect("layout")
+        };
+        cfg.schedule.stop = stop;
+        cfg.lost_after = std::time::Duration::from_secs(2);
+        sim::run(&job.volume, view, &cfg).expect("runs")
+    };
+    let clean = timed(None);
+    let lost = timed(Some((5, 60)));
+    assert!(lost.pixels == clean.pixels, "the fault-free image");
+    let recovery = lost.recovery.as_ref().expect("recovered");
+    assert_eq!(recovery.node, 5);
+    let (t0, t) = (
+        clean.time.as_ref().expect("time"),
+        lost.time.as_ref().expect("time"),
+    );
+    assert!(t.frame > t0.frame, "{} against {}", t.frame, t0.frame);
+    for (n, parts) in t.parts.iter().enumerate() {
+        let total: f64 = parts.iter().sum();
+        assert!(
+            total >= t.frame * (1.0 - 1e-9) && total <= t.end * (1.0 + 1e-9),
+            "node {n}: categories {total} against the frame {} and the end {}",
+            t.frame,
+            t.end
+        );
+    }
+    // The lost node computes nothing after it stopped; a re-tracer computes after the
+    // declaration, at least `lost_after` after the stop.
+    let computes = |n: usize| t.timeline[n].iter().filter(|s| s.kind == "compute");
+    let stopped = computes(5).map(|s| s.end).fold(0.0, f64::max);
+    let resumed = computes(0)
+        .map(|s| s.start)
+        .filter(|&s| s > stopped + 2.0)
+        .count();
+    assert!(resumed > 0, "node 0 re-traces after the declaration");
+    assert!(stopped < t0.frame, "node 5 stopped early");
+}

@@ -769,6 +769,7 @@ pub fn host(
                     messages: [0; 9],
                     bytes: 0,
                     events: 0,
+                    time: None,
                 })
             };
             let mut done = recovery::complete(view, &run_cfg, lost, phase.host, &retrace)?;

@@ -9,7 +9,7 @@
 use crate::fabric::config::RunConfig;
 use crate::fabric::error::RunError;
 use crate::fabric::host::{missing_rows, Host};
-use crate::fabric::Recovery;
+use crate::fabric::{Category, Recovery, Span, VirtualTime};
 use std::time::Duration;
 use voxcube_kernel::node::stats::NodeStats;
 use voxcube_kernel::node::topology::{Layout, Rows};
@@ -45,6 +45,8 @@ pub struct Retraced {
     pub bytes: u64,
     /// Events run.
     pub events: u64,
+    /// The re-trace's virtual time, by node of its machine (a timed simulator).
+    pub time: Option<VirtualTime>,
 }
 
 /// What the recovery adds to a run: the image, each node's statistics with its share of the
@@ -65,6 +67,10 @@ pub struct Completed {
     pub events: u64,
     /// Peak receive-buffer bytes of each node in the re-trace, by node id of the machine.
     pub peaks: Vec<usize>,
+    /// The re-trace's virtual time (a timed simulator), by node of the re-trace's machine.
+    pub time: Option<VirtualTime>,
+    /// The node id, in the machine, of each node of the re-trace's machine.
+    pub retracers: Vec<u16>,
 }
 
 impl Completed {
@@ -73,6 +79,60 @@ impl Completed {
         for (peak, more) in peaks.iter_mut().zip(&self.peaks) {
             *peak = (*peak).max(*more);
         }
+    }
+
+    /// `time`, the timed run until the host had collected the survivors, followed by the
+    /// re-trace, which the host starts then: every node is idle from the end of its own work
+    /// until it re-traces or the frame ends, and a re-tracer's time and spans follow.
+    pub fn append_time(&self, time: &mut VirtualTime) {
+        let Some(again) = &self.time else {
+            return;
+        };
+        let start = time.end;
+        let frame = start + again.frame;
+        let mut resume = vec![frame; time.parts.len()];
+        for &n in &self.retracers {
+            if let Some(at) = resume.get_mut(usize::from(n)) {
+                *at = start;
+            }
+        }
+        // A node's categories add up to the end of its own work.
+        for (n, parts) in time.parts.iter_mut().enumerate() {
+            let own: f64 = parts.iter().sum();
+            parts[Category::Idle as usize] += (resume[n] - own).max(0.0);
+        }
+        for (spans, &resume) in time.timeline.iter_mut().zip(&resume) {
+            let own = spans.last().map_or(0.0, |s| s.end);
+            if resume > own {
+                spans.push(Span {
+                    kind: "idle",
+                    start: own,
+                    end: resume,
+                });
+            }
+        }
+        for (r, &n) in self.retracers.iter().enumerate() {
+            if let (Some(parts), Some(more)) =
+                (time.parts.get_mut(usize::from(n)), again.parts.get(r))
+            {
+                for (part, more) in parts.iter_mut().zip(more) {
+                    *part += more;
+                }
+            }
+        }
+        for (r, &n) in self.retracers.iter().enumerate() {
+            if let (Some(spans), Some(more)) =
+                (time.timeline.get_mut(usize::from(n)), again.timeline.get(r))
+            {
+                spans.extend(more.iter().map(|s| Span {
+                    start: s.start + start,
+                    end: s.end + start,
+                    ..*s
+                }));
+            }
+        }
+        time.frame = frame;
+        time.end = start + again.end;
     }
 }
 
@@ -120,6 +180,8 @@ pub fn complete(
         bytes: 0,
         events: 0,
         peaks: vec![0; layout.nodes() as usize],
+        time: None,
+        retracers: Vec::new(),
     };
     let mut stats: Vec<NodeStats> = reports
         .into_iter()
@@ -147,6 +209,7 @@ pub fn complete(
         let again = retrace(&survivors_cfg)?;
         let (peaks, messages, bytes, events) =
             (again.peaks, again.messages, again.bytes, again.events);
+        done.time = again.time;
         let (pixels, reports) = again.host.into_parts();
         for (slot, again) in image.iter_mut().zip(pixels) {
             match (slot.is_some(), again) {
@@ -161,7 +224,9 @@ pub fn complete(
         // Each re-tracing node is the node at its ring position of a surviving cluster.
         for (r, report) in reports.into_iter().enumerate() {
             let (k, position) = machine.place(r as u16);
-            let node = usize::from(layout.node(survivors[usize::from(k)], position));
+            let node = layout.node(survivors[usize::from(k)], position);
+            done.retracers.push(node);
+            let node = usize::from(node);
             if let (Some(report), Some(total)) = (report, stats.get_mut(node)) {
                 absorb(total, &report);
             }
@@ -253,6 +318,7 @@ mod tests {
                     messages: [0; 9],
                     bytes: 0,
                     events: 0,
+                    time: None,
                 })
             }
         };

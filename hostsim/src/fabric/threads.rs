@@ -249,6 +249,7 @@ fn run_typed<T: Sample + Send + Sync>(
                     messages: [0; 9],
                     bytes: 0,
                     events: 0,
+                    time: None,
                 })
             };
             let mut done = recovery::complete(view, cfg, lost, host, &retrace)?;

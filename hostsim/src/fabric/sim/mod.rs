@@ -88,6 +88,7 @@ fn run_typed<T: Sample + Sync>(
         ..
     } = sim;
     let mut peaks = net.peak;
+    let mut time = clock.map(Clock::finish);
     let (image, stats, recovered) = match lost {
         None => {
             let (image, stats) = host
@@ -107,6 +108,9 @@ fn run_typed<T: Sample + Sync>(
             bytes += done.bytes;
             events += done.events;
             done.raise_peaks(&mut peaks);
+            if let Some(time) = &mut time {
+                done.append_time(time);
+            }
             (done.image, done.stats, Some(done.recovery))
         }
     };
@@ -125,7 +129,7 @@ fn run_typed<T: Sample + Sync>(
     run.bytes = bytes;
     run.events = events;
     run.recovery = recovered;
-    run.time = clock.map(Clock::finish);
+    run.time = time;
     if let (Some(t), Some(report)) = (&mut run.time, &run.shift) {
         // The render starts once every node has shifted: each node's own sends and
         // receives, then idle until the busiest is done.
@@ -141,7 +145,7 @@ fn run_typed<T: Sample + Sync>(
     Ok(run)
 }
 
-/// One untimed, unshifted simulation of `cfg` to its end: a re-trace on surviving clusters.
+/// One unshifted simulation of `cfg` to its end: a re-trace on surviving clusters.
 fn simulate<T: Sample + Sync>(
     volume: &Volume,
     data: &[T],
@@ -164,6 +168,7 @@ fn simulate<T: Sample + Sync>(
         messages: sim.messages,
         bytes: sim.bytes,
         events: sim.events,
+        time: sim.clock.map(Clock::finish),
     })
 }
 
@@ -191,6 +196,8 @@ struct Sim<'a, 'c, T> {
     /// Steps each node has taken, and whether it has stopped (an injected fault).
     steps: Vec<u64>,
     stopped: Vec<bool>,
+    /// Virtual seconds at which the stopped node stopped (a timed run).
+    stopped_at: f64,
     host: Host,
     rng: SplitMix,
     clock: Option<Clock>,
@@ -219,6 +226,7 @@ impl<'a, 'c, T: Sample> Sim<'a, 'c, T> {
             is_active: vec![true; nodes],
             steps: vec![0; nodes],
             stopped: vec![false; nodes],
+            stopped_at: 0.0,
             host: plan.host(),
             rng: SplitMix(cfg.schedule.seed),
             clock: cfg.time.as_ref().map(|p| {
@@ -279,15 +287,23 @@ impl<'a, 'c, T: Sample> Sim<'a, 'c, T> {
     }
 
     /// Nothing can happen and the host has not ended. When a node has stopped and other
-    /// clusters may finish the frame (an untimed run), the host declares its cluster lost,
-    /// stops waiting for it and collects the others' statistics; their re-trace of its rows
-    /// follows ([`run_typed`]). Otherwise the run fails: a lost node, or a deadlock.
+    /// clusters may finish the frame, the host declares its cluster lost, stops waiting for it
+    /// and collects the others' statistics; their re-trace of its rows follows
+    /// ([`run_typed`]). Otherwise the run fails: a lost node, or a deadlock.
+    ///
+    /// In virtual time the host declares the node lost once it has been silent for
+    /// `RunConfig::lost_after` since it stopped, or when the other nodes are done if that is
+    /// later (the re-trace then starts on clusters that are all free).
     fn declare_lost(&mut self) -> Result<(), RunError> {
         let stopped = self.stopped.iter().position(|&s| s);
-        let recoverable = self.cfg.time.is_none() && self.layout.clusters() > 1;
+        let recoverable = self.layout.clusters() > 1;
         let (Some(n), true, None) = (stopped, recoverable, self.lost) else {
             return Err(self.stuck());
         };
+        if let Some(clock) = &mut self.clock {
+            let declared = self.stopped_at + self.cfg.lost_after.as_secs_f64();
+            clock.host_time = clock.host_time.max(declared);
+        }
         let cluster = self.layout.place(n as u16).0;
         self.lost = Some(LostNode {
             node: n as u16,
@@ -429,6 +445,7 @@ impl<'a, 'c, T: Sample> Sim<'a, 'c, T> {
             self.active.swap_remove(i);
             self.is_active[n] = false;
             self.stopped[n] = true;
+            self.stopped_at = self.clock.as_ref().map_or(0.0, |c| c.now[n]);
             return Ok(());
         }
         // What a timed run's clock needs from before the step. An untimed run skips it:
