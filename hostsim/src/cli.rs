@@ -911,7 +911,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             // the job then ends here, successfully (the warnings named what was lost).
             #[cfg(feature = "mpi")]
             if let Some(world) = &mpi_world {
-                crate::fabric::mpi::end(world);
+                crate::fabric::mpi::end(world, Duration::from_secs_f64(lost_after));
             }
             Ok(())
         }

@@ -213,9 +213,20 @@ fn heartbeat(world: &SimpleCommunicator, last: &mut Instant) {
     }
 }
 
-/// Node `node`'s plane shift from the `old` cuts to the `new` ones: its storage (its new
-/// stored planes) and its account (messages, bytes, peak samples, rounds). It heartbeats to
-/// the host while it waits, as it does while rendering.
+/// How a node's plane shift ended.
+enum Shifted<T> {
+    /// Its storage (its new stored planes) and its account (messages, bytes, peak samples,
+    /// rounds).
+    Done(Vec<T>, [u64; 4]),
+    /// The host started another phase first: this node's cluster was declared lost (a
+    /// neighbour stopped in the middle of the shift).
+    Abandoned(Start),
+}
+
+/// Node `node`'s plane shift from the `old` cuts to the `new` ones, in `cfg`'s machine. It
+/// heartbeats to the host while it waits, as it does while rendering, and gives up when the
+/// host starts another phase. `polls` counts its polls in the phase (the injected fault's
+/// clock).
 #[allow(
     clippy::too_many_arguments,
     reason = "one call site: the node's place and the cuts"
@@ -224,12 +235,13 @@ fn shift<T: Sample>(
     world: &SimpleCommunicator,
     grid: &Grid,
     data: &[T],
-    layout: Layout,
+    cfg: &RunConfig,
     node: u16,
     (old, new): (&Partition, &Partition),
     ghost: u32,
-    beat: &mut Instant,
-) -> Result<(Vec<T>, [u64; 4]), RunError> {
+    (beat, polls): (&mut Instant, &mut u64),
+) -> Result<Shifted<T>, RunError> {
+    let layout = cfg.layout;
     let mut storage = planes::load(grid, data, layout, old, ghost, node);
     let rounds = planes::rounds(old, new)?;
     let mut account = [0, 0, storage.len() as u64, rounds.len() as u64];
@@ -243,6 +255,11 @@ fn shift<T: Sample>(
             error: None,
         });
         while !shift.done() {
+            injected_fault(cfg, *polls);
+            *polls += 1;
+            if let Some(start) = try_start(world) {
+                return Ok(Shifted::Abandoned(start));
+            }
             let progress = shift.poll(&mut port);
             if let Some(e) = port.port.error.take() {
                 return Err(e);
@@ -260,7 +277,21 @@ fn shift<T: Sample>(
         account[0] += port.sent;
         account[1] += port.sent_bytes;
     }
-    Ok((storage, account))
+    Ok(Shifted::Done(storage, account))
+}
+
+/// The injected fault (`--stop-node`), when it is this node's in this phase: once the node has
+/// polled so many times it stops answering, as a hung node would, or its process exits, as a
+/// crashed one would.
+fn injected_fault(cfg: &RunConfig, polls: u64) {
+    if cfg.schedule.stop.is_some_and(|(_, after)| polls >= after) {
+        if cfg.schedule.crash {
+            std::process::exit(3);
+        }
+        loop {
+            std::thread::sleep(Duration::from_secs(1));
+        }
+    }
 }
 
 /// What the host tells a node rank before each phase of a view: a phase to run, or the view
@@ -423,15 +454,31 @@ pub fn await_end(world: &SimpleCommunicator) {
 /// abort, and after a death `MPI_Finalize` sometimes never returns. Otherwise a lost rank is
 /// hung, not dead (a death would have ended the job), and the host aborts the job with
 /// status 0.
-pub fn end(world: &SimpleCommunicator) {
+///
+/// A rank of a lost cluster may be stuck where it cannot hear the host (in a plane shift's
+/// send to the lost rank, which never completes); one that has not exited `patience` after
+/// the host's word is fenced too.
+pub fn end(world: &SimpleCommunicator, patience: Duration) {
     let lost: Vec<u16> = LOST.lock().unwrap_or_else(PoisonError::into_inner).clone();
-    let live = (1..world.size()).filter(|&rank| !lost.iter().any(|&n| i32::from(n) + 1 == rank));
+    let live: Vec<i32> = (1..world.size())
+        .filter(|&rank| !lost.iter().any(|&n| i32::from(n) + 1 == rank))
+        .collect();
     if lost.is_empty() {
-        live.for_each(|rank| send_start(world, rank, Start::Over));
+        live.iter()
+            .for_each(|&rank| send_start(world, rank, Start::Over));
         return;
     }
-    if recovery_enabled() && lost.iter().all(|&n| fence(i32::from(n) + 1)) {
-        live.for_each(|rank| send_start(world, rank, Start::Exit));
+    let fenced = |n: &u16| fence(i32::from(*n) + 1, "was lost");
+    if recovery_enabled() && lost.iter().all(fenced) {
+        live.iter()
+            .for_each(|&rank| send_start(world, rank, Start::Exit));
+        let deadline = Instant::now() + patience;
+        for &rank in &live {
+            while running(rank) == Some(true) && Instant::now() < deadline {
+                std::thread::sleep(Duration::from_millis(10));
+            }
+            fence(rank, "did not exit when told");
+        }
         use std::io::Write;
         let _ = std::io::stdout().flush();
         std::process::exit(0);
@@ -445,35 +492,43 @@ fn recovery_enabled() -> bool {
     std::env::var("OMPI_MCA_orte_enable_recovery").is_ok_and(|v| v == "1" || v == "true")
 }
 
-/// Make sure lost rank `rank` runs no more: kill its process if it still runs. Only a process
-/// on the host's machine can be fenced; `false` for one elsewhere. A pid whose executable is
-/// not this one's is gone (its number reused) and left alone.
-fn fence(rank: i32) -> bool {
+/// Whether rank `rank`'s process still runs: `None` when the host cannot tell (it runs on
+/// another machine). A pid whose executable is not this one's is gone (its number reused).
+fn running(rank: i32) -> Option<bool> {
     let processes = PROCESSES.lock().unwrap_or_else(PoisonError::into_inner);
-    let (Some(me), Some(lost)) = (processes.first(), processes.get(rank as usize)) else {
-        return false;
-    };
-    if lost.machine != me.machine {
-        return false;
+    let (me, other) = (processes.first()?, processes.get(rank as usize)?);
+    if other.machine != me.machine {
+        return None;
     }
     let exe = |pid: u32| std::fs::read_link(format!("/proc/{pid}/exe")).ok();
-    if exe(lost.pid).is_none() || exe(lost.pid) != exe(me.pid) {
-        return true;
-    }
-    let Some(pid) = rustix::process::Pid::from_raw(lost.pid as i32) else {
-        return false;
-    };
-    match rustix::process::kill_process(pid, rustix::process::Signal::KILL) {
-        Ok(()) => {
-            eprintln!(
-                "voxcube: warning: rank {rank} (pid {}) was lost and is stopped (SIGKILL) so that the job can end",
-                lost.pid
-            );
-            true
+    Some(exe(other.pid).is_some() && exe(other.pid) == exe(me.pid))
+}
+
+/// Make sure rank `rank` runs no more: kill its process if it still runs; `false` when the
+/// host cannot (the rank runs on another machine).
+fn fence(rank: i32, why: &str) -> bool {
+    match running(rank) {
+        None => false,
+        Some(false) => true,
+        Some(true) => {
+            let pid = PROCESSES
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .get(rank as usize)
+                .map_or(0, |p| p.pid);
+            let Some(id) = rustix::process::Pid::from_raw(pid as i32) else {
+                return false;
+            };
+            match rustix::process::kill_process(id, rustix::process::Signal::KILL) {
+                Ok(()) => {
+                    eprintln!("voxcube: warning: rank {rank} (pid {pid}) {why}, so it is stopped (SIGKILL) for the job to end");
+                    true
+                }
+                // Gone in between.
+                Err(rustix::io::Errno::SRCH) => true,
+                Err(_) => false,
+            }
         }
-        // Gone in between.
-        Err(rustix::io::Errno::SRCH) => true,
-        Err(_) => false,
     }
 }
 
@@ -599,19 +654,24 @@ fn serve_phase<T: Sample + Sync>(
     let host = world.process_at_rank(0);
     // Balanced: the host's cuts, reached from the uniform slab by shifting planes (or, in a
     // re-trace, loaded at once).
+    let mut polls = 0u64;
     let (partition, shifted) = match (&cfg.cuts, cfg.shift) {
         (Some(cuts), true) => {
             let partition = Partition::new(cuts, nx)?;
-            let (storage, account) = shift(
+            let shifted = shift(
                 world,
                 &grid,
                 data,
-                layout,
+                cfg,
                 node,
                 (&uniform, &partition),
                 ghost,
-                beat,
+                (beat, &mut polls),
             )?;
+            let (storage, account) = match shifted {
+                Shifted::Done(storage, account) => (storage, account),
+                Shifted::Abandoned(start) => return Ok(Some(start)),
+            };
             host.send_with_tag(&account[..], TAG_SHIFT_REPORT);
             (partition, Some(storage))
         }
@@ -644,18 +704,8 @@ fn serve_phase<T: Sample + Sync>(
         capacity,
         overflow: false,
     };
-    let mut polls = 0u64;
     while !worker.has_reported() || port.pending() > 0 {
-        if cfg.schedule.stop.is_some_and(|(_, after)| polls >= after) {
-            if cfg.schedule.crash {
-                // The injected fault: die, as a crashed node would.
-                std::process::exit(3);
-            }
-            // The injected fault: stop answering, as a hung node would.
-            loop {
-                std::thread::sleep(Duration::from_secs(1));
-            }
-        }
+        injected_fault(cfg, polls);
         polls += 1;
         if let Some(start) = try_start(world) {
             return Ok(Some(start));
