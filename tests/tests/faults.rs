@@ -202,3 +202,48 @@ fn a_timed_run_recovers_and_prices_the_loss() {
     assert!(resumed > 0, "node 0 re-traces after the declaration");
     assert!(stopped < t0.frame, "node 5 stopped early");
 }
+
+/// A second node lost during the re-trace takes its cluster out of it too: the clusters left
+/// re-trace again and the frame is still the fault-free one, on the simulator and on threads.
+/// With no cluster left the run fails, naming the pixels lost.
+#[test]
+fn a_node_lost_during_the_re_trace_takes_its_cluster_out_and_the_rest_finish() {
+    use voxcube::fabric::threads;
+    let jobs = default_scene();
+    let job = &jobs[0];
+    let view = &job.views[0].view;
+    let reference = sim::run(
+        &job.volume,
+        view,
+        &RunConfig::machine(1, 1, 1).expect("one"),
+    )
+    .expect("fault-free run")
+    .pixels;
+    // Node 3 (cluster 1) stops in the frame, node 0 (cluster 0) early in the re-trace.
+    let faulty = |clusters| {
+        let mut cfg = RunConfig::machine(clusters, 2, 5).expect("layout");
+        cfg.schedule.stop = Some((3, 40));
+        cfg.schedule.retrace_stop = Some((0, 5));
+        cfg.lost_after = std::time::Duration::from_millis(500);
+        cfg
+    };
+    type Run<'a> = dyn Fn(&RunConfig) -> Result<voxcube::fabric::Distributed, RunError> + 'a;
+    let fabrics: [(&str, &Run<'_>); 2] = [
+        ("sim", &|cfg| sim::run(&job.volume, view, cfg)),
+        ("threads", &|cfg| threads::run(&job.volume, view, cfg, 2)),
+    ];
+    for (fabric, run) in fabrics {
+        let done = run(&faulty(3)).unwrap_or_else(|e| panic!("{fabric}: {e}"));
+        assert!(done.pixels == reference, "{fabric}: the image differs");
+        let r = done.recovery.as_ref().expect("recovered");
+        assert_eq!((r.node, r.cluster), (3, 1), "{fabric}: {r}");
+        assert_eq!(r.also_lost, vec![0], "{fabric}: {r}");
+        assert_eq!(r.by, vec![2], "{fabric}: {r}");
+        assert!(r.retraced > 0, "{fabric}: {r}");
+        // Two clusters: none is left for the second re-trace.
+        match run(&faulty(2)) {
+            Err(RunError::Lost { missing, .. }) => assert!(missing > 0, "{fabric}"),
+            other => panic!("{fabric}: no cluster is left: {other:?}"),
+        }
+    }
+}

@@ -63,6 +63,9 @@ pub struct Schedule {
     /// With `stop`, on MPI: the stopped node's process exits (a crash) instead of hanging.
     /// The other fabrics cannot tell the two apart.
     pub crash: bool,
+    /// A second fault, in the re-trace the first one causes: this node of the machine (of a
+    /// surviving cluster) stops after this many of its own steps there.
+    pub retrace_stop: Option<(u16, u64)>,
 }
 
 /// How to run a view, on any fabric.
@@ -124,6 +127,7 @@ impl RunConfig {
                 scheduler: Scheduler::Uniform,
                 stop: None,
                 crash: false,
+                retrace_stop: None,
             },
             lost_after: DEFAULT_LOST_AFTER,
             #[cfg(feature = "mutants")]

@@ -278,6 +278,9 @@ pub struct Recovery {
     /// dropped (none in the simulator, which declares a node lost only once nothing else
     /// can happen).
     pub late: u64,
+    /// Nodes lost during the re-trace, in order: each took its cluster out of it, and the
+    /// clusters left re-traced again.
+    pub also_lost: Vec<u16>,
 }
 
 impl std::fmt::Display for Recovery {
@@ -299,7 +302,11 @@ impl std::fmt::Display for Recovery {
             self.retraced,
             self.dropped,
             self.late
-        )
+        )?;
+        for node in &self.also_lost {
+            write!(f, "; node {node} was lost during the re-trace, and the clusters left re-traced without its cluster")?;
+        }
+        Ok(())
     }
 }
 

@@ -764,7 +764,7 @@ pub fn host(
 ) -> Result<Distributed, RunError> {
     let grid = volume.grid;
     let layout = cfg.layout;
-    let epoch = EPOCH.fetch_add(2, Ordering::Relaxed);
+    let epoch = EPOCH.fetch_add(1, Ordering::Relaxed);
     let lost_before: Vec<u16> = LOST.lock().unwrap_or_else(PoisonError::into_inner).clone();
     let lost_clusters: Vec<u16> = lost_before.iter().map(|&n| layout.place(n).0).collect();
     let live: Vec<u16> = (0..layout.clusters())
@@ -777,7 +777,7 @@ pub fn host(
     }
     // A node lost in an earlier view: this view runs on the clusters that lost none.
     let (run_cfg, ranks) = match lost_before.is_empty() {
-        true => (cfg.clone(), (1..=layout.nodes() as i32).collect()),
+        true => (cfg.clone(), configured_ranks(layout)),
         false => survivors(cfg, &live, Rows::ALL)?,
     };
     let plan = Plan::new(&grid, view, &run_cfg)?;
@@ -793,19 +793,23 @@ pub fn host(
             (image, reports, None)
         }
         Some(lost) => {
-            LOST.lock()
-                .unwrap_or_else(PoisonError::into_inner)
-                .push(lost.node);
-            let kept: Vec<u16> = live
-                .iter()
-                .copied()
-                .filter(|&c| c != lost.cluster)
-                .collect();
-            let retrace = |survivors_cfg: &RunConfig| {
-                let by_node = ranks_of(layout, survivors_cfg.layout, &kept);
+            // The phase's node `n` runs on rank `ranks[n]`, which runs node `rank - 1` of the
+            // configured machine: LOST keeps those.
+            let configured = |n: u16| ranks.get(usize::from(n)).map(|&rank| (rank - 1) as u16);
+            let mut lost_list = LOST.lock().unwrap_or_else(PoisonError::into_inner);
+            lost_list.extend(configured(lost.node));
+            drop(lost_list);
+            let retrace = |survivors_cfg: &RunConfig, survivors: &[u16]| {
+                let by_node = ranks_of(run_cfg.layout, survivors_cfg.layout, survivors, &ranks);
                 let plan = Plan::new(&grid, view, survivors_cfg)?;
-                let again = run_phase(world, &plan, survivors_cfg, &by_node, phase_tag(epoch + 1))?;
+                // Every re-trace has a tag of its own: one abandoned is never heard again.
+                let tag = phase_tag(EPOCH.fetch_add(1, Ordering::Relaxed));
+                let again = run_phase(world, &plan, survivors_cfg, &by_node, tag)?;
                 if let Some(also) = again.lost {
+                    let rank = by_node.get(usize::from(also.node)).copied().unwrap_or(0);
+                    LOST.lock()
+                        .unwrap_or_else(PoisonError::into_inner)
+                        .push((rank - 1) as u16);
                     return Err(RunError::Lost {
                         node: also.node,
                         waiting: 0,
@@ -869,6 +873,7 @@ pub fn host(
             retraced: view.pixel_count(),
             dropped: 0,
             late: 0,
+            also_lost: Vec::new(),
         }),
         (None, None) => None,
     };
@@ -887,18 +892,27 @@ fn survivors(cfg: &RunConfig, live: &[u16], rows: Rows) -> Result<(RunConfig, Ve
             layout: machine,
             ..cfg.clone()
         },
-        ranks_of(layout, machine, live),
+        ranks_of(layout, machine, live, &configured_ranks(layout)),
     ))
 }
 
+/// Rank `n + 1` runs node `n` of the configured machine.
+fn configured_ranks(layout: Layout) -> Vec<i32> {
+    (1..=layout.nodes() as i32).collect()
+}
+
 /// The world rank of each node of `machine`, whose cluster `k` is `layout`'s cluster
-/// `kept[k]`: the node at each ring position runs where that cluster's node does.
-fn ranks_of(layout: Layout, machine: Layout, kept: &[u16]) -> Vec<i32> {
+/// `kept[k]`: the node at each ring position runs where that cluster's node does, on rank
+/// `ranks[n]` for `layout`'s node `n`.
+fn ranks_of(layout: Layout, machine: Layout, kept: &[u16], ranks: &[i32]) -> Vec<i32> {
     (0..machine.nodes() as u16)
         .map(|r| {
             let (k, p) = machine.place(r);
             let c = kept.get(usize::from(k)).copied().unwrap_or(k);
-            i32::from(layout.node(c, p)) + 1
+            ranks
+                .get(usize::from(layout.node(c, p)))
+                .copied()
+                .unwrap_or(0)
         })
         .collect()
 }

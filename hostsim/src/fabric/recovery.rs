@@ -136,21 +136,31 @@ impl Completed {
     }
 }
 
+/// A re-trace on a fabric: given the surviving clusters' configuration and which of the
+/// machine's clusters they are, run it to its end.
+pub type Retrace<'a> = dyn Fn(&RunConfig, &[u16]) -> Result<Retraced, RunError> + 'a;
+
 /// The frame completed: `lost`'s cluster's rows from its first unfinished one re-traced by
-/// `retrace` on the other clusters of `cfg`'s layout (a configuration of those clusters, the
-/// rows dealt among them in turn), merged into `held`, what the host holds.
+/// `retrace` on the other clusters of `cfg`'s layout (given a configuration of those clusters,
+/// the rows dealt among them in turn, and which of `cfg`'s clusters they are), merged into
+/// `held`, what the host holds.
+///
+/// A node lost during the re-trace (`retrace` fails with [`RunError::Lost`], naming it in the
+/// re-trace's machine) takes its cluster out too: the re-trace runs again on the clusters
+/// left, until one completes or none is left. The clusters taken out had finished their own
+/// rows in the first run (the host collected them), so only the re-trace is redone.
 pub fn complete(
     view: &View,
     cfg: &RunConfig,
     lost: LostNode,
     held: Host,
-    retrace: &dyn Fn(&RunConfig) -> Result<Retraced, RunError>,
+    retrace: &Retrace<'_>,
 ) -> Result<Completed, RunError> {
     let layout = cfg.layout;
     let width = view.spec().width;
     let (mut image, reports) = held.into_parts();
     let rows = missing_rows(&image, width);
-    let survivors: Vec<u16> = (0..layout.clusters())
+    let mut survivors: Vec<u16> = (0..layout.clusters())
         .filter(|&c| c != lost.cluster)
         .collect();
     let own = layout.cluster_rows(lost.cluster);
@@ -175,6 +185,7 @@ pub fn complete(
             retraced: 0,
             dropped: 0,
             late: 0,
+            also_lost: Vec::new(),
         },
         messages: [0; 9],
         bytes: 0,
@@ -193,20 +204,46 @@ pub fn complete(
             })
         })
         .collect();
-    if let Some(first) = unfinished {
+    let mut second = cfg.schedule.retrace_stop;
+    let retraced = loop {
+        let Some(first) = unfinished.filter(|_| !survivors.is_empty()) else {
+            break None;
+        };
         let machine = Layout::new(survivors.len() as u32, u32::from(layout.size()))
             .map_err(|e| RunError::Host(format!("the surviving clusters: {e}")))?
             .with_rows(Rows::new(first, own.step()));
+        // A node of the re-trace's machine is the node at its ring position of a surviving
+        // cluster.
+        let node_of = |r: u16| {
+            let (k, position) = machine.place(r);
+            layout.node(survivors[usize::from(k)], position)
+        };
+        let stop = second.take().and_then(|(node, after)| {
+            let r = (0..machine.nodes() as u16).find(|&r| node_of(r) == node)?;
+            Some((r, after))
+        });
         let survivors_cfg = RunConfig {
             layout: machine,
             shift: false,
             schedule: crate::fabric::Schedule {
-                stop: None,
+                stop,
+                retrace_stop: None,
                 ..cfg.schedule
             },
             ..cfg.clone()
         };
-        let again = retrace(&survivors_cfg)?;
+        match retrace(&survivors_cfg, &survivors) {
+            Ok(again) => break Some((again, machine)),
+            Err(RunError::Lost { node: r, .. }) if r < machine.nodes() as u16 => {
+                let node = node_of(r);
+                let cluster = layout.place(node).0;
+                done.recovery.also_lost.push(node);
+                survivors.retain(|&c| c != cluster);
+            }
+            Err(e) => return Err(e),
+        }
+    };
+    if let Some((again, machine)) = retraced {
         let (peaks, messages, bytes, events) =
             (again.peaks, again.messages, again.bytes, again.events);
         done.time = again.time;
@@ -308,7 +345,7 @@ mod tests {
         // The survivors re-trace row 1 (shade 2, so a kept pixel shows which copy it is).
         let retrace = |row: &[u32]| {
             let row = row.to_vec();
-            move |survivors: &RunConfig| {
+            move |survivors: &RunConfig, _: &[u16]| {
                 assert_eq!(survivors.layout.cluster_rows(0), Rows::new(1, 2));
                 let mut host = Host::new(12, 4, 1, 1);
                 assert_eq!(host.receive(pixels(&row, 2)), Ok(false));

@@ -238,11 +238,21 @@ fn run_typed<T: Sample + Send + Sync>(
         }
         Some(lost) => {
             let already = host.received();
-            let retrace = |survivors: &RunConfig| {
+            let retrace = |survivors: &RunConfig, _: &[u16]| {
                 let plan = Plan::new(&grid, view, survivors)?;
                 let again = run_hosted(&plan, &grid, data, survivors, threads, &|n| {
                     progress(already + n)
                 })?;
+                if let Some(lost) = again.lost {
+                    // A node of the re-trace was lost: `recovery::complete` takes its
+                    // cluster out.
+                    return Err(RunError::Lost {
+                        node: lost.node,
+                        waiting: 0,
+                        missing: 0,
+                        rows: String::new(),
+                    });
+                }
                 Ok(Retraced {
                     host: again.host,
                     peaks: again.peaks,

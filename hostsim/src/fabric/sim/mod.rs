@@ -98,7 +98,7 @@ fn run_typed<T: Sample + Sync>(
         }
         Some(lost) => {
             let already = host.received();
-            let retrace = |survivors: &RunConfig| {
+            let retrace = |survivors: &RunConfig, _: &[u16]| {
                 simulate(volume, data, view, survivors, &|n| progress(already + n))
             };
             let done = recovery::complete(view, cfg, lost, host, &retrace)?;
@@ -162,6 +162,15 @@ fn simulate<T: Sample + Sync>(
     })?;
     let mut sim = Sim::new(&plan, plan.workers(&storage, cfg)?, cfg);
     sim.run(progress)?;
+    if let Some(lost) = sim.lost {
+        // A node of the re-trace was lost: `recovery::complete` takes its cluster out.
+        return Err(RunError::Lost {
+            node: lost.node,
+            waiting: 0,
+            missing: 0,
+            rows: String::new(),
+        });
+    }
     Ok(Retraced {
         host: sim.host,
         peaks: sim.net.peak,
