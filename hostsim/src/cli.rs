@@ -112,9 +112,10 @@ pub enum Command {
         /// Inject a fault: node NODE stops answering after STEPS of its polls (with `:exit`,
         /// on MPI, its rank's process exits instead: a crash). The host declares it lost and
         /// the surviving clusters re-trace its cluster's unfinished rows: the same image, the
-        /// loss named in a warning and the report.
+        /// loss named in a warning and the report. Given twice, the second node (of another
+        /// cluster) stops after STEPS of its polls in that re-trace.
         #[arg(long, value_name = "NODE@STEPS[:exit]", value_parser = parse_stop)]
-        stop_node: Option<(u16, u64, bool)>,
+        stop_node: Vec<(u16, u64, bool)>,
         /// Seconds the threads and MPI hosts wait without hearing from a node before they
         /// declare it lost (the simulator declares a stopped node lost once nothing else can
         /// happen).
@@ -652,7 +653,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                             .ok_or("the shipped modern profile is missing")?,
                     };
                     m.lost_after = Duration::from_secs_f64(lost_after);
-                    if let Some((node, steps, crash)) = stop_node {
+                    for (i, &(node, steps, crash)) in stop_node.iter().enumerate() {
                         let name = m.fabric.name();
                         if m.fabric == Fabric::Direct {
                             return Err(format!("{}/{}: --stop-node injects a fault into a machine of nodes (sim, threads, mpi); this view renders on {name}", job.name, v.name).into());
@@ -666,8 +667,23 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                             )
                             .into());
                         }
-                        m.stop = Some((node, steps));
-                        m.crash = crash;
+                        let cluster = |n: u16| u32::from(n) / m.cluster_size().max(1);
+                        match (i, m.stop) {
+                            (0, _) => {
+                                m.stop = Some((node, steps));
+                                m.crash = crash;
+                            }
+                            (1, Some((first, _))) if crash => {
+                                return Err(format!("--stop-node {node}@{steps}:exit: `:exit` is for the first fault only (node {first})").into());
+                            }
+                            (1, Some((first, _))) if cluster(first) == cluster(node) => {
+                                return Err(format!("{}/{}: --stop-node {node}: a second fault stops a node in the re-trace of node {first}'s cluster, so it must be in another cluster (clusters of {})", job.name, v.name, m.cluster_size()).into());
+                            }
+                            (1, _) => m.retrace_stop = Some((node, steps)),
+                            _ => {
+                                return Err("--stop-node: at most twice (a node in the frame, then one in its re-trace)".into());
+                            }
+                        }
                     }
                     if trace.is_some() {
                         if m.fabric != Fabric::Sim {

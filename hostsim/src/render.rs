@@ -79,6 +79,9 @@ pub struct Machine {
     pub stop: Option<(u16, u64)>,
     /// With `stop`, on MPI: the node's process exits instead of hanging.
     pub crash: bool,
+    /// A second injected fault: this node stops after this many of its polls in the
+    /// re-trace that the first causes.
+    pub retrace_stop: Option<(u16, u64)>,
     /// How long the threads and MPI hosts wait without hearing from a node before they
     /// declare it lost.
     pub lost_after: Duration,
@@ -102,6 +105,7 @@ impl Machine {
             timeline: None,
             stop: None,
             crash: false,
+            retrace_stop: None,
             lost_after: crate::fabric::config::DEFAULT_LOST_AFTER,
         }
     }
@@ -122,6 +126,7 @@ impl Machine {
             schedule: crate::fabric::Schedule {
                 stop: self.stop,
                 crash: self.crash,
+                retrace_stop: self.retrace_stop,
                 ..base.schedule
             },
             lost_after: self.lost_after,

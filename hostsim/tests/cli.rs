@@ -747,6 +747,27 @@ fn a_stopped_node_costs_no_pixel_and_is_named_in_a_warning_and_the_report() {
             vec!["--nodes", "2", "--lost-after", "0"],
             "expected seconds",
         ),
+        (
+            vec!["--nodes", "8", "--clusters", "4", "--fabric", "sim"]
+                .into_iter()
+                .chain(["--stop-node", "3@40", "--stop-node", "2@5"])
+                .collect(),
+            "--stop-node 2: a second fault stops a node in the re-trace of node 3's cluster, so it must be in another cluster",
+        ),
+        (
+            vec!["--nodes", "8", "--clusters", "4", "--fabric", "sim"]
+                .into_iter()
+                .chain(["--stop-node", "3@40", "--stop-node", "0@5:exit"])
+                .collect(),
+            "`:exit` is for the first fault only",
+        ),
+        (
+            vec!["--nodes", "8", "--clusters", "4", "--fabric", "sim"]
+                .into_iter()
+                .chain(["--stop-node", "3@40", "--stop-node", "0@5", "--stop-node", "4@5"])
+                .collect(),
+            "at most twice",
+        ),
     ] {
         let out = voxcube()
             .arg("render")

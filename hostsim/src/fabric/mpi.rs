@@ -586,12 +586,15 @@ fn serve_typed<T: Sample + Sync>(
             }
             false => None,
         };
-        // The injected fault stops its node in the configured machine only (a re-trace's node
-        // numbers are another machine's).
-        let stop = cfg
-            .schedule
-            .stop
-            .filter(|&(n, _)| n == node && layout == cfg.layout);
+        // The injected faults: the first stops its node in the configured machine, the second
+        // a node of the configured machine (this rank's) in a re-trace (a phase of only some
+        // rows: a machine of every row is a view's own).
+        let me = (world.rank() - 1) as u16;
+        let stop = match (layout == cfg.layout, rows == Rows::ALL) {
+            (true, _) => cfg.schedule.stop.filter(|&(n, _)| n == node),
+            (false, false) => cfg.schedule.retrace_stop.filter(|&(n, _)| n == me),
+            (false, true) => None,
+        };
         let phase = RunConfig {
             layout,
             cuts,
