@@ -772,6 +772,21 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             let mut views = Vec::new();
             let mut animation: Vec<image::RgbaImage> = Vec::new();
             for (job, v, machine) in plan {
+                // Written before each view: a process ended during it (a rank's death ends an
+                // MPI job at once) leaves a report of the views finished and the one cut short.
+                if let Some(path) = &report {
+                    Report {
+                        scene: &name,
+                        views: &views,
+                        failed: Some(FailedView {
+                            dataset: job.name.clone(),
+                            view: v.name.clone(),
+                            error: "the run ended before this view was finished".into(),
+                            lost: None,
+                        }),
+                    }
+                    .write(path)?;
+                }
                 let bar = ProgressBar::with_draw_target(
                     Some(v.view.pixel_count()),
                     ProgressDrawTarget::hidden(),
@@ -845,12 +860,12 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                                 error: error.clone(),
                                 lost,
                             };
-                            let json = serde_json::to_string_pretty(&Report {
-                                scene: name,
-                                views,
+                            Report {
+                                scene: &name,
+                                views: &views,
                                 failed: Some(failed),
-                            })?;
-                            write_atomic(path, json.as_bytes())?;
+                            }
+                            .write(path)?;
                         }
                         // Stop every rank: nothing may hang on a lost node.
                         #[cfg(feature = "mpi")]
@@ -916,12 +931,12 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 stdout(&summary(&views))?;
             }
             if let Some(path) = report {
-                let json = serde_json::to_string_pretty(&Report {
-                    scene: name,
-                    views,
+                Report {
+                    scene: &name,
+                    views: &views,
                     failed: None,
-                })?;
-                write_atomic(&path, json.as_bytes())?;
+                }
+                .write(&path)?;
             }
             // Every rank finalises together; a hung rank never would: with everything written,
             // the job then ends here, successfully (the warnings named what was lost).

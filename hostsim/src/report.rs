@@ -347,14 +347,24 @@ impl ViewReport {
 
 /// The whole run's report.
 #[derive(Clone, Debug, Serialize, PartialEq)]
-pub struct Report {
+pub struct Report<'a> {
     /// The scene file.
-    pub scene: String,
+    pub scene: &'a str,
     /// One entry per view, in scene order: the views rendered, when one failed.
-    pub views: Vec<ViewReport>,
-    /// The view that failed and ended the run, if one did.
+    pub views: &'a [ViewReport],
+    /// The view that failed and ended the run, if one did; or, in the report written before
+    /// each view, the view under way (if the process is ended during it, that is what the
+    /// report on disk says).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub failed: Option<FailedView>,
+}
+
+impl Report<'_> {
+    /// Write the report to `path`, atomically.
+    pub fn write(&self, path: &std::path::Path) -> Result<(), Box<dyn std::error::Error>> {
+        let json = serde_json::to_string_pretty(self)?;
+        Ok(crate::output::write_atomic(path, json.as_bytes())?)
+    }
 }
 
 /// A view that failed: the run wrote the views before it and ends with an error.

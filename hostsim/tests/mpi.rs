@@ -205,7 +205,18 @@ fn a_rank_that_hangs_or_dies_ends_the_run_within_seconds() {
                 json["failed"]["lost"]["pixels"].as_u64() > Some(0),
                 "{json}"
             );
+        } else {
+            // A dead rank: `mpirun` ended every process at once. The report written before
+            // the view says which views finished (none) and which was cut short.
+            let json = read_report(&report);
+            assert_eq!(json["views"], serde_json::json!([]), "{json}");
+            assert_eq!(json["failed"]["view"], "paper", "{json}");
+            assert_eq!(
+                json["failed"]["error"], "the run ended before this view was finished",
+                "{json}"
+            );
         }
+        std::fs::remove_file(&report).expect("a report");
         assert!(
             !Path::new(&out_dir).join("molecule-paper.png").exists(),
             "{hook}: no image from a failed run"
