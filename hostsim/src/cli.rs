@@ -774,7 +774,8 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             for (job, v, machine) in plan {
                 // Written before each view: a process ended during it (a rank's death ends an
                 // MPI job at once) leaves a report of the views finished and the one cut short.
-                if let Some(path) = &report {
+                // A FIFO or device gets the final report only.
+                if let Some(path) = report.as_ref().filter(|p| crate::output::rewritable(p)) {
                     Report {
                         scene: &name,
                         views: &views,

@@ -96,6 +96,12 @@ pub fn check_writable(path: &Path) -> Result<(), WriteError> {
         })
 }
 
+/// Whether `path` is (or will be) a regular file, which may be written more than once: a
+/// device or FIFO takes one write, by its reader's count.
+pub fn rewritable(path: &Path) -> bool {
+    matches!(target(path), Ok(Target::File(_)))
+}
+
 /// Write `bytes` to `path`: a regular file through a temporary sibling and a rename; a
 /// device or FIFO in place; through a symlink to its target.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
