@@ -44,6 +44,42 @@ fn mpirun(ranks: u32, flags: &[&str], args: &[&str]) -> std::process::Output {
         .expect("mpirun runs (install Open MPI)")
 }
 
+/// Render `common` (a render command line) on MPI with `flags` for `mpirun`, each of `faults`
+/// as a `--stop-node` and `--lost-after 1`, then on the simulator without faults: `mpirun`'s
+/// output, the MPI run's report, and whether the two runs' images are the same.
+fn faulty_and_fault_free(
+    dir: &Path,
+    common: &[&str],
+    flags: &[&str],
+    faults: &[&str],
+) -> (std::process::Output, serde_json::Value, bool) {
+    let report = dir.join("mpi.json");
+    let report_arg = report.display().to_string();
+    let out_dir = dir.join("mpi").display().to_string();
+    let mut args = common.to_vec();
+    args.extend(["--fabric", "mpi", "--lost-after", "1", "-o", &out_dir]);
+    args.extend(["--report", &report_arg]);
+    for fault in faults {
+        args.extend(["--stop-node", fault]);
+    }
+    let out = mpirun(9, flags, &args);
+    if !out.status.success() {
+        return (out, serde_json::Value::Null, false);
+    }
+    let sim_report = dir.join("sim.json");
+    let sim = Command::new(env!("CARGO_BIN_EXE_voxcube"))
+        .args(common)
+        .args(["--fabric", "sim", "-o"])
+        .arg(dir.join("sim"))
+        .arg("--report")
+        .arg(&sim_report)
+        .output()
+        .expect("sim runs");
+    assert!(sim.status.success());
+    let same = sha_of(&report) == sha_of(&sim_report);
+    (out, read_report(&report), same)
+}
+
 fn scenes() -> Vec<String> {
     let mut s = vec![String::new()];
     let sod = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/sod.toml");
@@ -253,22 +289,7 @@ fn a_hung_or_dead_rank_s_rows_are_re_traced_by_the_other_cluster() {
             common.insert(1, &scene);
         }
         common.extend(extra);
-        let report = dir.path().join("mpi.json").display().to_string();
-        let out_dir = dir.path().join("mpi").display().to_string();
-        let mut args = common.clone();
-        args.extend([
-            "--fabric",
-            "mpi",
-            "--lost-after",
-            "1",
-            "-o",
-            &out_dir,
-            "--report",
-            &report,
-            "--stop-node",
-            hook,
-        ]);
-        let out = mpirun(9, flags, &args);
+        let (out, json, same) = faulty_and_fault_free(dir.path(), &common, flags, &[hook]);
         let err = String::from_utf8_lossy(&out.stderr);
         // Without recovery the host aborts the job (the hung rank never finalises); with it,
         // the host fences the lost rank and every rank exits.
@@ -282,19 +303,7 @@ fn a_hung_or_dead_rank_s_rows_are_re_traced_by_the_other_cluster() {
             "{scene} {hook} {flags:?}: {:?} {err}",
             out.status
         );
-
-        let sim_report = dir.path().join("sim.json");
-        let sim = Command::new(env!("CARGO_BIN_EXE_voxcube"))
-            .args(&common)
-            .args(["--fabric", "sim", "-o"])
-            .arg(dir.path().join("sim"))
-            .arg("--report")
-            .arg(&sim_report)
-            .output()
-            .expect("sim runs");
-        assert!(sim.status.success());
-        assert_eq!(sha_of(Path::new(&report)), sha_of(&sim_report), "{scene}");
-        let json = read_report(Path::new(&report));
+        assert!(same, "{scene}: the images differ from the simulator's");
         for v in json["views"].as_array().expect("views") {
             assert_eq!(v["recovery"]["node"], 5, "{scene}: {v}");
             assert_eq!(v["recovery"]["by"], serde_json::json!([0]), "{scene}");
@@ -369,38 +378,11 @@ fn scenes_with_data() -> Vec<String> {
 fn a_rank_lost_during_the_re_trace_takes_its_cluster_out_and_the_rest_finish() {
     let dir = tempfile::tempdir().expect("tempdir");
     let common = ["render", "--nodes", "8", "--clusters", "4", "-q"];
-    let sim_report = dir.path().join("sim.json");
-    let sim = Command::new(env!("CARGO_BIN_EXE_voxcube"))
-        .args(common)
-        .args(["--fabric", "sim", "-o"])
-        .arg(dir.path().join("sim"))
-        .arg("--report")
-        .arg(&sim_report)
-        .output()
-        .expect("sim runs");
-    assert!(sim.status.success());
-    let report = dir.path().join("mpi.json").display().to_string();
-    let out_dir = dir.path().join("mpi").display().to_string();
-    let mut args = common.to_vec();
-    args.extend([
-        "--fabric",
-        "mpi",
-        "--lost-after",
-        "1",
-        "-o",
-        &out_dir,
-        "--report",
-        &report,
-        "--stop-node",
-        "3@40",
-        "--stop-node",
-        "0@5",
-    ]);
-    let out = mpirun(9, &[], &args);
+    let faults = ["3@40", "0@5"];
+    let (out, json, same) = faulty_and_fault_free(dir.path(), &common, &[], &faults);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{:?} {err}", out.status);
-    assert_eq!(sha_of(Path::new(&report)), sha_of(&sim_report));
-    let json = read_report(Path::new(&report));
+    assert!(same, "the images differ from the simulator's");
     let recovery = &json["views"][0]["recovery"];
     assert_eq!(recovery["node"], 3, "{recovery}");
     assert_eq!(recovery["also_lost"], serde_json::json!([0]), "{recovery}");

@@ -13,6 +13,17 @@ fn default_scene() -> Vec<DatasetJob> {
         .expect("default scene")
 }
 
+/// The fault-free image of `view`, rendered on one node.
+fn fault_free(job: &DatasetJob, view: &voxcube_kernel::trace::view::View) -> Vec<[u8; 4]> {
+    sim::run(
+        &job.volume,
+        view,
+        &RunConfig::machine(1, 1, 1).expect("one"),
+    )
+    .expect("fault-free run")
+    .pixels
+}
+
 #[test]
 fn a_node_that_stops_in_the_only_cluster_is_named_with_the_pixels_lost() {
     let jobs = default_scene();
@@ -90,13 +101,7 @@ fn on_threads_a_silent_node_is_declared_lost_and_its_rows_re_traced() {
     let jobs = default_scene();
     let job = &jobs[0];
     let view = &job.views[0].view;
-    let reference = sim::run(
-        &job.volume,
-        view,
-        &RunConfig::machine(1, 1, 1).expect("one"),
-    )
-    .expect("fault-free run")
-    .pixels;
+    let reference = fault_free(job, view);
     for (clusters, size, node, after) in [
         (2u32, 4u32, 5u16, 50u64),
         (4, 1, 3, 400),
@@ -212,13 +217,7 @@ fn a_node_lost_during_the_re_trace_takes_its_cluster_out_and_the_rest_finish() {
     let jobs = default_scene();
     let job = &jobs[0];
     let view = &job.views[0].view;
-    let reference = sim::run(
-        &job.volume,
-        view,
-        &RunConfig::machine(1, 1, 1).expect("one"),
-    )
-    .expect("fault-free run")
-    .pixels;
+    let reference = fault_free(job, view);
     // Node 3 (cluster 1) stops in the frame, node 0 (cluster 0) early in the re-trace.
     let faulty = |clusters| {
         let mut cfg = RunConfig::machine(clusters, 2, 5).expect("layout");

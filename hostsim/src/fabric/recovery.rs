@@ -136,6 +136,17 @@ impl Completed {
     }
 }
 
+/// What a re-trace that lost its node `node` (a node of the re-trace's machine) returns:
+/// [`complete`] takes that node's cluster out and re-traces again.
+pub fn lost_in_retrace(node: u16) -> RunError {
+    RunError::Lost {
+        node,
+        waiting: 0,
+        missing: 0,
+        rows: String::new(),
+    }
+}
+
 /// A re-trace on a fabric: given the surviving clusters' configuration and which of the
 /// machine's clusters they are, run it to its end.
 pub type Retrace<'a> = dyn Fn(&RunConfig, &[u16]) -> Result<Retraced, RunError> + 'a;

@@ -244,14 +244,7 @@ fn run_typed<T: Sample + Send + Sync>(
                     progress(already + n)
                 })?;
                 if let Some(lost) = again.lost {
-                    // A node of the re-trace was lost: `recovery::complete` takes its
-                    // cluster out.
-                    return Err(RunError::Lost {
-                        node: lost.node,
-                        waiting: 0,
-                        missing: 0,
-                        rows: String::new(),
-                    });
+                    return Err(recovery::lost_in_retrace(lost.node));
                 }
                 Ok(Retraced {
                     host: again.host,

@@ -163,13 +163,7 @@ fn simulate<T: Sample + Sync>(
     let mut sim = Sim::new(&plan, plan.workers(&storage, cfg)?, cfg);
     sim.run(progress)?;
     if let Some(lost) = sim.lost {
-        // A node of the re-trace was lost: `recovery::complete` takes its cluster out.
-        return Err(RunError::Lost {
-            node: lost.node,
-            waiting: 0,
-            missing: 0,
-            rows: String::new(),
-        });
+        return Err(recovery::lost_in_retrace(lost.node));
     }
     Ok(Retraced {
         host: sim.host,
