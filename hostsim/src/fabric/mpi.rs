@@ -376,15 +376,6 @@ static LOST: Mutex<Vec<u16>> = Mutex::new(Vec::new());
 /// written by then, whatever `mpirun` does next.
 pub const ENDING: &str = "voxcube: every output is written; a node was lost, so the host ends the job (MPI_Abort, status 0)";
 
-/// Whether a node was lost during this run: the host must then end the job itself (a hung
-/// rank never finalises).
-pub fn any_lost() -> bool {
-    !LOST
-        .lock()
-        .unwrap_or_else(PoisonError::into_inner)
-        .is_empty()
-}
-
 /// Each rank's process, by rank, as the host learnt it at start-up: its pid and a hash of its
 /// machine's name. The host fences a lost rank with it.
 static PROCESSES: Mutex<Vec<Process>> = Mutex::new(Vec::new());
@@ -474,7 +465,7 @@ pub fn end(world: &SimpleCommunicator, patience: Duration) {
             .for_each(|&rank| send_start(world, rank, Start::Exit));
         let deadline = Instant::now() + patience;
         for &rank in &live {
-            while running(rank) == Some(true) && Instant::now() < deadline {
+            while matches!(running(rank), Some(Some(_))) && Instant::now() < deadline {
                 std::thread::sleep(Duration::from_millis(10));
             }
             fence(rank, "did not exit when told");
@@ -492,16 +483,18 @@ fn recovery_enabled() -> bool {
     std::env::var("OMPI_MCA_orte_enable_recovery").is_ok_and(|v| v == "1" || v == "true")
 }
 
-/// Whether rank `rank`'s process still runs: `None` when the host cannot tell (it runs on
-/// another machine). A pid whose executable is not this one's is gone (its number reused).
-fn running(rank: i32) -> Option<bool> {
+/// Rank `rank`'s process, if it still runs: its pid; `None` when the host cannot tell (it
+/// runs on another machine). A pid whose executable is not this one's is gone (its number
+/// reused).
+fn running(rank: i32) -> Option<Option<u32>> {
     let processes = PROCESSES.lock().unwrap_or_else(PoisonError::into_inner);
     let (me, other) = (processes.first()?, processes.get(rank as usize)?);
     if other.machine != me.machine {
         return None;
     }
     let exe = |pid: u32| std::fs::read_link(format!("/proc/{pid}/exe")).ok();
-    Some(exe(other.pid).is_some() && exe(other.pid) == exe(me.pid))
+    let runs = exe(other.pid).is_some() && exe(other.pid) == exe(me.pid);
+    Some(runs.then_some(other.pid))
 }
 
 /// Make sure rank `rank` runs no more: kill its process if it still runs; `false` when the
@@ -509,13 +502,8 @@ fn running(rank: i32) -> Option<bool> {
 fn fence(rank: i32, why: &str) -> bool {
     match running(rank) {
         None => false,
-        Some(false) => true,
-        Some(true) => {
-            let pid = PROCESSES
-                .lock()
-                .unwrap_or_else(PoisonError::into_inner)
-                .get(rank as usize)
-                .map_or(0, |p| p.pid);
+        Some(None) => true,
+        Some(Some(pid)) => {
             let Some(id) = rustix::process::Pid::from_raw(pid as i32) else {
                 return false;
             };
@@ -799,9 +787,9 @@ pub fn host(
             // The phase's node `n` runs on rank `ranks[n]`, which runs node `rank - 1` of the
             // configured machine: LOST keeps those.
             let configured = |n: u16| ranks.get(usize::from(n)).map(|&rank| (rank - 1) as u16);
-            let mut lost_list = LOST.lock().unwrap_or_else(PoisonError::into_inner);
-            lost_list.extend(configured(lost.node));
-            drop(lost_list);
+            LOST.lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .extend(configured(lost.node));
             let retrace = |survivors_cfg: &RunConfig, survivors: &[u16]| {
                 let by_node = ranks_of(run_cfg.layout, survivors_cfg.layout, survivors, &ranks);
                 let plan = Plan::new(&grid, view, survivors_cfg)?;
@@ -809,16 +797,11 @@ pub fn host(
                 let tag = phase_tag(EPOCH.fetch_add(1, Ordering::Relaxed));
                 let again = run_phase(world, &plan, survivors_cfg, &by_node, tag)?;
                 if let Some(also) = again.lost {
-                    let rank = by_node.get(usize::from(also.node)).copied().unwrap_or(0);
+                    let rank = by_node.get(usize::from(also.node));
                     LOST.lock()
                         .unwrap_or_else(PoisonError::into_inner)
-                        .push((rank - 1) as u16);
-                    return Err(RunError::Lost {
-                        node: also.node,
-                        waiting: 0,
-                        missing: again.host.missing(),
-                        rows: again.host.missing_rows(),
-                    });
+                        .extend(rank.map(|&rank| (rank - 1) as u16));
+                    return Err(recovery::lost_in_retrace(also.node));
                 }
                 Ok(Retraced {
                     host: again.host,

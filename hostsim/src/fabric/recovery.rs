@@ -119,8 +119,6 @@ impl Completed {
                     *part += more;
                 }
             }
-        }
-        for (r, &n) in self.retracers.iter().enumerate() {
             if let (Some(spans), Some(more)) =
                 (time.timeline.get_mut(usize::from(n)), again.timeline.get(r))
             {
@@ -223,12 +221,7 @@ pub fn complete(
         let machine = Layout::new(survivors.len() as u32, u32::from(layout.size()))
             .map_err(|e| RunError::Host(format!("the surviving clusters: {e}")))?
             .with_rows(Rows::new(first, own.step()));
-        // A node of the re-trace's machine is the node at its ring position of a surviving
-        // cluster.
-        let node_of = |r: u16| {
-            let (k, position) = machine.place(r);
-            layout.node(survivors[usize::from(k)], position)
-        };
+        let node_of = |r| retracer(layout, machine, &survivors, r);
         let stop = second.take().and_then(|(node, after)| {
             let r = (0..machine.nodes() as u16).find(|&r| node_of(r) == node)?;
             Some((r, after))
@@ -269,10 +262,8 @@ pub fn complete(
                 (_, None) => {}
             }
         }
-        // Each re-tracing node is the node at its ring position of a surviving cluster.
         for (r, report) in reports.into_iter().enumerate() {
-            let (k, position) = machine.place(r as u16);
-            let node = layout.node(survivors[usize::from(k)], position);
+            let node = retracer(layout, machine, &survivors, r as u16);
             done.retracers.push(node);
             let node = usize::from(node);
             if let (Some(report), Some(total)) = (report, stats.get_mut(node)) {
@@ -297,6 +288,13 @@ pub fn complete(
     done.image = image.into_iter().map(Option::unwrap_or_default).collect();
     done.stats = stats;
     Ok(done)
+}
+
+/// The node of `layout` that node `r` of the re-trace's `machine` is: the node at its ring
+/// position of surviving cluster `survivors[k]`, for `r` in `machine`'s cluster `k`.
+fn retracer(layout: Layout, machine: Layout, survivors: &[u16], r: u16) -> u16 {
+    let (k, position) = machine.place(r);
+    layout.node(survivors[usize::from(k)], position)
 }
 
 /// `total` with `more`'s work and traffic added: one node's statistics over two runs.
