@@ -28,7 +28,9 @@ pub struct Costs {
     /// One crossing test: one taken sample against one surface (Voxel_Sample's threshold
     /// search runs it for every sample, crossing or not).
     pub crossing: f64,
-    /// Setting up one primary ray.
+    /// Setting up one primary ray and testing it for its first slab, on every node that does
+    /// ([`voxcube_kernel::counters::Counters::rays_set_up`]): without row leaps, every node
+    /// of a ring for every pixel of its cluster's rows, the paper's distributed generation.
     pub ray_setup: f64,
 }
 
@@ -169,19 +171,21 @@ impl MachineProfile {
 
     /// Unscaled seconds of the tracer's compute for counted work `c` of a view searching
     /// `surfaces` iso-surfaces (0 for a composited view), as the paper's Table 4 splits it:
-    /// interpolation, tracing (stepping and ray set-up), and sample-and-shade (a crossing test
-    /// per taken sample and surface, refinement, gradients, shading). Multiply by `scale` for
-    /// machine time.
-    pub fn compute(&self, c: &voxcube_kernel::counters::Counters, surfaces: u32) -> [f64; 3] {
+    /// interpolation, tracing (stepping), sample-and-shade (a crossing test per taken sample
+    /// and surface, refinement, gradients, shading), and generation (setting up primary rays
+    /// to find where they start, which the paper's table does not list).
+    /// Multiply by `scale` for machine time.
+    pub fn compute(&self, c: &voxcube_kernel::counters::Counters, surfaces: u32) -> [f64; 4] {
         let k = &self.costs;
         let n = |v: u64| v as f64;
         [
             n(c.interpolations) * k.interpolation + n(c.lookups) * k.lookup,
-            n(c.samples) * k.sample + n(c.primary_rays) * k.ray_setup,
+            n(c.samples) * k.sample,
             n(c.refinements) * k.refinement
                 + n(c.gradients) * k.gradient
                 + n(c.shadings) * k.shading
                 + n(c.samples) * f64::from(surfaces) * k.crossing,
+            n(c.rays_set_up) * k.ray_setup,
         ]
     }
 
@@ -259,8 +263,8 @@ mod tests {
             crossings: 3,
             ..Default::default()
         };
-        let [_, _, none] = p.compute(&c, 0);
-        let [_, _, two] = p.compute(&c, 2);
+        let [_, _, none, _] = p.compute(&c, 0);
+        let [_, _, two, _] = p.compute(&c, 2);
         assert_eq!(
             none, 0.0,
             "crossings found cost nothing beyond their refinement"

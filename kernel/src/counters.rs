@@ -8,6 +8,11 @@
 pub struct Counters {
     /// Primary rays that entered the volume's box.
     pub primary_rays: u64,
+    /// Primary rays set up (camera ray, box clip, first sample) to find whether and where
+    /// they start: on every node that walks the pixel, whether the ray is its own, another
+    /// slab's or a miss, as the paper's distributed generation does on every node of a ring.
+    /// Pixels passed over by row leaps or runs of certain misses set up none.
+    pub rays_set_up: u64,
     /// Transparency rays: continuations past a semi-transparent surface.
     pub transparency_rays: u64,
     /// Shadow rays toward shadow-casting lights.
@@ -49,10 +54,11 @@ impl Counters {
     }
 
     /// Every counter, in one fixed order (the order of the statistics message).
-    pub(crate) fn fields(&self) -> [u64; 15] {
+    pub(crate) fn fields(&self) -> [u64; 16] {
         let c = *self;
         [
             c.primary_rays,
+            c.rays_set_up,
             c.transparency_rays,
             c.shadow_rays,
             c.samples,
@@ -71,9 +77,10 @@ impl Counters {
     }
 
     /// Every counter, mutably, in the order of [`Counters::fields`].
-    pub(crate) fn fields_mut(&mut self) -> [&mut u64; 15] {
+    pub(crate) fn fields_mut(&mut self) -> [&mut u64; 16] {
         [
             &mut self.primary_rays,
+            &mut self.rays_set_up,
             &mut self.transparency_rays,
             &mut self.shadow_rays,
             &mut self.samples,

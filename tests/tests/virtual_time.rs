@@ -98,3 +98,43 @@ fn static_load_balancing_lowers_the_time_of_an_unbalanced_cluster() {
         "balanced {balanced:.2} s (cuts {cuts:?}) against uniform {uniform:.2} s"
     );
 }
+
+#[test]
+fn without_row_leaps_every_node_of_a_ring_sets_up_every_pixel_s_ray_once() {
+    // The paper's distributed generation, which Table 2's large clusters pay for: a ring of
+    // `size` sets up each primary ray `size` times, once on each node, however often a node
+    // that could not start a ray yet sets it up again. Row leaps pass most of those a node
+    // does not own (the control: far fewer set-ups, the same image).
+    let jobs = Scene::default_scene()
+        .and_then(Scene::load)
+        .expect("default scene");
+    let job = &jobs[0];
+    let v = &job.views[0].view;
+    let pixels = v.pixel_count();
+    let run = |size: u32, skipping: SkipMode| {
+        let cfg = RunConfig {
+            skipping,
+            ..RunConfig::machine(2, size, 1).expect("layout")
+        };
+        sim::run(&job.volume, v, &cfg).expect("runs")
+    };
+    let direct = render(&job.volume, v).expect("renders");
+    for size in [1, 2, 4] {
+        let off = run(size, SkipMode::OFF);
+        assert_eq!(
+            off.counters().rays_set_up,
+            u64::from(size) * pixels,
+            "{size} nodes a ring"
+        );
+        if size > 1 {
+            let leaps = run(size, SkipMode::ALL);
+            assert!(leaps.pixels == off.pixels && off.pixels == direct.pixels);
+            assert!(
+                leaps.counters().rays_set_up < off.counters().rays_set_up / 2,
+                "row leaps set up {} rays, without them {}",
+                leaps.counters().rays_set_up,
+                off.counters().rays_set_up
+            );
+        }
+    }
+}

@@ -578,13 +578,14 @@ pub fn run(
             v.iter().copied().fold(0.0, f64::max),
         )
     };
-    let shares: [(&str, Pick); 7] = [
+    let shares: [(&str, Pick); 8] = [
         ("ntest", |p| p[Category::Test as usize]),
         ("Interpolate", |p| p[Category::Interpolate as usize]),
         ("Trace", |p| p[Category::Trace as usize]),
         ("Voxel_Sample", |p| p[Category::SampleShade as usize]),
         ("nread", |p| p[Category::Read as usize]),
         ("nwrite", |p| p[Category::Write as usize]),
+        ("generate", |p| p[Category::Generate as usize]),
         ("idle", |p| p[Category::Idle as usize]),
     ];
     for (name, f) in shares.iter() {

@@ -134,10 +134,13 @@ pub enum Category {
     Test,
     /// Interpolating the field (`Interpolate`).
     Interpolate,
-    /// Stepping along rays and setting them up (`Trace`).
+    /// Stepping along rays (`Trace`).
     Trace,
     /// Finding and refining crossings, gradients and shading (`Voxel_Sample`).
     SampleShade,
+    /// Setting up every pixel's primary ray and testing it for its first slab, on every node
+    /// of its ring (the paper's distributed generation; not among its Table 4's routines).
+    Generate,
     /// Reading messages (`nread`).
     Read,
     /// Writing messages (`nwrite`).
@@ -148,13 +151,14 @@ pub enum Category {
 
 impl Category {
     /// Number of categories.
-    pub const COUNT: usize = 7;
+    pub const COUNT: usize = 8;
     /// All, in order.
-    pub const ALL: [Category; 7] = [
+    pub const ALL: [Category; 8] = [
         Category::Test,
         Category::Interpolate,
         Category::Trace,
         Category::SampleShade,
+        Category::Generate,
         Category::Read,
         Category::Write,
         Category::Idle,
@@ -165,7 +169,7 @@ impl Category {
     pub fn is_compute(self) -> bool {
         matches!(
             self,
-            Category::Interpolate | Category::Trace | Category::SampleShade
+            Category::Interpolate | Category::Trace | Category::SampleShade | Category::Generate
         )
     }
 
@@ -176,6 +180,7 @@ impl Category {
             Category::Interpolate => "Interpolate",
             Category::Trace => "Trace",
             Category::SampleShade => "Voxel_Sample",
+            Category::Generate => "generate",
             Category::Read => "nread",
             Category::Write => "nwrite",
             Category::Idle => "idle",

@@ -40,7 +40,7 @@ const PIXELS_LEN: usize = 1 + 8 * PIXELS_PER_SET;
 const STATS_LEN: usize = 2 + 8 * COUNTER_FIELDS + 8 * 4 + 8 * KINDS + 8 + 8 * 5;
 /// Number of message kinds.
 pub const KINDS: usize = 9;
-pub(crate) const COUNTER_FIELDS: usize = 15;
+pub(crate) const COUNTER_FIELDS: usize = 16;
 const PLANES_LEN: usize = 4 + 4 + 2 + PLANE_CHUNK;
 
 /// The longest encoded message.

@@ -268,6 +268,10 @@ pub struct Worker<
     /// Ring position 0 only: the pixels from the cursor up to here (in its row) certainly
     /// miss, so it sends their background without setting up their rays.
     misses_until: u64,
+    /// The pixels below this one have had their rays' set-up counted: a ray that could not
+    /// start yet is set up again on the next poll, but the paper's program held it, so the
+    /// count (which prices the generation) takes each pixel once.
+    set_up_through: u64,
     cluster_pixels: u64,
     pending_up: Deque<Travel, PENDING>,
     pending_down: Deque<Travel, PENDING>,
@@ -381,6 +385,7 @@ impl<
             rays_per_poll,
             cursor: 0,
             misses_until: 0,
+            set_up_through: 0,
             cluster_pixels,
             pending_up: Deque::new(),
             pending_down: Deque::new(),
@@ -458,6 +463,7 @@ impl<
             rays_per_poll: _,
             cursor,
             misses_until,
+            set_up_through: _,
             cluster_pixels,
             pending_up,
             pending_down,
@@ -1115,6 +1121,10 @@ impl<
                 }
                 return true;
             }
+            if n >= self.set_up_through {
+                self.stats.counters.rays_set_up += 1;
+                self.set_up_through = n + 1;
+            }
             let Some(ray) = self.view.primary_ray(pixel) else {
                 // The pixels after a miss that certainly miss too are no position's rays.
                 let run_end = (n + 1 + u64::from(self.view.misses_after(pixel))).min(row_end);
@@ -1167,6 +1177,8 @@ impl<
                     // Not this position's ray: pass over the pixels along the row that are
                     // certainly not this position's either (and, at position 0, which sends
                     // the background of those that miss, certainly hit).
+                    // Probing a pixel ahead sets up its ray too: counted with the rest.
+                    let probes = core::cell::Cell::new(0u64);
                     let passed = match self.view.row_leaps() {
                         Some(leaps) => starts::passable(
                             leaps,
@@ -1175,10 +1187,14 @@ impl<
                             starts::Claim::of(self.slab.owned(), self.slab.grid(), spec.model),
                             u32::try_from(row_end - n - 1).unwrap_or(u32::MAX),
                             generator,
-                            |k| self.view.primary_ray(pixel + k).map(|far| far.lattice),
+                            |k| {
+                                probes.set(probes.get() + 1);
+                                self.view.primary_ray(pixel + k).map(|far| far.lattice)
+                            },
                         ),
                         None => 0,
                     };
+                    self.stats.counters.rays_set_up += probes.get();
                     self.cursor = n
                         .saturating_add(1)
                         .saturating_add(u64::from(passed))

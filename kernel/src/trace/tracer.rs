@@ -25,6 +25,7 @@ pub fn trace_pixel<T: Sample>(
     pixel: u32,
     counters: &mut Counters,
 ) -> Vec3 {
+    counters.rays_set_up += 1;
     match view.primary_ray(pixel) {
         Some(ray) => trace_primary(view, slab, ray, counters),
         None => view.spec().background,
@@ -179,6 +180,7 @@ impl<T: Sample> Iterator for Pixels<'_, '_, T> {
         if pixel < self.misses_until {
             return Some(background);
         }
+        self.counters.rays_set_up += 1;
         Some(match self.view.primary_ray(pixel) {
             Some(ray) => trace_primary(self.view, self.slab, ray, self.counters),
             None => {

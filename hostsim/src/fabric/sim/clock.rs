@@ -96,12 +96,14 @@ impl Clock {
         sent: &mut [Envelope],
     ) {
         let (m, scale) = (self.messages, self.profile.scale);
-        let [interpolate, trace, shade] = self.profile.compute(&after.since(before), self.surfaces);
+        let [interpolate, trace, shade, generate] =
+            self.profile.compute(&after.since(before), self.surfaces);
         let mut parts = [0.0; Category::COUNT];
         parts[Category::Test as usize] = m.test + m.test_per_pending * pending as f64;
         parts[Category::Interpolate as usize] = interpolate;
         parts[Category::Trace as usize] = trace;
         parts[Category::SampleShade as usize] = shade;
+        parts[Category::Generate as usize] = generate;
         parts[Category::Read as usize] = received as f64 * m.read;
         parts[Category::Write as usize] = sent.len() as f64 * m.write;
         let mut spent = 0.0;
