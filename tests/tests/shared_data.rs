@@ -5,7 +5,6 @@
 use std::path::{Path, PathBuf};
 use voxcube::render::render;
 use voxcube::scene::Scene;
-use voxcube::storage::SkipMode;
 
 fn data_or_skip() -> Option<PathBuf> {
     let dir = voxcube_tests::shared_data();
@@ -163,35 +162,65 @@ fn the_experiments_take_sod_as_its_folder_or_its_file() {
     assert!(notes.is_empty(), "{notes}");
 }
 
-#[test]
-fn the_fitted_ncube2_profile_keeps_the_papers_one_node_time_within_five_percent() {
-    use voxcube::fabric::sim;
-    use voxcube::fabric::RunConfig;
-    use voxcube::profile::MachineProfile;
-    let Some(data) = data_or_skip() else { return };
+/// Table 1 under `profile`: the one node (the sequential tracer) and each node count in the
+/// cluster size that wins it, seconds.
+fn table_1(profile: &voxcube::profile::MachineProfile) -> Vec<(u32, f64)> {
+    use voxcube::experiments::paper::{dataset, sequential, timed, Source, TABLE1};
     let mut notes = String::new();
-    let job = voxcube::experiments::paper::dataset(
-        voxcube::experiments::paper::Source::Sod(&data),
-        &mut notes,
-    )
-    .expect("SOD");
+    let job = dataset(Source::Sod(&voxcube_tests::shared_data()), &mut notes).expect("SOD");
     assert!(notes.is_empty(), "{notes}");
-    // The paper's tracer, without empty-space skipping.
-    let cfg = RunConfig {
-        time: Some(MachineProfile::ncube2()),
-        skipping: SkipMode::OFF,
-        ..RunConfig::cluster(1, 1).expect("layout")
-    };
-    let t = sim::run(&job.volume, &job.views[0].view, &cfg)
-        .expect("runs")
-        .time
-        .expect("timed");
-    // The constants are fitted on all of Table 1, which this row alone does not pin: the fit
-    // leaves it 3.3% slow (docs/results.md), and the long mode checks the fit itself.
+    let view = &job.views[0].view;
+    TABLE1
+        .iter()
+        .map(|&(p, _)| {
+            let t = match p {
+                1 => sequential(&job, view, profile).expect("renders"),
+                // The winning sizes (`voxcube paper` tries every one): pure image partition
+                // up to 64 nodes, pairs at 128.
+                128 => timed(&job, view, profile, 64, 2, None).expect("runs").frame,
+                _ => timed(&job, view, profile, p, 1, None).expect("runs").frame,
+            };
+            (p, t)
+        })
+        .collect()
+}
+
+#[test]
+fn table_1_is_fitted_within_five_percent_and_its_efficiency_to_64_nodes_within_005() {
+    use voxcube::experiments::paper::TABLE1;
+    use voxcube::profile::MachineProfile;
+    let Some(_) = data_or_skip() else { return };
+    let efficiency =
+        |rows: &[(u32, f64)], at: usize| rows[0].1 / rows[at].1 / f64::from(rows[at].0);
+    let shipped = MachineProfile::ncube2();
+    let ours = table_1(&shipped);
+    for (at, (&(p, t), &(_, paper))) in ours.iter().zip(&TABLE1).enumerate() {
+        // 128 nodes is the one row the model misses (+19%, efficiency 0.59 against 0.74:
+        // docs/results.md says why); the fit weighs it like any other.
+        if p == 128 {
+            continue;
+        }
+        assert!(
+            (t / paper - 1.0).abs() < 0.05,
+            "{p} nodes take {t:.2} s; the paper's {paper:.2} s"
+        );
+        let (e, theirs) = (efficiency(&ours, at), efficiency(&TABLE1, at));
+        assert!(
+            (e - theirs).abs() <= 0.05,
+            "{p} nodes: efficiency {e:.3}, the paper's {theirs:.3}"
+        );
+    }
+    // Negative control: price the one node as a worker, a slab test on every sample as the
+    // workers do, and the paper's 7% loss from one node to two is gone: efficiency 1.00
+    // where the paper has 0.93.
+    let mut worker = shipped.clone();
+    worker.costs.sample += worker.costs.slab_test;
+    worker.costs.slab_test = 0.0;
+    let rows = table_1(&worker);
+    let e = efficiency(&rows, 1);
     assert!(
-        (t.frame - 485.24).abs() < 0.05 * 485.24,
-        "1-node SOD takes {:.2} s; the paper's is 485.24 s",
-        t.frame
+        e - efficiency(&TABLE1, 1) > 0.05,
+        "a one-node worker: 2 nodes at efficiency {e:.3}"
     );
 }
 

@@ -72,11 +72,11 @@ pub fn ssim(a: &[[u8; 4]], b: &[[u8; 4]], width: u32, height: u32) -> f64 {
     }
 }
 
-/// Simulated 1-node seconds of `view`'s counted work on `profile` (compute, scaled; no
-/// messages).
+/// Simulated 1-node seconds of `view`'s counted work on `profile`: the sequential tracer's
+/// ([`MachineProfile::sequential`], scaled; no messages).
 pub fn one_node_seconds(c: &Counters, view: &View, profile: &MachineProfile) -> f64 {
     let surfaces = MachineProfile::searched_surfaces(view);
-    profile.compute(c, surfaces).iter().sum::<f64>() * profile.scale
+    profile.sequential(c, surfaces).iter().sum::<f64>() * profile.scale
 }
 
 /// The 99th percentile, over the pixels of two RGBA8 images of the same size, of each

@@ -7,7 +7,7 @@
 //! finds for each node count); it minimises the sum of squared log-time errors, so a row
 //! 10% slow weighs what a row 10% fast does, whatever its size.
 
-use super::paper::{timed, PaperError};
+use super::paper::{sequential, timed, PaperError};
 use crate::profile::MachineProfile;
 use crate::scene::DatasetJob;
 use std::collections::BTreeMap;
@@ -20,8 +20,8 @@ pub const SIZES: [u32; 5] = [1, 2, 4, 8, 16];
 type Timed = Result<((u32, u32), f64), PaperError>;
 
 /// Frame seconds of every shape `(nodes, cluster size)` with `nodes` in `node_counts` and a
-/// size of [`SIZES`] dividing it, each run as [`timed`] runs the paper's; the runs shared over
-/// this machine's cores.
+/// size of [`SIZES`] dividing it, each run as [`timed`] runs the paper's, but one node, the
+/// paper's sequential tracer ([`sequential`]); the runs shared over this machine's cores.
 pub fn shapes(
     job: &DatasetJob,
     view: &View,
@@ -47,7 +47,11 @@ pub fn shapes(
                         .skip(t)
                         .step_by(threads)
                         .map(|&(p, s)| {
-                            Ok(((p, s), timed(job, view, profile, p / s, s, None)?.frame))
+                            let seconds = match p {
+                                1 => sequential(job, view, profile)?,
+                                _ => timed(job, view, profile, p / s, s, None)?.frame,
+                            };
+                            Ok(((p, s), seconds))
                         })
                         .collect::<Vec<_>>()
                 })
