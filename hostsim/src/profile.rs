@@ -32,6 +32,10 @@ pub struct Costs {
     /// One crossing test: one taken sample against one surface (Voxel_Sample's threshold
     /// search runs it for every sample, crossing or not).
     pub crossing: f64,
+    /// One procedure call and return: the tracer calls its interpolation routine for every
+    /// interpolation and its sample routine for every sample (the paper's Interpolate and
+    /// Voxel_Sample, profiled as routines), each call priced in its routine's line.
+    pub call: f64,
     /// Setting up one primary ray and testing it for its first slab, on every node that does
     /// ([`voxcube_kernel::counters::Counters::rays_set_up`]): without row leaps, every node
     /// of a ring for every pixel of its cluster's rows, the paper's distributed generation.
@@ -149,6 +153,7 @@ impl MachineProfile {
             ("costs.gradient", c.gradient),
             ("costs.shading", c.shading),
             ("costs.crossing", c.crossing),
+            ("costs.call", c.call),
             ("costs.ray_setup", c.ray_setup),
             ("messages.latency", m.latency),
             ("messages.per_byte", m.per_byte),
@@ -202,12 +207,12 @@ impl MachineProfile {
         let k = &self.costs;
         let n = |v: u64| v as f64;
         [
-            n(c.interpolations) * k.interpolation + n(c.lookups) * k.lookup,
+            n(c.interpolations) * (k.interpolation + k.call) + n(c.lookups) * (k.lookup + k.call),
             n(c.samples) * (k.sample + slab_test),
             n(c.refinements) * k.refinement
                 + n(c.gradients) * k.gradient
                 + n(c.shadings) * k.shading
-                + n(c.samples) * f64::from(surfaces) * k.crossing,
+                + n(c.samples) * (f64::from(surfaces) * k.crossing + k.call),
             n(c.rays_set_up) * k.ray_setup,
         ]
     }
@@ -288,11 +293,14 @@ mod tests {
         };
         let [_, _, none, _] = p.compute(&c, 0);
         let [_, _, two, _] = p.compute(&c, 2);
-        assert_eq!(
-            none, 0.0,
-            "crossings found cost nothing beyond their refinement"
+        // Each sample calls the sample routine, surfaces or not; crossings found cost nothing
+        // beyond their refinement.
+        let calls = 1000.0 * p.costs.call;
+        assert!((none - calls).abs() < 1e-15, "{none}");
+        assert!(
+            (two - calls - 2000.0 * p.costs.crossing).abs() < 1e-15,
+            "{two}"
         );
-        assert!((two - 2000.0 * p.costs.crossing).abs() < 1e-15, "{two}");
     }
 
     #[test]
