@@ -138,8 +138,9 @@ pub enum Category {
     Trace,
     /// Finding and refining crossings, gradients and shading (`Voxel_Sample`).
     SampleShade,
-    /// Setting up every pixel's primary ray and testing it for its first slab, on every node
-    /// of its ring (the paper's distributed generation; not among its Table 4's routines).
+    /// Setting up primary rays to find where they start: under the paper's distributed
+    /// generation every node of a ring does it for every pixel (not among its Table 4's
+    /// routines).
     Generate,
     /// Reading messages (`nread`).
     Read,
