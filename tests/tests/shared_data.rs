@@ -258,6 +258,88 @@ fn load_balancing_lowers_every_table_3_time_on_sod() {
             );
         }
     }
+    // Negative control: the same cuts mirrored give the back slabs, which carry the most
+    // work, the most planes, and the ring of 16 is slower than with uniform slabs.
+    let cuts = voxcube::experiments::paper::balance(&job, v, &profile, 16).expect("balances");
+    let last = *cuts.last().expect("cuts");
+    let mirrored: Vec<u32> = cuts.iter().rev().map(|c| last - c).collect();
+    let run = |cuts| {
+        voxcube::experiments::paper::timed(&job, v, &profile, 4, 16, cuts)
+            .expect("runs")
+            .frame
+    };
+    let (standard, worse) = (run(None), run(Some(mirrored.clone())));
+    assert!(
+        worse > standard,
+        "cuts {mirrored:?}: {worse:.2} s against uniform {standard:.2} s"
+    );
+}
+
+#[test]
+fn table_4_ranks_the_papers_routines_and_prices_voxel_sample_per_sample() {
+    // Held out from the fit: one cluster of 16 on the whole view. The five routines that do
+    // the work rank as the paper's, and the four the model prices as the paper counts them
+    // are each within 5 points of its share. (Interpolate is 6 points short and `ntest`
+    // holds none of the waiting, which is `idle` here: docs/results.md says why.)
+    use voxcube::experiments::paper::{table_4, Share, TABLE4};
+    let Some(data) = data_or_skip() else { return };
+    let mut notes = String::new();
+    let job = voxcube::experiments::paper::dataset(
+        voxcube::experiments::paper::Source::Sod(&data),
+        &mut notes,
+    )
+    .expect("SOD");
+    let view = &job.views[0].view;
+    let mean = |shares: &[Share], name: &str| {
+        shares
+            .iter()
+            .find(|s| s.name == name)
+            .map(|s| s.mean)
+            .expect("a line of Table 4")
+    };
+    let paper = |name: &str| {
+        TABLE4
+            .iter()
+            .find(|r| r.0 == name)
+            .map(|r| r.1)
+            .expect("a line of the paper's Table 4")
+    };
+    let shipped = voxcube::profile::MachineProfile::ncube2();
+    let (_, shares) = table_4(&job, view, &shipped).expect("runs");
+    let ranked = ["Interpolate", "Trace", "Voxel_Sample"];
+    for pair in ranked.windows(2) {
+        assert!(
+            mean(&shares, pair[0]) > mean(&shares, pair[1]),
+            "{} {:.2}% against {} {:.2}%",
+            pair[0],
+            mean(&shares, pair[0]),
+            pair[1],
+            mean(&shares, pair[1])
+        );
+    }
+    let messages = mean(&shares, "nread").max(mean(&shares, "nwrite"));
+    assert!(mean(&shares, "Voxel_Sample") > messages, "{shares:?}");
+    let within = |shares: &[Share], name: &str| (mean(shares, name) - paper(name)).abs() <= 5.0;
+    for name in ["Trace", "Voxel_Sample", "nread", "nwrite"] {
+        assert!(
+            within(&shares, name),
+            "{name}: {:.2}% against the paper's {:.2}%",
+            mean(&shares, name),
+            paper(name)
+        );
+    }
+    // Negative control: the crossing test priced per crossing found rather than per sample
+    // tested, and the call per sample not priced (the model before it priced the routines as
+    // the paper's profile counts them): Voxel_Sample falls far under the paper's share.
+    let mut per_crossing = shipped.clone();
+    per_crossing.costs.crossing = 0.0;
+    per_crossing.costs.call = 0.0;
+    let (_, shares) = table_4(&job, view, &per_crossing).expect("runs");
+    assert!(
+        !within(&shares, "Voxel_Sample"),
+        "priced per crossing found, Voxel_Sample takes {:.2}%",
+        mean(&shares, "Voxel_Sample")
+    );
 }
 
 #[test]

@@ -340,8 +340,55 @@ pub fn slab_work(
         .collect())
 }
 
-/// Picks one share out of a node's time by category.
-type Pick = fn(&[f64; Category::COUNT]) -> f64;
+/// One line of Table 4: a category's share of the frame, percent, over the ring's nodes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Share {
+    /// The paper's name for it (`generate` and `idle` are not among the paper's lines).
+    pub name: &'static str,
+    /// Mean over the nodes.
+    pub mean: f64,
+    /// The least node's.
+    pub min: f64,
+    /// The most node's.
+    pub max: f64,
+}
+
+/// Table 4: one cluster of 16 renders the whole view; each category's share of the frame on
+/// its nodes, in the paper's order, then `generate` and `idle`. Also the frame's seconds.
+pub fn table_4(
+    job: &DatasetJob,
+    view: &View,
+    profile: &MachineProfile,
+) -> Result<(f64, Vec<Share>), PaperError> {
+    let sixteen = timed(job, view, profile, 1, 16, None)?;
+    let lines = [
+        ("ntest", Category::Test),
+        ("Interpolate", Category::Interpolate),
+        ("Trace", Category::Trace),
+        ("Voxel_Sample", Category::SampleShade),
+        ("nread", Category::Read),
+        ("nwrite", Category::Write),
+        ("generate", Category::Generate),
+        ("idle", Category::Idle),
+    ];
+    let shares = lines
+        .iter()
+        .map(|&(name, category)| {
+            let v: Vec<f64> = sixteen
+                .parts
+                .iter()
+                .map(|p| 100.0 * p[category as usize] / sixteen.frame)
+                .collect();
+            Share {
+                name,
+                mean: v.iter().sum::<f64>() / v.len().max(1) as f64,
+                min: v.iter().copied().fold(f64::INFINITY, f64::min),
+                max: v.iter().copied().fold(0.0, f64::max),
+            }
+        })
+        .collect();
+    Ok((sixteen.frame, shares))
+}
 
 /// Run every experiment; append the tables to `out`, write plots and the image to `dir`.
 /// With `fit`, the profile's two constants are first fitted on Table 1
@@ -574,44 +621,19 @@ pub fn run(
         spread(&balanced)
     );
     plot_slabs(dir, &uniform, &balanced)?;
-    let sixteen = timed(job, view, profile, 1, 16, None)?;
+    let (frame, shares) = table_4(job, view, profile)?;
     let _ = writeln!(
         out,
-        "\nTable 4 (held out): profile of one 16-node cluster, percent of the frame time ({:.2} s); idle is waiting, apart from ntest",
-        sixteen.frame
+        "\nTable 4 (held out): profile of one 16-node cluster, percent of the frame time ({frame:.2} s); idle is waiting, apart from ntest",
     );
     let _ = writeln!(
         out,
         "{:<13} {:>7} {:>7} {:>7}   {:>7} {:>7} {:>7}",
         "", "mean", "min", "max", "paper", "min", "max"
     );
-    let pct = |f: &dyn Fn(&[f64; Category::COUNT]) -> f64| -> (f64, f64, f64) {
-        let v: Vec<f64> = sixteen
-            .parts
-            .iter()
-            .map(|p| 100.0 * f(p) / sixteen.frame)
-            .collect();
-        let mean = v.iter().sum::<f64>() / v.len() as f64;
-        (
-            mean,
-            v.iter().copied().fold(f64::INFINITY, f64::min),
-            v.iter().copied().fold(0.0, f64::max),
-        )
-    };
-    let shares: [(&str, Pick); 8] = [
-        ("ntest", |p| p[Category::Test as usize]),
-        ("Interpolate", |p| p[Category::Interpolate as usize]),
-        ("Trace", |p| p[Category::Trace as usize]),
-        ("Voxel_Sample", |p| p[Category::SampleShade as usize]),
-        ("nread", |p| p[Category::Read as usize]),
-        ("nwrite", |p| p[Category::Write as usize]),
-        ("generate", |p| p[Category::Generate as usize]),
-        ("idle", |p| p[Category::Idle as usize]),
-    ];
-    for (name, f) in shares.iter() {
-        let (mean, min, max) = pct(f);
-        let paper = TABLE4.iter().find(|r| r.0 == *name);
-        match paper {
+    for share in &shares {
+        let (name, mean, min, max) = (share.name, share.mean, share.min, share.max);
+        match TABLE4.iter().find(|r| r.0 == name) {
             Some((_, pm, pn, px)) => {
                 let _ = writeln!(
                     out,
