@@ -62,6 +62,14 @@ fn binned(spans: &[Span], bins: usize, width: f64) -> Vec<Span> {
     out
 }
 
+/// `seconds` in microseconds on a grid of 1/1024 µs. Viewers end a span at `ts + dur` in
+/// doubles and nest a span that starts before its predecessor's end inside it; on this grid
+/// both sums are exact (to 2^43 µs), so a span that starts where another ends starts exactly
+/// there, never a rounding error inside it.
+fn microseconds(seconds: f64) -> f64 {
+    (seconds * 1e6 * 1024.0).round() / 1024.0
+}
+
 /// The trace of `time`, a run of clusters of `size` nodes: node `n` is a row of the process
 /// of its cluster, `n / size`.
 pub fn chrome_trace(time: &VirtualTime, size: u32) -> Value {
@@ -87,14 +95,18 @@ pub fn chrome_trace(time: &VirtualTime, size: u32) -> Value {
             "args": {"name": format!("node {n}")}}),
         );
         for s in binned(spans, bins, width) {
+            let (ts, end) = (microseconds(s.start), microseconds(s.end));
+            if end <= ts {
+                continue;
+            }
             events.push(json!({
                 "ph": "X",
                 "name": s.kind,
                 "cat": s.kind,
                 "pid": pid,
                 "tid": tid,
-                "ts": s.start * 1e6,
-                "dur": (s.end - s.start) * 1e6,
+                "ts": ts,
+                "dur": end - ts,
             }));
         }
     }
@@ -141,6 +153,27 @@ mod tests {
             .any(|s| s.kind == "idle" && s.start <= 1.0 && s.end >= 3.0));
         for w in out.windows(2) {
             assert!(w[0].end <= w[1].start + 1e-12, "{out:?}");
+        }
+    }
+
+    #[test]
+    fn a_span_starting_where_another_ends_starts_exactly_there_in_microseconds() {
+        // Negative control: scaled alone, a span from 0.1 s to 0.1 s + 0.2 s ends in a viewer
+        // somewhere other than where the next span, starting at 0.1 s + 0.2 s, starts.
+        let (start, end) = (0.1f64, 0.1f64 + 0.2);
+        assert_ne!(start * 1e6 + (end - start) * 1e6, end * 1e6);
+        let (ts, stop) = (microseconds(start), microseconds(end));
+        assert_eq!(ts + (stop - ts), stop);
+        let mut next = 0x9e37_79b9_7f4a_7c15u64;
+        for _ in 0..100_000 {
+            next ^= next << 13;
+            next ^= next >> 7;
+            next ^= next << 17;
+            let start = (next >> 11) as f64 / (1u64 << 53) as f64 * 1e3;
+            let d = ((next >> 20) % 1_000_000) as f64 * 1e-9;
+            let (ts, stop) = (microseconds(start), microseconds(start + d));
+            // What a viewer computes for the span's end, against where the next one starts.
+            assert_eq!(ts + (stop - ts), stop, "{start} {d}");
         }
     }
 }
