@@ -20,6 +20,16 @@ fn data_or_skip() -> Option<PathBuf> {
     None
 }
 
+/// SOD as the paper's experiments load it, from the shared data folder.
+fn paper_job() -> voxcube::scene::DatasetJob {
+    let mut notes = String::new();
+    let data = voxcube_tests::shared_data();
+    let source = voxcube::experiments::paper::Source::Sod(&data);
+    let job = voxcube::experiments::paper::dataset(source, &mut notes).expect("SOD loads");
+    assert!(notes.is_empty(), "{notes}");
+    job
+}
+
 fn scene_file(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../scenes")
@@ -165,10 +175,8 @@ fn the_experiments_take_sod_as_its_folder_or_its_file() {
 /// Table 1 under `profile`: the one node (the sequential tracer) and each node count in the
 /// cluster size that wins it, seconds.
 fn table_1(profile: &voxcube::profile::MachineProfile) -> Vec<(u32, f64)> {
-    use voxcube::experiments::paper::{dataset, sequential, timed, Source, TABLE1};
-    let mut notes = String::new();
-    let job = dataset(Source::Sod(&voxcube_tests::shared_data()), &mut notes).expect("SOD");
-    assert!(notes.is_empty(), "{notes}");
+    use voxcube::experiments::paper::{sequential, timed, TABLE1};
+    let job = paper_job();
     let view = &job.views[0].view;
     TABLE1
         .iter()
@@ -227,13 +235,8 @@ fn table_1_is_fitted_within_five_percent_and_its_efficiency_to_64_nodes_within_0
 #[test]
 fn load_balancing_lowers_every_table_3_time_on_sod() {
     use voxcube::profile::MachineProfile;
-    let Some(data) = data_or_skip() else { return };
-    let mut notes = String::new();
-    let job = voxcube::experiments::paper::dataset(
-        voxcube::experiments::paper::Source::Sod(&data),
-        &mut notes,
-    )
-    .expect("SOD");
+    let Some(_) = data_or_skip() else { return };
+    let job = paper_job();
     let (v, profile) = (&job.views[0].view, MachineProfile::ncube2());
     for cs in [16u32, 8, 4, 2] {
         let cuts = voxcube::experiments::paper::balance(&job, v, &profile, cs).expect("balances");
@@ -258,8 +261,8 @@ fn load_balancing_lowers_every_table_3_time_on_sod() {
             );
         }
     }
-    // Negative control: the same cuts mirrored give the back slabs, which carry the most
-    // work, the most planes, and the ring of 16 is slower than with uniform slabs.
+    // Negative control: the same cuts mirrored give the slabs nearest the viewer, which carry
+    // the most work, the most planes, and the ring of 16 is slower than with uniform slabs.
     let cuts = voxcube::experiments::paper::balance(&job, v, &profile, 16).expect("balances");
     let last = *cuts.last().expect("cuts");
     let mirrored: Vec<u32> = cuts.iter().rev().map(|c| last - c).collect();
@@ -282,13 +285,8 @@ fn table_4_ranks_the_papers_routines_and_prices_voxel_sample_per_sample() {
     // are each within 5 points of its share. (Interpolate is 6 points short and `ntest`
     // holds none of the waiting, which is `idle` here: docs/results.md says why.)
     use voxcube::experiments::paper::{table_4, Share, TABLE4};
-    let Some(data) = data_or_skip() else { return };
-    let mut notes = String::new();
-    let job = voxcube::experiments::paper::dataset(
-        voxcube::experiments::paper::Source::Sod(&data),
-        &mut notes,
-    )
-    .expect("SOD");
+    let Some(_) = data_or_skip() else { return };
+    let job = paper_job();
     let view = &job.views[0].view;
     let mean = |shares: &[Share], name: &str| {
         shares
@@ -382,13 +380,7 @@ fn at_128_nodes_a_small_cluster_beats_pure_dataflow_and_pure_image_partition() {
 
 /// Table 2's times at 64 and 128 nodes for each of its cluster sizes, under `profile`.
 fn table_2(profile: &voxcube::profile::MachineProfile) -> [[f64; 5]; 2] {
-    let mut notes = String::new();
-    let data = voxcube_tests::shared_data();
-    let job = voxcube::experiments::paper::dataset(
-        voxcube::experiments::paper::Source::Sod(&data),
-        &mut notes,
-    )
-    .expect("SOD loads");
+    let job = paper_job();
     let view = &job.views[0].view;
     [64, 128].map(|nodes| {
         voxcube::experiments::paper::TABLE2.map(|(cs, _, _)| {
@@ -450,13 +442,8 @@ fn the_shipped_ncube2_constants_are_what_the_fit_on_table_1_finds() {
         eprintln!("skipping: VOXCUBE_LONG=1 runs the fit");
         return;
     }
-    let Some(data) = data_or_skip() else { return };
-    let mut notes = String::new();
-    let job = voxcube::experiments::paper::dataset(
-        voxcube::experiments::paper::Source::Sod(&data),
-        &mut notes,
-    )
-    .expect("SOD loads");
+    let Some(_) = data_or_skip() else { return };
+    let job = paper_job();
     let shipped = voxcube::profile::MachineProfile::ncube2();
     let fit = voxcube::experiments::fit::fit(
         &job,
