@@ -362,25 +362,25 @@ pub fn table_4(
 ) -> Result<(f64, Vec<Share>), PaperError> {
     let sixteen = timed(job, view, profile, 1, 16, None)?;
     let lines = [
-        ("ntest", Category::Test),
-        ("Interpolate", Category::Interpolate),
-        ("Trace", Category::Trace),
-        ("Voxel_Sample", Category::SampleShade),
-        ("nread", Category::Read),
-        ("nwrite", Category::Write),
-        ("generate", Category::Generate),
-        ("idle", Category::Idle),
+        Category::Test,
+        Category::Interpolate,
+        Category::Trace,
+        Category::SampleShade,
+        Category::Read,
+        Category::Write,
+        Category::Generate,
+        Category::Idle,
     ];
     let shares = lines
         .iter()
-        .map(|&(name, category)| {
+        .map(|&category| {
             let v: Vec<f64> = sixteen
                 .parts
                 .iter()
                 .map(|p| 100.0 * p[category as usize] / sixteen.frame)
                 .collect();
             Share {
-                name,
+                name: category.name(),
                 mean: v.iter().sum::<f64>() / v.len().max(1) as f64,
                 min: v.iter().copied().fold(f64::INFINITY, f64::min),
                 max: v.iter().copied().fold(0.0, f64::max),
