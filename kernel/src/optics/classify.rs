@@ -68,9 +68,16 @@ impl Classified {
     /// The entry value `v` reads: the nearest, clamped to the table (NaN reads entry 0).
     #[inline]
     fn index(&self, v: f32) -> usize {
-        // `as` saturates and sends NaN to 0; the sum is at least 0.5 past the low end.
-        let i = ((v - self.lo) * self.per_unit + 0.5).max(0.0) as usize;
-        i.min(ENTRIES - 1)
+        let x = (v - self.lo) * self.per_unit + 0.5;
+        // Clamped into [0, last] first (`x > 0` is false for NaN), and converted to `u32`:
+        // a few instructions where saturating to `usize` spends a dozen, on every sample of a
+        // composited frame.
+        let x = if x > 0.0 {
+            x.min((ENTRIES - 1) as f32)
+        } else {
+            0.0
+        };
+        x as u32 as usize
     }
 
     /// Colour and corrected opacity of a full segment at value `v`.
@@ -130,6 +137,36 @@ mod tests {
         let (_, a) = t.full(100.0);
         let (_, o) = exact.eval(100.0);
         assert!((a - corrected_opacity(o, 0.5)).abs() < 2e-3, "{a}");
+    }
+
+    #[test]
+    fn the_index_is_the_saturating_nearest_entry_for_every_kind_of_value() {
+        let t = Classified::new(&tf(), 0.5);
+        // The definition: round half up, then saturate into the table, NaN to 0.
+        let reference =
+            |v: f32| (((v - t.lo) * t.per_unit + 0.5).max(0.0) as usize).min(ENTRIES - 1);
+        let mut next = crate::testing::xorshift(0x00c1_a551);
+        let specials = [
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            -0.0,
+            0.0,
+            f32::MAX,
+            f32::MIN,
+            f32::MIN_POSITIVE,
+            20.0,
+            200.0,
+        ];
+        // Values at and around every entry's rounding boundary, and arbitrary bit patterns.
+        let boundaries = (0..ENTRIES).flat_map(|i| {
+            let v = t.lo + (i as f32 + 0.5) / t.per_unit;
+            [v.next_down(), v, v.next_up()]
+        });
+        let random = (0..100_000).map(|_| f32::from_bits(next()));
+        for v in specials.into_iter().chain(boundaries).chain(random) {
+            assert_eq!(t.index(v), reference(v), "{v:e}");
+        }
     }
 
     #[test]
