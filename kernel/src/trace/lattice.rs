@@ -58,6 +58,18 @@ impl Lattice {
         k < self.last && !(self.t(k + 1) > self.t_exit)
     }
 
+    /// The samples before this index are exactly those [`Lattice::is_full`] holds for: `t_k`
+    /// never decreases with `k` (each of its two roundings is monotone), so the rule holds
+    /// for a prefix, and the march asks this once a call instead of once a sample.
+    pub fn full_below(&self) -> u32 {
+        let mut k = self.last;
+        // `t(last)` lies past the exit by rounding at most: a step or two back, seldom more.
+        while k > 0 && self.t(k) > self.t_exit {
+            k -= 1;
+        }
+        k
+    }
+
     /// World length of the segment sample `k` stands for (zero past the exit).
     #[inline]
     pub fn segment(&self, k: u32) -> f32 {
@@ -89,6 +101,26 @@ mod tests {
                 "{t0} {t1} {dt}: {total}"
             );
             assert!(l.t(l.last) <= t1 + 1e-4);
+        }
+    }
+
+    #[test]
+    fn the_full_samples_are_those_below_full_below() {
+        let mut next = crate::testing::xorshift(0x1a77_1ce5);
+        let unit = |n: u32| (n >> 8) as f32 / (1 << 24) as f32;
+        for case in 0..20_000 {
+            // Spans from a few steps to many, far from the origin too, where `t_k` rounds
+            // coarsely and several samples can share one `t`.
+            let t_entry = (unit(next()) - 0.5) * if case % 3 == 0 { 4e6 } else { 400.0 };
+            let dt = 0.01 + unit(next()) * 2.0;
+            let t_exit = t_entry + unit(next()) * dt * 60.0;
+            let Some(l) = Lattice::new(t_entry, t_exit, dt) else {
+                continue;
+            };
+            let below = l.full_below();
+            for k in 0..=l.last + 1 {
+                assert_eq!(l.is_full(k), k < below, "{l:?} k {k}");
+            }
         }
     }
 

@@ -94,6 +94,8 @@ pub fn march<T: Sample>(
     let mut exits: Option<Exits> = None;
     // A primary ray passes at once over the samples before its pixel's depth bound: they lie
     // in no cell the masks keep, so the turns below would skip each of them.
+    // Whether a sample stands for a whole Δt segment, asked once for the call.
+    let full_below = ray.lattice.full_below();
     let mut depths = match &blocks {
         Some(blocks) if by_cell && ray.kind == RayKind::Primary => blocks.depths(),
         _ => None,
@@ -216,7 +218,7 @@ pub fn march<T: Sample>(
                 let (alpha, base) = match view.classified() {
                     // The fast tier: a whole segment's entry, or the entry's opacity
                     // corrected for the last, shorter one.
-                    Some(table) if ray.lattice.is_full(ray.k) => {
+                    Some(table) if ray.k < full_below => {
                         let (color, alpha) = table.full(v);
                         (alpha, color)
                     }
