@@ -503,7 +503,16 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 &[bench::Size::PAPER, bench::Size::LARGE]
             };
             let rows = bench::run(runs, sizes, &sod, &mut notes)?;
-            let vtk = match crate::experiments::peer::vtk(&sod, runs) {
+            // VTK at the large frame too when the bench renders it.
+            let large = sizes.iter().find(|s| **s == bench::Size::LARGE).map(|s| {
+                crate::experiments::peer::Frame {
+                    width: s.width,
+                    height: s.height,
+                    dt: 1.0 / s.dt_inverse as f32,
+                    span: s.span,
+                }
+            });
+            let vtk = match crate::experiments::peer::vtk(&sod, runs, large) {
                 Ok(t) => t,
                 Err(e) => {
                     notes += &format!("VTK peer failed: {e}\n");
