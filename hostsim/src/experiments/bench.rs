@@ -694,7 +694,8 @@ pub fn versus_vtk(rows: &[Row], vtk: Option<super::peer::VtkTimes>) -> String {
     out
 }
 
-/// The issue "Accuracy tiers"' target for the fast tier's composited frame, over VTK's time.
+/// The fast tier's target for its composited frame, over VTK's time (the issue "Accuracy
+/// tiers").
 const FAST_TARGET: f64 = 0.33;
 
 /// Which vector instructions this binary was compiled to use: the figures depend on it. A

@@ -1,8 +1,9 @@
 //! VTK, the yardstick, timed in the same `bench` run: its CPU ray caster
 //! (`vtkFixedPointVolumeRayCastMapper`, two threads) on SOD with the paper's camera at
 //! 350×250, Δt = ½ (and composited at a larger frame when asked), through the peer scripts
-//! beside the data (`../shared/peers/`), when their virtualenv is installed. Ratios between the two are only meaningful from one run: the
-//! machine's speed drifts with its other tenants.
+//! beside the data (`../shared/peers/`), when their virtualenv is installed. Ratios between
+//! the two are only meaningful from one run: the machine's speed drifts with its other
+//! tenants.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
