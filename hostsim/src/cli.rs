@@ -504,14 +504,10 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             };
             let rows = bench::run(runs, sizes, &sod, &mut notes)?;
             // VTK at the large frame too when the bench renders it.
-            let large = sizes.iter().find(|s| **s == bench::Size::LARGE).map(|s| {
-                crate::experiments::peer::Frame {
-                    width: s.width,
-                    height: s.height,
-                    dt: 1.0 / s.dt_inverse as f32,
-                    span: s.span,
-                }
-            });
+            let large = sizes
+                .iter()
+                .find(|s| **s == bench::Size::LARGE)
+                .map(|s| s.frame());
             let vtk = match crate::experiments::peer::vtk(&sod, runs, large) {
                 Ok(t) => t,
                 Err(e) => {

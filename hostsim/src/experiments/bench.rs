@@ -81,10 +81,10 @@ color = [1.0, 0.2, 0.1]
 opacity = 0.8
 "#;
 
-/// The views benchmarked: the paper's view as a shaded surface and composited, and
-/// composited in the fast tier, shaded and unlit, each with its placeholders for the size
-/// still in.
-fn views() -> String {
+/// The views benchmarked at `size`: the paper's view as a shaded surface and composited, and
+/// composited in the fast tier (unlit too at the paper's size), each with its placeholders
+/// for the size still in.
+fn views(size: Size) -> String {
     let composite = |name: &str, tier: &str, shading: bool| {
         COMPOSITE_VIEW
             .replace("NAME", name)
@@ -92,11 +92,15 @@ fn views() -> String {
             .replace("SHADING", &shading.to_string())
             + COMPOSITE_TRANSFER
     };
+    let unlit = if size == Size::PAPER {
+        composite(UNLIT_VIEW, "fast", false)
+    } else {
+        String::new()
+    };
     format!(
-        "{SURFACES_VIEW}{}{}{}",
+        "{SURFACES_VIEW}{}{}{unlit}",
         composite("composite", "exact", true),
         composite(FAST_VIEW, "fast", true),
-        composite(UNLIT_VIEW, "fast", false)
     )
 }
 
@@ -133,6 +137,16 @@ impl Size {
 
     fn label(self) -> String {
         format!("{}x{} dt 1/{}", self.width, self.height, self.dt_inverse)
+    }
+
+    /// The same frame for VTK's peer script.
+    pub fn frame(self) -> super::peer::Frame {
+        super::peer::Frame {
+            width: self.width,
+            height: self.height,
+            dt: 1.0 / self.dt_inverse as f32,
+            span: self.span,
+        }
     }
 }
 
@@ -471,7 +485,7 @@ pub fn run(
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get() as u32);
     let mut rows = Vec::new();
     for &size in sizes {
-        let views = views()
+        let views = views(size)
             .replace("SPAN", &format!("{:.1}", size.span))
             .replace("WIDTH", &size.width.to_string())
             .replace("HEIGHT", &size.height.to_string())
@@ -496,11 +510,7 @@ pub fn run(
         for text in scenes {
             let jobs = Scene::parse(&text, "<bench>", Path::new("."))?.load()?;
             for job in &jobs {
-                for v in job
-                    .views
-                    .iter()
-                    .filter(|v| v.name != UNLIT_VIEW || size == Size::PAPER)
-                {
+                for v in &job.views {
                     // Every core at once at the paper's size only: at 1024×768 a pass takes
                     // seconds, and the share it measures is the machine's, not the view's.
                     let together = if size == Size::PAPER {

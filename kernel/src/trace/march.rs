@@ -92,10 +92,11 @@ pub fn march<T: Sample>(
         _ => None,
     };
     let mut exits: Option<Exits> = None;
+    // Which samples stand for a whole Δt segment, asked once for the call, and only where the
+    // fast tier's table reads it.
+    let full_below = view.classified().map_or(0, |_| ray.lattice.full_below());
     // A primary ray passes at once over the samples before its pixel's depth bound: they lie
     // in no cell the masks keep, so the turns below would skip each of them.
-    // Whether a sample stands for a whole Δt segment, asked once for the call.
-    let full_below = ray.lattice.full_below();
     let mut depths = match &blocks {
         Some(blocks) if by_cell && ray.kind == RayKind::Primary => blocks.depths(),
         _ => None,
