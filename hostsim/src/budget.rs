@@ -65,16 +65,19 @@ pub fn worker_bytes() -> usize {
     size_of::<NodeWorker<'static, u8>>() + size_of::<voxcube_kernel::trace::view::View>()
 }
 
-/// Bytes of the min/max blocks a slab storing planes `stored` of `grid` keeps, with the leap
-/// maps of `needs` (a byte per block each, [`voxcube_kernel::skip::leaps`]), its view's cell mask
-/// ([`voxcube_kernel::skip::cells`]), its cell leap maps (a byte per cell each,
-/// [`voxcube_kernel::skip::cell_leaps`]) and its depth bounds ([`voxcube_kernel::skip::depths`]).
-pub fn block_bytes(grid: &Grid, stored: std::ops::Range<u32>, needs: ViewNeeds) -> usize {
-    voxcube_kernel::skip::blocks::extent_for(grid, stored).2
-        * (size_of::<voxcube_kernel::skip::blocks::Range>()
-            + needs.maps * size_of::<u8>()
-            + size_of::<voxcube_kernel::skip::cells::CellMask>()
-            + needs.cell_maps * voxcube_kernel::skip::cell_leaps::PER_BLOCK)
+/// Bytes of the structures a slab storing planes `stored` of `grid` keeps beside its planes:
+/// its min/max blocks, with the leap maps of `needs` (a byte per block each,
+/// [`voxcube_kernel::skip::leaps`]), its view's cell mask ([`voxcube_kernel::skip::cells`]),
+/// its cell leap maps (a byte per cell each, [`voxcube_kernel::skip::cell_leaps`]), its depth
+/// bounds ([`voxcube_kernel::skip::depths`]) and its node field
+/// ([`voxcube_kernel::volume::nodes`]).
+pub fn structure_bytes(grid: &Grid, stored: std::ops::Range<u32>, needs: ViewNeeds) -> usize {
+    needs.node_bytes * voxcube_kernel::volume::nodes::len_for(grid, stored.clone())
+        + voxcube_kernel::skip::blocks::extent_for(grid, stored).2
+            * (size_of::<voxcube_kernel::skip::blocks::Range>()
+                + needs.maps * size_of::<u8>()
+                + size_of::<voxcube_kernel::skip::cells::CellMask>()
+                + needs.cell_maps * voxcube_kernel::skip::cell_leaps::PER_BLOCK)
         + needs.depths
 }
 
@@ -92,6 +95,9 @@ pub struct ViewNeeds {
     /// Bytes of depth bounds: none are needed, a node holds them where they fit
     /// ([`crate::render::node_skipping`]).
     pub depths: usize,
+    /// Bytes per grid node of the fast tier's node field: none is needed, a node holds it
+    /// where it fits ([`crate::render::node_skipping`]); 0 holds none.
+    pub node_bytes: usize,
 }
 
 impl ViewNeeds {
@@ -102,12 +108,18 @@ impl ViewNeeds {
             maps: voxcube_kernel::skip::leaps::octants(view).count_ones() as usize,
             cell_maps: 0,
             depths: 0,
+            node_bytes: 0,
         }
     }
 
     /// The same, with `cell_maps` cell leap maps.
     pub fn with_cell_maps(self, cell_maps: usize) -> ViewNeeds {
         ViewNeeds { cell_maps, ..self }
+    }
+
+    /// The same, with a node field of `node_bytes` bytes per grid node.
+    pub fn with_node_bytes(self, node_bytes: usize) -> ViewNeeds {
+        ViewNeeds { node_bytes, ..self }
     }
 
     /// The same, with depth bounds of `depths` bytes.
@@ -195,7 +207,7 @@ pub fn largest_node(
         .map(|j| {
             let s = stored_planes(grid, partition.planes(j), needs.ghost);
             (s.end - s.start) as usize * grid.plane_len() * sample_bytes
-                + block_bytes(grid, s, needs)
+                + structure_bytes(grid, s, needs)
         })
         .max()?;
     Some(NodeMemory {
@@ -223,7 +235,7 @@ pub fn max_owned_planes(
         let stored = 0..(owned + 2 * needs.ghost).min(nx);
         let memory = NodeMemory {
             slab: (stored.end - stored.start) as usize * grid.plane_len() * sample_bytes
-                + block_bytes(grid, stored, needs),
+                + structure_bytes(grid, stored, needs),
             buffer,
             worker: worker_bytes(),
             allowance: CODE_AND_STACK,
@@ -287,13 +299,14 @@ mod tests {
             maps: 1,
             cell_maps: 0,
             depths: 0,
+            node_bytes: 0,
         };
         let cap = max_owned_planes(Profile::ncube2(), &grid, 1, needs, buffer);
         assert!(cap > 0 && cap < 208, "{cap}");
         let memory = |owned: u32| {
             let stored = 0..owned + 2 * ghost;
             stored.len() * grid.plane_len()
-                + block_bytes(&grid, stored, needs)
+                + structure_bytes(&grid, stored, needs)
                 + buffer
                 + worker_bytes()
                 + CODE_AND_STACK
@@ -312,14 +325,15 @@ mod tests {
             maps,
             cell_maps,
             depths: 0,
+            node_bytes: 0,
         };
-        assert_eq!(block_bytes(&grid, 0..10, needs(1, 0)), blocks * 17);
+        assert_eq!(structure_bytes(&grid, 0..10, needs(1, 0)), blocks * 17);
         assert_eq!(
-            block_bytes(&grid, 0..10, needs(8, 0)) - block_bytes(&grid, 0..10, needs(1, 0)),
+            structure_bytes(&grid, 0..10, needs(8, 0)) - structure_bytes(&grid, 0..10, needs(1, 0)),
             blocks * 7
         );
         assert_eq!(
-            block_bytes(&grid, 0..10, needs(1, 2)) - block_bytes(&grid, 0..10, needs(1, 0)),
+            structure_bytes(&grid, 0..10, needs(1, 2)) - structure_bytes(&grid, 0..10, needs(1, 0)),
             blocks * 2 * 64
         );
     }
@@ -339,6 +353,7 @@ mod tests {
                     maps: 1,
                     cell_maps: 0,
                     depths: 0,
+                    node_bytes: 0,
                 },
                 &buffer,
             )

@@ -109,6 +109,10 @@ pub enum Command {
         /// changes no pixel, only the time).
         #[arg(long)]
         no_depths: bool,
+        /// Compute the fast tier's node lanes on the fly where shading reads them, holding no
+        /// node field (a debug option: it changes no pixel, only the time and the memory).
+        #[arg(long)]
+        no_node_field: bool,
         /// Inject a fault: node NODE stops answering after STEPS of its polls (with `:exit`,
         /// on MPI, its rank's process exits instead: a crash). The host declares it lost and
         /// the surviving clusters re-trace its cluster's unfinished rows: the same image, the
@@ -606,6 +610,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             no_cell_leaps,
             no_row_leaps,
             no_depths,
+            no_node_field,
             stop_node,
             lost_after,
             accuracy,
@@ -651,6 +656,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                         cell_leaps: !no_cell_leaps,
                         rows: !no_row_leaps,
                         depths: !no_depths,
+                        nodes: !no_node_field,
                     };
                     m.profile = match profile {
                         ProfileArg::Ncube2 => Profile::ncube2(),

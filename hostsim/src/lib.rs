@@ -18,6 +18,7 @@ pub mod fabric;
 pub mod formats;
 pub mod framing;
 pub mod info;
+pub mod nodes;
 pub mod output;
 pub mod profile;
 pub mod render;

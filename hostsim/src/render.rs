@@ -20,7 +20,7 @@ use voxcube_kernel::node::worker::Generation;
 use voxcube_kernel::trace::pixel::rgba8;
 use voxcube_kernel::trace::tracer::Pixels;
 use voxcube_kernel::trace::view::View;
-use voxcube_kernel::volume::sample::Sample;
+use voxcube_kernel::volume::sample::{Sample, SampleKind};
 use voxcube_kernel::volume::slab::{Slab, SlabError};
 
 /// What carries the work.
@@ -329,6 +329,7 @@ pub fn node_skipping(volume: &Volume, view: &View, machine: &Machine, balanced: 
         return SkipMode {
             cell_leaps: false,
             depths: false,
+            nodes: false,
             ..mode
         };
     };
@@ -340,10 +341,25 @@ pub fn node_skipping(volume: &Volume, view: &View, machine: &Machine, balanced: 
     let maps = crate::storage::cell_leap_octants(view, SkipMode { depths, ..mode });
     let maps = maps.count_ones() as usize;
     let held = maps > 0 && fits(with_depths.with_cell_maps(maps), cfg.buffer());
+    let with_maps = with_depths.with_cell_maps(if held { maps } else { 0 });
+    // Then the node field, which only the fast tier's shading reads.
+    let lanes = node_field_bytes(view, mode, volume.data.kind());
+    let nodes = lanes > 0 && fits(with_maps.with_node_bytes(lanes), cfg.buffer());
     SkipMode {
         cell_leaps: held,
         depths,
+        nodes,
         ..mode
+    }
+}
+
+/// Bytes per grid node of the node field a node skipping as `mode` says holds for `view` over
+/// samples of `kind`: none where the view reads none ([`View::node_gradients`]) or `mode`
+/// holds none.
+pub fn node_field_bytes(view: &View, mode: SkipMode, kind: SampleKind) -> usize {
+    match mode.nodes && view.node_gradients() {
+        true => kind.node_bytes(),
+        false => 0,
     }
 }
 
@@ -456,7 +472,8 @@ fn render_typed<T: Sample + Sync>(
     // belong to the view, so they are part of its frame, as on every other fabric.
     let start = Instant::now();
     let skipping = Skipping::build(&slab, view, mode);
-    let slab = skipping.apply(slab);
+    let field = crate::nodes::NodeField::build(&slab, view, mode, 1);
+    let slab = field.apply(skipping.apply(slab));
     let mut counters = Counters::default();
     let n = view.pixel_count();
     let mut pixels = Vec::with_capacity(n as usize);

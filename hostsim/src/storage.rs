@@ -35,6 +35,10 @@ pub struct SkipMode {
     /// Pass a primary ray at once over the samples before its pixel's depth bound (only
     /// with cell masks, parallel projections; `voxcube_kernel::skip::depths`).
     pub depths: bool,
+    /// Hold the fast tier's node field where the view reads one (`crate::nodes`): not a
+    /// skip, but an acceleration decided alike; without it the same lanes are computed on
+    /// the fly.
+    pub nodes: bool,
 }
 
 impl SkipMode {
@@ -46,6 +50,7 @@ impl SkipMode {
         cell_leaps: false,
         rows: false,
         depths: false,
+        nodes: true,
     };
     /// Empty samples skipped by whole blocks, each jump ending at its block's faces.
     pub const BLOCKS: SkipMode = SkipMode {
@@ -55,6 +60,7 @@ impl SkipMode {
         cell_leaps: false,
         rows: true,
         depths: false,
+        nodes: true,
     };
     /// Empty samples skipped by whole blocks, each jump leaping over every empty block around.
     pub const LEAPS: SkipMode = SkipMode {
@@ -64,6 +70,7 @@ impl SkipMode {
         cell_leaps: false,
         rows: true,
         depths: false,
+        nodes: true,
     };
     /// Leaps, and single empty cells skipped too (the default).
     pub const ALL: SkipMode = SkipMode {
@@ -73,6 +80,7 @@ impl SkipMode {
         cell_leaps: true,
         rows: true,
         depths: true,
+        nodes: true,
     };
 
     /// `view` as this mode renders it: without its row leaps when `rows` is off.
@@ -156,7 +164,7 @@ pub struct Skipping {
 }
 
 /// `all` cut into consecutive pieces of `sizes` (the last piece short if they overrun).
-fn split_sizes<E>(
+pub(crate) fn split_sizes<E>(
     mut all: &mut [E],
     sizes: impl Iterator<Item = usize>,
 ) -> impl Iterator<Item = &mut [E]> {
@@ -169,20 +177,20 @@ fn split_sizes<E>(
 }
 
 /// `0..total` cut into `n` consecutive parts whose sizes differ by at most one.
-fn even_parts(total: u32, n: u32) -> Vec<Range<u32>> {
+pub(crate) fn even_parts(total: u32, n: u32) -> Vec<Range<u32>> {
     let n = n.max(1);
     let cut = |i: u32| (u64::from(i) * u64::from(total) / u64::from(n)) as u32;
     (0..n).map(|i| cut(i)..cut(i + 1)).collect()
 }
 
 /// One part of a skipping build, saying whether it built.
-type Part<'a> = Box<dyn FnOnce() -> bool + Send + 'a>;
+pub(crate) type Part<'a> = Box<dyn FnOnce() -> bool + Send + 'a>;
 
 /// Run `parts` on up to `threads` OS threads, the calling thread one of them, each taking the
 /// next part no thread has taken; whether each built (a part that panics built nothing).
 /// One thread a part put three threads on two cores for a paper view's masks and leap map,
 /// and left the calling thread waiting.
-fn run_parts(parts: Vec<Part<'_>>, threads: usize) -> Vec<bool> {
+pub(crate) fn run_parts(parts: Vec<Part<'_>>, threads: usize) -> Vec<bool> {
     use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
     use std::sync::Mutex;
     let built: Vec<AtomicBool> = parts.iter().map(|_| AtomicBool::new(false)).collect();
@@ -469,7 +477,7 @@ impl Skipping {
 /// What every node of an in-process machine holds before its first message: its stored
 /// planes, and the skipping storage of its ring position for the view.
 #[derive(Debug)]
-pub struct NodeStorage<'d, T: Clone> {
+pub struct NodeStorage<'d, T: voxcube_kernel::volume::sample::Sample> {
     grid: Grid,
     layout: Layout,
     ghost: u32,
@@ -479,6 +487,8 @@ pub struct NodeStorage<'d, T: Clone> {
     storage: Vec<Cow<'d, [T]>>,
     /// By ring position: every cluster holds the same slab there.
     skipping: Vec<Skipping>,
+    /// The node field by ring position, as `skipping`.
+    fields: Vec<crate::nodes::NodeField<T::Node>>,
 }
 
 impl<'d, T: voxcube_kernel::volume::sample::Sample + Sync> NodeStorage<'d, T> {
@@ -514,24 +524,40 @@ impl<'d, T: voxcube_kernel::volume::sample::Sample + Sync> NodeStorage<'d, T> {
             planes,
             storage,
             skipping: Vec::new(),
+            fields: Vec::new(),
         }
     }
 
-    /// The same storage, with the skipping storage of each ring position for `view` (`mode`),
-    /// built from cluster 0's node there on up to `threads` OS threads.
+    /// The same storage, with the skipping storage and node field of each ring position for
+    /// `view` (`mode`), built from cluster 0's node there on up to `threads` OS threads.
     pub fn with_skipping(
         mut self,
         view: &View,
         mode: SkipMode,
         threads: usize,
     ) -> NodeStorage<'d, T> {
-        self.skipping = (0..self.layout.size())
-            .map(|j| {
-                self.bare_slab(self.layout.node(0, j))
-                    .map(|s| Skipping::build_on(&s, view, mode, threads))
+        let slabs: Vec<_> = (0..self.layout.size())
+            .map(|j| self.bare_slab(self.layout.node(0, j)).ok())
+            .collect();
+        let skipping = slabs
+            .iter()
+            .map(|s| {
+                s.as_ref()
+                    .map(|s| Skipping::build_on(s, view, mode, threads))
                     .unwrap_or_default()
             })
             .collect();
+        let fields = slabs
+            .iter()
+            .map(|s| {
+                s.as_ref()
+                    .map(|s| crate::nodes::NodeField::build(s, view, mode, threads))
+                    .unwrap_or_default()
+            })
+            .collect();
+        drop(slabs);
+        self.skipping = skipping;
+        self.fields = fields;
         self
     }
 
@@ -542,7 +568,11 @@ impl<'d, T: voxcube_kernel::volume::sample::Sample + Sync> NodeStorage<'d, T> {
     ) -> Result<voxcube_kernel::volume::slab::Slab<'_, T>, voxcube_kernel::volume::slab::SlabError>
     {
         let j = usize::from(self.layout.place(node).1);
-        Ok(self.skipping[j].apply(self.bare_slab(node)?))
+        let slab = self.skipping[j].apply(self.bare_slab(node)?);
+        Ok(match self.fields.get(j) {
+            Some(field) => field.apply(slab),
+            None => slab,
+        })
     }
 
     fn bare_slab(

@@ -32,6 +32,6 @@ mod testing;
 pub mod trace;
 pub mod volume;
 
-pub use glam::Vec3;
+pub use glam::{Vec3, Vec4};
 /// The fixed-capacity containers the kernel's types are built from, for hosts that fill them.
 pub use heapless;

@@ -20,6 +20,24 @@ pub fn shared_data() -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data")
 }
 
+/// The jobs of `scenes/sod.toml` (the paper's dataset), or `None` where the shared data is
+/// not beside the repository (an error on CI, which always has it).
+pub fn sod_jobs() -> Option<Vec<voxcube::scene::DatasetJob>> {
+    let dir = shared_data();
+    if !dir.is_dir() {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "CI is set but {} is missing",
+            dir.display()
+        );
+        eprintln!("skipping: {} not found", dir.display());
+        return None;
+    }
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/sod.toml");
+    let jobs = voxcube::scene::Scene::from_file(&path).and_then(voxcube::scene::Scene::load);
+    Some(jobs.unwrap_or_else(|e| panic!("{e}")))
+}
+
 /// A u8 volume with `f(x, y, z)` at each node.
 pub fn volume_u8(dims: [u32; 3], spacing: Vec3, f: impl Fn(u32, u32, u32) -> u8) -> Volume {
     Volume {

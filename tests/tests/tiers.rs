@@ -151,20 +151,9 @@ fn the_fast_tier_stays_within_its_bounds_on_the_test_scenes_and_the_default() {
 
 #[test]
 fn the_fast_tier_stays_within_its_bounds_on_sod() {
-    let dir = voxcube_tests::shared_data();
-    if !dir.is_dir() {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "CI is set but {} is missing",
-            dir.display()
-        );
-        eprintln!("skipping: {} not found", dir.display());
+    let Some(jobs) = voxcube_tests::sod_jobs() else {
         return;
-    }
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/sod.toml");
-    let jobs = Scene::from_file(&path)
-        .and_then(Scene::load)
-        .unwrap_or_else(|e| panic!("{e}"));
+    };
     assert!(
         within_bounds(&jobs) > 0,
         "SOD's composited view is approximated"

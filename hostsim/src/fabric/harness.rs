@@ -22,7 +22,7 @@ use voxcube_kernel::node::topology::Layout;
 use voxcube_kernel::node::worker::{Place, Setup, Worker, WorkerError, RAYS_PER_POLL};
 use voxcube_kernel::trace::view::View;
 use voxcube_kernel::volume::grid::Grid;
-use voxcube_kernel::volume::sample::Sample;
+use voxcube_kernel::volume::sample::{Sample, SampleKind};
 use voxcube_kernel::volume::slab::Slab;
 
 /// A node's worker on the host's fabrics: continuations per direction, pixel records, outbox,
@@ -224,14 +224,14 @@ impl<'v> Plan<'v> {
         &self,
         cfg: &RunConfig,
         grid: &Grid,
-        sample_bytes: usize,
+        kind: SampleKind,
         image: Vec<[u8; 4]>,
         stats: Vec<NodeStats>,
         peak: &dyn Fn(usize) -> usize,
         busy: &dyn Fn(usize) -> Duration,
         shift: Option<ShiftReport>,
     ) -> Distributed {
-        let shape = RunShape::new(cfg, &self.partition, grid, &self.view, sample_bytes);
+        let shape = RunShape::new(cfg, &self.partition, grid, &self.view, kind);
         let nodes: Vec<NodeReport> = stats
             .into_iter()
             .enumerate()

@@ -20,7 +20,7 @@ pub mod threads;
 pub use config::{RunConfig, Schedule, Scheduler, DEFAULT_I_MAX};
 pub use error::{RunError, Trace};
 
-use crate::budget::{block_bytes, worker_bytes, NodeMemory, ViewNeeds, CODE_AND_STACK};
+use crate::budget::{structure_bytes, worker_bytes, NodeMemory, ViewNeeds, CODE_AND_STACK};
 use std::ops::Range;
 use std::time::Duration;
 use voxcube_kernel::counters::Counters;
@@ -69,23 +69,28 @@ pub struct RunShape<'a> {
 impl<'a> RunShape<'a> {
     /// The shape of a run of `view` configured by `cfg` (its layout, and how its nodes skip:
     /// which cell leap maps they hold), slabs `partition` of `grid`, samples of
-    /// `sample_bytes`.
+    /// `kind`.
     pub fn new(
         cfg: &RunConfig,
         partition: &'a Partition,
         grid: &'a Grid,
         view: &View,
-        sample_bytes: usize,
+        kind: voxcube_kernel::volume::sample::SampleKind,
     ) -> RunShape<'a> {
         let cell_maps = crate::storage::cell_leap_octants(view, cfg.skipping).count_ones() as usize;
         RunShape {
             layout: cfg.layout,
             partition,
             grid,
-            needs: ViewNeeds::of(view).with_cell_maps(cell_maps).with_depths(
-                crate::render::depth_bytes(view, cfg.skipping, cfg.layout.clusters()),
-            ),
-            sample_bytes,
+            needs: ViewNeeds::of(view)
+                .with_cell_maps(cell_maps)
+                .with_depths(crate::render::depth_bytes(
+                    view,
+                    cfg.skipping,
+                    cfg.layout.clusters(),
+                ))
+                .with_node_bytes(crate::render::node_field_bytes(view, cfg.skipping, kind)),
+            sample_bytes: kind.bytes(),
         }
     }
 
@@ -98,7 +103,7 @@ impl<'a> RunShape<'a> {
         let stored = stored_planes(grid, planes.clone(), needs.ghost);
         let memory = NodeMemory {
             slab: (stored.end - stored.start) as usize * grid.plane_len() * self.sample_bytes
-                + block_bytes(grid, stored.clone(), needs),
+                + structure_bytes(grid, stored.clone(), needs),
             buffer: peak,
             worker: worker_bytes(),
             allowance: CODE_AND_STACK,

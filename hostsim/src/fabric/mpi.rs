@@ -683,7 +683,8 @@ fn serve_phase<T: Sample + Sync>(
     // Depth bounds for this node's cluster's rows only, as its budget counts them.
     let rows = layout.cluster_rows(layout.place(node).0);
     let skipping = crate::storage::Skipping::build_for(&slab, view, cfg.skipping, rows);
-    let slab = skipping.apply(slab);
+    let field = crate::nodes::NodeField::build(&slab, view, cfg.skipping, 1);
+    let slab = field.apply(skipping.apply(slab));
     let mut worker = node_worker(view, slab, &partition, cfg, node, flow)?;
     let mut port = MpiPort {
         world,
@@ -840,7 +841,7 @@ pub fn host(
     let mut run = plan.finish(
         &run_cfg,
         &grid,
-        volume.data.kind().bytes(),
+        volume.data.kind(),
         image,
         reports,
         &|_| capacity,

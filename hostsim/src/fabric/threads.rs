@@ -264,7 +264,7 @@ fn run_typed<T: Sample + Send + Sync>(
     let mut run = plan.finish(
         cfg,
         &grid,
-        size_of::<T>(),
+        T::KIND,
         image,
         reports,
         &|n| peaks[n],

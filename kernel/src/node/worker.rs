@@ -222,7 +222,7 @@ enum Token {
 
 /// What a worker is built from.
 #[derive(Debug)]
-pub struct Setup<'a, T> {
+pub struct Setup<'a, T: Sample> {
     /// The view it renders.
     pub view: &'a View,
     /// Its slab, which must own `partition`'s planes for its ring position, with the view's
@@ -244,14 +244,14 @@ pub struct Setup<'a, T> {
 
 /// A [`Setup`] that [`Worker::check`] found fit: the only way to [`Worker::new`].
 #[derive(Debug)]
-pub struct Checked<'a, T>(Setup<'a, T>);
+pub struct Checked<'a, T: Sample>(Setup<'a, T>);
 
 /// One node. `PENDING` bounds each direction's continuation queue, `RECORDS` the pixel
 /// records, `OUTBOX` the messages waiting for the port.
 #[derive(Clone, Debug)]
 pub struct Worker<
     'a,
-    T,
+    T: Sample,
     const PENDING: usize,
     const RECORDS: usize,
     const OUTBOX: usize,

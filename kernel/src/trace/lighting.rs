@@ -12,7 +12,8 @@ use crate::counters::Counters;
 use crate::optics::shade::{self, MAX_LIGHTS};
 use crate::trace::tree;
 use crate::trace::view::View;
-use crate::volume::field;
+use crate::volume::field::{self, Site};
+use crate::volume::nodes;
 use crate::volume::sample::Sample;
 use crate::volume::slab::Slab;
 use glam::Vec3;
@@ -62,7 +63,7 @@ pub fn lighting<T: Sample>(
     let Some(shading) = &spec.shading else {
         return out;
     };
-    let n = normal(view, slab, p, cap_normal, view_dir, counters);
+    let n = normal(view, slab, p, None, cap_normal, view_dir, counters);
     let world = view.to_world(p);
     out.ambient = base * shading.ambient;
     out.lights = spec.lights.len() as u8;
@@ -91,12 +92,14 @@ pub fn lighting<T: Sample>(
 /// [`lighting`]'s `.color` with every light fully visible, and counted alike: the same terms
 /// summed in the same order, a visibility of 1 multiplying each exactly. It keeps no
 /// [`Lighting`] (directions, distances, shadow mask), which compositing never reads and which
-/// is a tenth of a lit sample's work.
+/// is a tenth of a lit sample's work. `site` is where `p` reads the grid under the view's
+/// model ([`field::locate`]), which the sample loop has found already.
+#[inline(always)]
 pub fn unshadowed_color<T: Sample>(
     view: &View,
     slab: &Slab<'_, T>,
     base: Vec3,
-    p: Vec3,
+    (p, site): (Vec3, &Site),
     view_dir: Vec3,
     counters: &mut Counters,
 ) -> Vec3 {
@@ -104,7 +107,7 @@ pub fn unshadowed_color<T: Sample>(
     let Some(shading) = &spec.shading else {
         return base;
     };
-    let n = normal(view, slab, p, None, view_dir, counters);
+    let n = normal(view, slab, p, Some(site), None, view_dir, counters);
     let world = view.to_world(p);
     let mut color = base * shading.ambient;
     for light in &spec.lights {
@@ -124,13 +127,14 @@ pub fn unshadowed_color<T: Sample>(
     color
 }
 
-/// The shading normal at `p`: the cut face's when given, else the gradient's, facing the
-/// viewer; counts the shading and any fallback.
+/// The shading normal at `p` (whose [`Site`] is `site` where known): the cut face's when
+/// given, else the gradient's, facing the viewer; counts the shading and any fallback.
 #[inline(always)]
 fn normal<T: Sample>(
     view: &View,
     slab: &Slab<'_, T>,
     p: Vec3,
+    site: Option<&Site>,
     cap_normal: Option<Vec3>,
     view_dir: Vec3,
     counters: &mut Counters,
@@ -140,7 +144,16 @@ fn normal<T: Sample>(
     match cap_normal {
         Some(n) => shade::face_viewer(n, view_dir),
         None => {
-            let g = field::gradient(slab, spec.model, p, spec.gradient_distance, counters);
+            let g = match (view.node_gradients(), site) {
+                (true, Some(site)) => nodes::value_and_gradient(slab, site, counters).1,
+                (true, None) => {
+                    let site = field::locate(slab.grid(), spec.model, p);
+                    nodes::value_and_gradient(slab, &site, counters).1
+                }
+                (false, _) => {
+                    field::gradient(slab, spec.model, p, spec.gradient_distance, counters)
+                }
+            };
             let (n, fallback) = shade::normal(g, view_dir);
             counters.normal_fallbacks += u64::from(fallback);
             n
@@ -194,10 +207,21 @@ mod tests {
             Light::point(lit.to_world(at), Vec3::ONE, false).unwrap(),
             Light::directional(Vec3::new(-1.0, 0.2, -0.3), Vec3::splat(0.5), false).unwrap(),
         ];
+        // And the fast tier's, whose gradient comes from node differences.
+        let fast = View::new(
+            ViewSpec {
+                accuracy: crate::trace::view::Accuracy::Fast,
+                ..view(&grid, Some(Shading::default()), &lights).spec().clone()
+            },
+            &grid,
+        )
+        .unwrap();
+        assert!(fast.node_gradients());
         let views = [
             view(&grid, None, &lights),
             lit,
             view(&grid, Some(Shading::default()), &lights),
+            fast,
         ];
         let mut next = crate::testing::xorshift(0x51ed_270b);
         let bits = |c: Vec3| c.to_array().map(f32::to_bits);
@@ -211,7 +235,8 @@ mod tests {
             for v in &views {
                 let (mut c, mut d) = (Counters::default(), Counters::default());
                 let full = lighting(v, &slab, base, p, None, dir, &mut c).color(&[1.0; MAX_LIGHTS]);
-                let fast = unshadowed_color(v, &slab, base, p, dir, &mut d);
+                let site = field::locate(&grid, v.spec().model, p);
+                let fast = unshadowed_color(v, &slab, base, (p, &site), dir, &mut d);
                 assert_eq!(bits(fast), bits(full), "{p} {base}");
                 assert_eq!(c, d, "{p}");
             }

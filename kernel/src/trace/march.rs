@@ -169,7 +169,8 @@ pub fn march<T: Sample>(
             }
         }
         counters.samples += 1;
-        let v = field::value_at(slab, spec.model, &corner.site(grid), counters);
+        let site = corner.site(grid);
+        let v = field::value_at(slab, spec.model, &site, counters);
         if ray.prev_stale {
             ray.prev_stale = false;
             ray.prev = if view.below_surfaces(v) {
@@ -249,7 +250,7 @@ pub fn march<T: Sample>(
                         view,
                         slab,
                         base,
-                        p4.truncate(),
+                        (p4.truncate(), &site),
                         ray.ray.dir_world,
                         counters,
                     );

@@ -144,7 +144,7 @@ pub fn render_into<T: Sample>(
 /// A pixel after a miss that certainly misses too ([`View::misses_after`]) is the
 /// background without its ray being set up; every other pixel is [`trace_pixel`]'s colour.
 #[derive(Debug)]
-pub struct Pixels<'a, 'd, T> {
+pub struct Pixels<'a, 'd, T: Sample> {
     view: &'a View,
     slab: &'a Slab<'d, T>,
     counters: &'a mut Counters,

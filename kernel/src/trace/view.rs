@@ -61,6 +61,11 @@ pub enum Approximation {
     /// Phong's highlight is read from a table of cosines by linear interpolation
     /// ([`crate::optics::shade::Highlights`]) instead of `powf`.
     HighlightTable,
+    /// The shading gradient is the trilinear interpolation of the nodes' central
+    /// differences ([`crate::volume::nodes`]) instead of central differences of the
+    /// trilinear field: equal in exact arithmetic inside the grid, rounded differently, and
+    /// one-sided at the grid's faces on the nodes rather than at the point.
+    NodeGradients,
 }
 
 impl Approximation {
@@ -69,6 +74,7 @@ impl Approximation {
         match self {
             Approximation::PreClassified => "pre-classified transfer function",
             Approximation::HighlightTable => "highlight by table",
+            Approximation::NodeGradients => "gradient from node differences",
         }
     }
 }
@@ -209,6 +215,9 @@ pub struct View {
     classified: Option<Classified>,
     /// The highlight table (fast tier, shaded views with a highlight).
     highlights: Option<Highlights>,
+    /// Whether shading reads gradients from the node field (fast tier, shaded, cell model,
+    /// differences one cell apart).
+    node_gradients: bool,
 }
 
 impl View {
@@ -296,9 +305,14 @@ impl View {
             (Some(s), Accuracy::Fast) if s.specular > 0.0 => Some(Highlights::new(s)),
             _ => None,
         };
+        let node_gradients = spec.accuracy == Accuracy::Fast
+            && spec.shading.is_some()
+            && spec.model == Model::Cell
+            && spec.gradient_distance == 1.0;
         Ok(View {
             classified,
             highlights,
+            node_gradients,
             dt_world: spec.dt * cell_edge,
             cell_edge,
             inv_spacing: grid.inv_spacing(),
@@ -345,6 +359,13 @@ impl View {
         self.highlights.as_ref()
     }
 
+    /// Whether shading reads its gradients from the node field
+    /// ([`Approximation::NodeGradients`]).
+    #[inline]
+    pub fn node_gradients(&self) -> bool {
+        self.node_gradients
+    }
+
     /// The pre-classified transfer function, when the view composites in the fast tier.
     #[inline]
     pub fn classified(&self) -> Option<&Classified> {
@@ -361,6 +382,9 @@ impl View {
         }
         if self.highlights.is_some() {
             let _ = out.push(Approximation::HighlightTable);
+        }
+        if self.node_gradients {
+            let _ = out.push(Approximation::NodeGradients);
         }
         out
     }

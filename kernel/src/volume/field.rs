@@ -11,8 +11,15 @@ use crate::volume::sample::Sample;
 use crate::volume::slab::Slab;
 use glam::{Vec3, Vec3A, Vec4};
 
+/// Node `(x, y, z)`'s value, or zero where `slab` does not store it (counted).
 #[inline]
-fn read<T: Sample>(slab: &Slab<'_, T>, x: u32, y: u32, z: u32, counters: &mut Counters) -> f32 {
+pub(crate) fn read<T: Sample>(
+    slab: &Slab<'_, T>,
+    x: u32,
+    y: u32,
+    z: u32,
+    counters: &mut Counters,
+) -> f32 {
     match slab.get(x, y, z) {
         Some(v) => v.to_f32(),
         None => {

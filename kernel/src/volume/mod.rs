@@ -6,5 +6,6 @@
 
 pub mod field;
 pub mod grid;
+pub mod nodes;
 pub mod sample;
 pub mod slab;

@@ -23,6 +23,16 @@ impl SampleKind {
             SampleKind::F32 => 4,
         }
     }
+
+    /// Bytes one node of the fast tier's node field takes for samples of this kind
+    /// ([`Sample::Node`]).
+    pub const fn node_bytes(self) -> usize {
+        match self {
+            SampleKind::U8 => size_of::<<u8 as Sample>::Node>(),
+            SampleKind::U16 => size_of::<<u16 as Sample>::Node>(),
+            SampleKind::F32 => size_of::<<f32 as Sample>::Node>(),
+        }
+    }
 }
 
 /// A scalar sample the tracer can read.
@@ -41,6 +51,9 @@ pub trait Sample: Copy + Default + 'static {
     fn lesser(self, other: Self) -> Self;
     /// The greater of two samples by value, as [`Sample::lesser`].
     fn greater(self, other: Self) -> Self;
+    /// How the fast tier's node field stores a node of this kind
+    /// ([`crate::volume::nodes`]): a type that holds its value and differences exactly.
+    type Node: crate::volume::nodes::Lanes;
 }
 
 /// The three sample types differ only in their kind and their order: every conversion is
@@ -48,9 +61,10 @@ pub trait Sample: Copy + Default + 'static {
 /// `f32`), and so is every comparison (`Ord` for the integers, `f32::min` and `f32::max`,
 /// which the tracer uses on converted values too).
 macro_rules! sample {
-    ($t:ty, $kind:ident, $lesser:path, $greater:path) => {
+    ($t:ty, $kind:ident, $lesser:path, $greater:path, $node:ty) => {
         impl Sample for $t {
             const KIND: SampleKind = SampleKind::$kind;
+            type Node = $node;
             #[inline]
             fn to_f32(self) -> f32 {
                 f32::from(self)
@@ -76,9 +90,11 @@ macro_rules! sample {
     };
 }
 
-sample!(u8, U8, core::cmp::min, core::cmp::max);
-sample!(u16, U16, core::cmp::min, core::cmp::max);
-sample!(f32, F32, f32::min, f32::max);
+// A byte node's value and differences lie in [-255, 255]: exact in i16, half the bytes of f32.
+// A u16 node's differences need 17 bits, and f32's are f32: both keep four f32 lanes.
+sample!(u8, U8, core::cmp::min, core::cmp::max, [i16; 4]);
+sample!(u16, U16, core::cmp::min, core::cmp::max, [f32; 4]);
+sample!(f32, F32, f32::min, f32::max, [f32; 4]);
 
 /// The values a field can take over a region (a min/max block's, for skipping).
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -9,6 +9,7 @@
 
 use crate::skip::blocks::Blocks;
 use crate::volume::grid::Grid;
+use crate::volume::nodes::Nodes;
 use crate::volume::sample::Sample;
 use core::fmt;
 use core::ops::Range;
@@ -61,7 +62,7 @@ pub fn stored_planes(grid: &Grid, owned: Range<u32>, ghost: u32) -> Range<u32> {
 
 /// A node's part of the volume.
 #[derive(Clone, Copy, Debug)]
-pub struct Slab<'a, T> {
+pub struct Slab<'a, T: Sample> {
     grid: Grid,
     owned_start: u32,
     owned_end: u32,
@@ -69,6 +70,7 @@ pub struct Slab<'a, T> {
     stored_end: u32,
     data: &'a [T],
     blocks: Option<Blocks<'a>>,
+    nodes: Option<Nodes<'a, T::Node>>,
 }
 
 /// A neighbourhood of a slab's nodes checked once by [`Slab::window`]: rows addressed from its
@@ -127,6 +129,7 @@ impl<'a, T: Sample> Slab<'a, T> {
             stored_end: stored.end,
             data,
             blocks: None,
+            nodes: None,
         })
     }
 
@@ -141,6 +144,21 @@ impl<'a, T: Sample> Slab<'a, T> {
             blocks: Some(blocks),
             ..self
         }
+    }
+
+    /// The same slab, reading the fast tier's node field from `nodes` (built from this
+    /// slab's planes by [`crate::volume::nodes::fill`]).
+    pub fn with_nodes(self, nodes: Nodes<'a, T::Node>) -> Self {
+        Slab {
+            nodes: Some(nodes),
+            ..self
+        }
+    }
+
+    /// The fast tier's node field, where this slab holds one.
+    #[inline(always)]
+    pub fn nodes(&self) -> Option<&Nodes<'a, T::Node>> {
+        self.nodes.as_ref()
     }
 
     /// The min/max blocks, when empty space is skipped.
@@ -221,20 +239,12 @@ impl<'a, T: Sample> Slab<'a, T> {
         }
         let (ny, nz) = (ny as usize, nz as usize);
         let base = ((x.0 - self.stored_start) as usize * nz + z.0 as usize) * ny + y.0 as usize;
-        let sx = (x.1 - x.0) as usize * nz * ny;
-        let sy = (y.1 - y.0) as usize;
-        let sz = (z.1 - z.0) as usize * ny;
-        let at = |offset: usize| self.data.get(base + offset).copied();
-        Some([
-            at(0)?,
-            at(sx)?,
-            at(sy)?,
-            at(sx + sy)?,
-            at(sz)?,
-            at(sx + sz)?,
-            at(sy + sz)?,
-            at(sx + sy + sz)?,
-        ])
+        let steps = [
+            (x.1 - x.0) as usize * nz * ny,
+            (y.1 - y.0) as usize,
+            (z.1 - z.0) as usize * ny,
+        ];
+        corners(self.data, base, steps)
     }
 
     /// The sample at grid node `(x, y, z)`, or `None` outside the stored planes or the grid.
@@ -248,6 +258,28 @@ impl<'a, T: Sample> Slab<'a, T> {
             + y as usize;
         self.data.get(index).copied()
     }
+}
+
+/// The eight items of a cell in plane-major storage `data`, its low corner at `base` and its
+/// high corner `steps` items further along X, Y and Z (each zero or one node's stride),
+/// ordered by corner bits `z y x` from 000 to 111; `None` where any lies past `data`.
+#[inline(always)]
+pub(crate) fn corners<U: Copy>(
+    data: &[U],
+    base: usize,
+    [sx, sy, sz]: [usize; 3],
+) -> Option<[U; 8]> {
+    let at = |offset: usize| data.get(base + offset).copied();
+    Some([
+        at(0)?,
+        at(sx)?,
+        at(sy)?,
+        at(sx + sy)?,
+        at(sz)?,
+        at(sx + sz)?,
+        at(sy + sz)?,
+        at(sx + sy + sz)?,
+    ])
 }
 
 #[cfg(test)]

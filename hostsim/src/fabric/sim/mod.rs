@@ -117,7 +117,7 @@ fn run_typed<T: Sample + Sync>(
     let mut run = plan.finish(
         cfg,
         &grid,
-        size_of::<T>(),
+        T::KIND,
         image,
         stats,
         &|n| peaks[n],
@@ -188,7 +188,7 @@ fn fail(cfg: &RunConfig, what: String, events: u64, log: &EventLog) -> RunError 
 
 /// The whole simulated machine during a run.
 #[derive(Clone)]
-struct Sim<'a, 'c, T> {
+struct Sim<'a, 'c, T: Sample> {
     cfg: &'c RunConfig,
     workers: Vec<Box<NodeWorker<'a, T>>>,
     mailboxes: Vec<Mailbox>,

@@ -1,0 +1,497 @@
+//! The fast tier's node field: every node's value and its central differences along X, Y and
+//! Z in four lanes, so that one trilinear interpolation of lanes gives a point's value and
+//! its gradient ([`value_and_gradient`]) where the exact tier reads six more cells.
+//!
+//! Invariants: a stored node is [`node`] of its slab in every bit (a byte volume's nodes are
+//! integers in `[-255, 255]`, exact in `i16`; other kinds keep the `f32` lanes as computed).
+//! Where a slab holds no field, or a cell's nodes lie outside it, the same lanes are computed
+//! on the fly from the slab, so holding the field changes no pixel, only the time. A field
+//! that does not match its slab is refused when attached, never read past.
+
+use crate::counters::Counters;
+use crate::volume::field::{self, Site};
+use crate::volume::grid::Grid;
+use crate::volume::sample::Sample;
+use crate::volume::slab::{corners, Slab, Window};
+use core::fmt;
+use core::ops::Range;
+use glam::{Vec3, Vec4};
+
+/// How a node's four lanes (value, then the differences along X, Y, Z) are stored.
+pub trait Lanes: Copy + Default + fmt::Debug + Send + Sync + 'static {
+    /// The lanes stored: exact for every node of the sample kind that stores them this way.
+    fn pack(lanes: Vec4) -> Self;
+    /// The lanes as [`Lanes::pack`] took them.
+    fn unpack(self) -> Vec4;
+}
+
+impl Lanes for [i16; 4] {
+    #[inline(always)]
+    fn pack(lanes: Vec4) -> Self {
+        // A byte node's lanes are whole numbers in [-255, 255]: added to 1.5·2^23 each is
+        // exact, and the sum's low mantissa bits hold it in two's complement. `as` would
+        // check every lane for NaN and overflow, which none needs.
+        const SHIFT: f32 = 12_582_912.0;
+        let sums = (lanes + Vec4::splat(SHIFT)).to_array();
+        sums.map(|sum| sum.to_bits().wrapping_sub(SHIFT.to_bits()) as i16)
+    }
+    #[inline(always)]
+    fn unpack(self) -> Vec4 {
+        let [v, dx, dy, dz] = self;
+        Vec4::new(f32::from(v), f32::from(dx), f32::from(dy), f32::from(dz))
+    }
+}
+
+impl Lanes for [f32; 4] {
+    #[inline(always)]
+    fn pack(lanes: Vec4) -> Self {
+        lanes.to_array()
+    }
+    #[inline(always)]
+    fn unpack(self) -> Vec4 {
+        Vec4::from_array(self)
+    }
+}
+
+/// Why a node field cannot be attached to a slab or built into storage.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum NodesError {
+    /// The storage does not hold exactly the field's planes.
+    StorageLength {
+        /// Nodes the planes need.
+        expected: usize,
+        /// Nodes given.
+        actual: usize,
+    },
+}
+
+impl fmt::Display for NodesError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            NodesError::StorageLength { expected, actual } => write!(
+                f,
+                "node field storage holds {actual} nodes, its planes need {expected}"
+            ),
+        }
+    }
+}
+
+impl core::error::Error for NodesError {}
+
+/// Node `(x, y, z)`'s lanes: its value, and along each axis the value of the next node minus
+/// that of the previous, each index clamped into the grid (so the difference is one-sided at
+/// the grid's faces, and zero on an axis one node long). Reads `slab`; a node it does not
+/// store reads zero and is counted, as every read is.
+pub fn node<T: Sample>(slab: &Slab<'_, T>, [x, y, z]: [u32; 3], counters: &mut Counters) -> Vec4 {
+    let dims = slab.grid().dims();
+    let mut at = |x, y, z| field::read(slab, x, y, z, counters);
+    let ahead = |i: u32, a: usize| (i + 1).min(dims[a] - 1);
+    let behind = |i: u32| i.saturating_sub(1);
+    let v = at(x, y, z);
+    let dx = at(ahead(x, 0), y, z) - at(behind(x), y, z);
+    let dy = at(x, ahead(y, 1), z) - at(x, behind(y), z);
+    let dz = at(x, y, ahead(z, 2)) - at(x, y, behind(z));
+    Vec4::new(v, dx, dy, dz)
+}
+
+/// The planes of a slab storing `stored` whose nodes a field holds: every stored node whose
+/// neighbours along X are stored too (or lie past the grid's faces).
+pub fn planes_for(grid: &Grid, stored: Range<u32>) -> Range<u32> {
+    let nx = grid.dims()[0];
+    let first = if stored.start == 0 {
+        0
+    } else {
+        stored.start + 1
+    };
+    let end = if stored.end >= nx {
+        nx
+    } else {
+        stored.end.saturating_sub(1)
+    };
+    first..end.max(first)
+}
+
+/// Nodes a field over a slab storing `stored` holds.
+pub fn len_for(grid: &Grid, stored: Range<u32>) -> usize {
+    let planes = planes_for(grid, stored);
+    (planes.end - planes.start) as usize * grid.plane_len()
+}
+
+/// Write the lanes of every node of planes `planes` into `out` (plane-major, as a slab stores
+/// them), each equal in every bit to [`node`] of `slab`; `out` must hold exactly those
+/// planes' nodes. A part of a field: callers may fill the planes of [`planes_for`] in pieces,
+/// on as many threads as they like.
+pub fn fill<T: Sample>(
+    slab: &Slab<'_, T>,
+    planes: Range<u32>,
+    out: &mut [T::Node],
+    counters: &mut Counters,
+) -> Result<(), NodesError> {
+    let grid = slab.grid();
+    let [_, ny, nz] = grid.dims();
+    let expected = planes.len() * grid.plane_len();
+    if out.len() != expected {
+        return Err(NodesError::StorageLength {
+            expected,
+            actual: out.len(),
+        });
+    }
+    let [nx, ..] = grid.dims();
+    let rows = out.chunks_exact_mut(ny as usize);
+    let places = planes.flat_map(|x| (0..nz).map(move |z| (x, z)));
+    for ((x, z), out) in places.zip(rows) {
+        // A row at a time from the five rows its nodes read, as `node` clamps them: the
+        // same values subtracted in the same order.
+        let row = |x: u32, z: u32| slab.row(x, z);
+        let stencil = (
+            row(x, z),
+            row((x + 1).min(nx - 1), z),
+            row(x.saturating_sub(1), z),
+            row(x, (z + 1).min(nz - 1)),
+            row(x, z.saturating_sub(1)),
+        );
+        let (Some(here), Some(ahead), Some(behind), Some(above), Some(below)) = stencil else {
+            // A row next to planes the slab does not store: node by node, the misses counted.
+            for (y, lanes) in (0..ny).zip(out.iter_mut()) {
+                *lanes = T::Node::pack(node(slab, [x, y, z], counters));
+            }
+            continue;
+        };
+        let f = |row: &[T], y: usize| row[y].to_f32();
+        let last = ny as usize - 1;
+        for (y, lanes) in out.iter_mut().enumerate() {
+            let v = f(here, y);
+            let dx = f(ahead, y) - f(behind, y);
+            let dy = f(here, (y + 1).min(last)) - f(here, y.saturating_sub(1));
+            let dz = f(above, y) - f(below, y);
+            *lanes = T::Node::pack(Vec4::new(v, dx, dy, dz));
+        }
+    }
+    Ok(())
+}
+
+/// A node field over some of a slab's planes, as [`fill`] wrote it.
+#[derive(Clone, Copy, Debug)]
+pub struct Nodes<'a, N> {
+    data: &'a [N],
+    first: u32,
+    end: u32,
+    ny: usize,
+    nz: usize,
+}
+
+impl<'a, N: Lanes> Nodes<'a, N> {
+    /// The field of planes `planes` of `grid` in `data`.
+    pub fn new(grid: &Grid, planes: Range<u32>, data: &'a [N]) -> Result<Self, NodesError> {
+        let expected = planes.len() * grid.plane_len();
+        if data.len() != expected {
+            return Err(NodesError::StorageLength {
+                expected,
+                actual: data.len(),
+            });
+        }
+        let [_, ny, nz] = grid.dims();
+        Ok(Nodes {
+            data,
+            first: planes.start,
+            end: planes.end,
+            ny: ny as usize,
+            nz: nz as usize,
+        })
+    }
+
+    /// The planes it holds.
+    pub fn planes(&self) -> Range<u32> {
+        self.first..self.end
+    }
+
+    /// The lanes of the eight nodes of the cell at `site` (cell model), ordered by corner
+    /// bits `z y x` as [`Slab::cell`] orders them; `None` where any lies outside the field.
+    #[inline(always)]
+    fn cell(&self, site: &Site) -> Option<[Vec4; 8]> {
+        let ([x0, y0, z0], [x1, y1, z1]) = (site.lo, site.hi);
+        // A site's high corner is its low one or the next, inside the grid.
+        if x0 < self.first || x1 >= self.end {
+            return None;
+        }
+        let (ny, nz) = (self.ny, self.nz);
+        let base = ((x0 - self.first) as usize * nz + z0 as usize) * ny + y0 as usize;
+        let steps = [
+            (x1 - x0) as usize * nz * ny,
+            (y1 - y0) as usize,
+            (z1 - z0) as usize * ny,
+        ];
+        corners(self.data, base, steps).map(|c| c.map(N::unpack))
+    }
+}
+
+/// The value and gradient at `site` (cell model) by the node field: one trilinear
+/// interpolation of the cell's node lanes. The value lane is the trilinear value in every
+/// bit ([`field::trilinear`]: the same lerps, in the same order); the gradient is the
+/// interpolated differences, halved, in field units per world unit. Where the slab holds no
+/// field for the cell, its nodes' lanes come from [`node`], the same bits. Counts one
+/// interpolation and one gradient either way.
+#[inline(always)]
+pub fn value_and_gradient<T: Sample>(
+    slab: &Slab<'_, T>,
+    site: &Site,
+    counters: &mut Counters,
+) -> (f32, Vec3) {
+    counters.interpolations += 1;
+    counters.gradients += 1;
+    let corners = match slab.nodes().and_then(|nodes| nodes.cell(site)) {
+        Some(corners) => corners,
+        None => on_the_fly(slab, site, counters),
+    };
+    let [n000, n100, n010, n110, n001, n101, n011, n111] = corners;
+    let Vec3 { x, y, z } = site.frac;
+    let (fx, fy, fz) = (Vec4::splat(x), Vec4::splat(y), Vec4::splat(z));
+    let lerp = |a: Vec4, b: Vec4, t: Vec4| a + t * (b - a);
+    let (c00, c10) = (lerp(n000, n100, fx), lerp(n010, n110, fx));
+    let (c01, c11) = (lerp(n001, n101, fx), lerp(n011, n111, fx));
+    let lanes = lerp(lerp(c00, c10, fy), lerp(c01, c11, fy), fz);
+    let [v, dx, dy, dz] = lanes.to_array();
+    (v, Vec3::new(dx, dy, dz) * 0.5 * slab.grid().inv_spacing())
+}
+
+/// The lanes of a cell's eight nodes from the slab itself, where no field is held: from the
+/// 4×4×4 window of nodes around the cell where it lies in the grid and the slab (the
+/// neighbours `node` reads are then in it, unclamped, so the lanes are the same
+/// subtractions), else node by node.
+#[inline]
+fn on_the_fly<T: Sample>(slab: &Slab<'_, T>, site: &Site, counters: &mut Counters) -> [Vec4; 8] {
+    let ([x0, y0, z0], [x1, y1, z1]) = (site.lo, site.hi);
+    let whole = x1 == x0 + 1 && y1 == y0 + 1 && z1 == z0 + 1;
+    let first = [x0.checked_sub(1), y0.checked_sub(1), z0.checked_sub(1)];
+    let window = match (whole, first) {
+        (true, [Some(x), Some(y), Some(z)]) => slab.window([x, y, z], 4),
+        _ => None,
+    };
+    match window.and_then(|w| in_window(&w)) {
+        Some(lanes) => lanes,
+        None => node_by_node(slab, site, counters),
+    }
+}
+
+/// The eight inner nodes' lanes of a 4×4×4 window, corner bits `z y x` from 000 to 111.
+#[inline(always)]
+fn in_window<T: Sample>(w: &Window<'_, T>) -> Option<[Vec4; 8]> {
+    // Row `dz` of plane `dx`, its four nodes along Y as f32: the twelve rows the inner
+    // nodes and their neighbours lie on, each read once.
+    let row = |dx: usize, dz: usize| w.nodes::<4>(dx, dz, 0).map(|r| r.map(T::to_f32));
+    // By [x][z] bit: the inner rows, and the rows one plane out along X (by z) and one row
+    // out along Z (by x).
+    let inner = [[row(1, 1)?, row(1, 2)?], [row(2, 1)?, row(2, 2)?]];
+    let (below_x, above_x) = ([row(0, 1)?, row(0, 2)?], [row(3, 1)?, row(3, 2)?]);
+    let (below_z, above_z) = ([row(1, 0)?, row(2, 0)?], [row(1, 3)?, row(2, 3)?]);
+    Some(core::array::from_fn(|c| {
+        let (bx, by, bz) = (c & 1, (c >> 1) & 1, (c >> 2) & 1);
+        let y = 1 + by;
+        let here = inner[bx][bz];
+        let (ahead_x, behind_x) = match bx {
+            0 => (inner[1][bz], below_x[bz]),
+            _ => (above_x[bz], inner[0][bz]),
+        };
+        let (ahead_z, behind_z) = match bz {
+            0 => (inner[bx][1], below_z[bx]),
+            _ => (above_z[bx], inner[bx][0]),
+        };
+        Vec4::new(
+            here[y],
+            ahead_x[y] - behind_x[y],
+            here[y + 1] - here[y - 1],
+            ahead_z[y] - behind_z[y],
+        )
+    }))
+}
+
+/// The lanes of a cell's eight nodes, each by [`node`]: at the grid's faces, and next to
+/// planes the slab does not store. Out of line, so that the sample loop stays small.
+#[cold]
+#[inline(never)]
+fn node_by_node<T: Sample>(slab: &Slab<'_, T>, site: &Site, counters: &mut Counters) -> [Vec4; 8] {
+    let ([x0, y0, z0], [x1, y1, z1]) = (site.lo, site.hi);
+    let corner = |c: usize| {
+        let pick = |bit: usize, lo: u32, hi: u32| if c & bit == 0 { lo } else { hi };
+        [pick(1, x0, x1), pick(2, y0, y1), pick(4, z0, z1)]
+    };
+    core::array::from_fn(|c| node(slab, corner(c), counters))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::volume::field::locate;
+    use crate::volume::grid::Model;
+
+    fn bits(v: Vec4) -> [u32; 4] {
+        v.to_array().map(f32::to_bits)
+    }
+
+    /// A byte field with no structure: every node a different hash.
+    fn hashed_bytes() -> ([u8; 9 * 7 * 8], Grid) {
+        let (values, grid) = crate::testing::hashed_field();
+        (values.map(|v| (v.to_bits() >> 7) as u8), grid)
+    }
+
+    fn whole_field<T: Sample>(slab: &Slab<'_, T>) -> ([T::Node; 9 * 7 * 8], Range<u32>) {
+        let planes = planes_for(slab.grid(), slab.stored());
+        let mut out = [T::Node::default(); 9 * 7 * 8];
+        let len = len_for(slab.grid(), slab.stored());
+        fill(
+            slab,
+            planes.clone(),
+            &mut out[..len],
+            &mut Counters::default(),
+        )
+        .unwrap();
+        (out, planes)
+    }
+
+    #[test]
+    fn a_node_is_its_value_and_the_differences_of_its_neighbours_one_sided_at_the_faces() {
+        let (data, grid) = hashed_bytes();
+        let slab = Slab::whole(grid, &data).unwrap();
+        let f = |x: u32, y: u32, z: u32| f32::from(slab.get(x, y, z).unwrap());
+        let mut c = Counters::default();
+        assert_eq!(
+            node(&slab, [3, 2, 4], &mut c),
+            Vec4::new(
+                f(3, 2, 4),
+                f(4, 2, 4) - f(2, 2, 4),
+                f(3, 3, 4) - f(3, 1, 4),
+                f(3, 2, 5) - f(3, 2, 3)
+            )
+        );
+        // At the grid's faces the difference takes the node itself on the missing side.
+        assert_eq!(
+            node(&slab, [0, 6, 7], &mut c),
+            Vec4::new(
+                f(0, 6, 7),
+                f(1, 6, 7) - f(0, 6, 7),
+                f(0, 6, 7) - f(0, 5, 7),
+                f(0, 6, 7) - f(0, 6, 6)
+            )
+        );
+        assert_eq!(c.slab_misses, 0);
+    }
+
+    #[test]
+    fn a_linear_field_has_its_exact_gradient_inside_the_grid() {
+        // f = 3x + 5y - 7z on spacing (1, ½, 2): gradient (3, 10, -3.5) per world unit.
+        let grid = Grid::new([6, 5, 4], Vec3::new(1.0, 0.5, 2.0)).unwrap();
+        let mut data = [0.0f32; 6 * 5 * 4];
+        for x in 0..6 {
+            for z in 0..4 {
+                for y in 0..5 {
+                    data[(x * 4 + z) * 5 + y] = 3.0 * x as f32 + 5.0 * y as f32 - 7.0 * z as f32;
+                }
+            }
+        }
+        let slab = Slab::whole(grid, &data).unwrap();
+        let mut c = Counters::default();
+        for p in [
+            Vec3::new(1.25, 1.5, 1.75),
+            Vec3::new(3.9, 2.01, 1.0),
+            Vec3::splat(2.0),
+        ] {
+            let site = locate(&grid, Model::Cell, p);
+            let (v, g) = value_and_gradient(&slab, &site, &mut c);
+            assert!(
+                (v - (3.0 * p.x + 5.0 * p.y - 7.0 * p.z)).abs() < 1e-4,
+                "{p}"
+            );
+            assert_eq!(g, Vec3::new(3.0, 10.0, -3.5), "{p}");
+        }
+    }
+
+    #[test]
+    fn the_value_lane_is_the_trilinear_value_and_the_field_the_nodes_in_every_bit() {
+        let (bytes, grid) = hashed_bytes();
+        let (floats, _) = crate::testing::hashed_field();
+        check(&Slab::whole(grid, &bytes).unwrap());
+        check(&Slab::whole(grid, &floats).unwrap());
+        // A cut slab: planes 3 and 4 owned, 1 to 6 stored, the field over 2 to 5.
+        let plane = grid.plane_len();
+        let part = Slab::new(grid, 3..5, 2, &bytes[plane..7 * plane]).unwrap();
+        assert_eq!(planes_for(&grid, part.stored()), 2..6);
+        check(&part);
+    }
+
+    fn check<T: Sample>(slab: &Slab<'_, T>) {
+        let grid = *slab.grid();
+        let (storage, planes) = whole_field(slab);
+        let len = len_for(&grid, slab.stored());
+        let nodes = Nodes::new(&grid, planes.clone(), &storage[..len]).unwrap();
+        let held = slab.with_nodes(nodes);
+        // Each stored node is `node` of the slab.
+        let mut c = Counters::default();
+        for x in planes.clone() {
+            for z in 0..grid.dims()[2] {
+                for y in 0..grid.dims()[1] {
+                    let i = ((x - planes.start) as usize * grid.dims()[2] as usize + z as usize)
+                        * grid.dims()[1] as usize
+                        + y as usize;
+                    assert_eq!(
+                        bits(storage[i].unpack()),
+                        bits(node(slab, [x, y, z], &mut c))
+                    );
+                }
+            }
+        }
+        let mut next = crate::testing::xorshift(0x7f4a_7c15);
+        let extent = grid.dims().map(|n| n as f32);
+        for _ in 0..5_000 {
+            let mut p = Vec3::ZERO;
+            for a in 0..3 {
+                p[a] = (next() >> 8) as f32 / (1 << 24) as f32 * (extent[a] + 1.0) - 0.5;
+            }
+            // In the cells whose nodes the field holds (at the grid's faces, out of it too).
+            let (lo, hi) = (planes.start as f32, planes.end as f32 - 1.0);
+            if slab.stored() != (0..grid.dims()[0]) {
+                p.x = p.x.clamp(lo, hi - 1e-3);
+            }
+            let site = locate(&grid, Model::Cell, p);
+            let (mut c, mut d) = (Counters::default(), Counters::default());
+            let with = value_and_gradient(&held, &site, &mut c);
+            let without = value_and_gradient(slab, &site, &mut d);
+            // The value is the trilinear one, and the field the slab's own nodes.
+            let trilinear = field::trilinear(slab, p, &mut Counters::default());
+            assert_eq!(with.0.to_bits(), trilinear.to_bits(), "{p}");
+            assert_eq!(
+                bits(with.1.extend(with.0)),
+                bits(without.1.extend(without.0))
+            );
+            assert_eq!((c.slab_misses, d.slab_misses), (0, 0), "{p}");
+            assert_eq!(
+                (c.gradients, c.interpolations),
+                (d.gradients, d.interpolations)
+            );
+        }
+    }
+
+    #[test]
+    fn a_field_that_does_not_match_its_planes_is_refused() {
+        let (data, grid) = hashed_bytes();
+        let slab = Slab::whole(grid, &data).unwrap();
+        let storage = [[0i16; 4]; 10];
+        assert_eq!(
+            Nodes::new(&grid, 0..9, &storage[..]).map(|_| ()),
+            Err(NodesError::StorageLength {
+                expected: 9 * 56,
+                actual: 10
+            })
+        );
+        let mut out = [[0i16; 4]; 56];
+        assert!(fill(&slab, 0..2, &mut out, &mut Counters::default()).is_err());
+        assert!(fill(&slab, 3..4, &mut out, &mut Counters::default()).is_ok());
+    }
+
+    #[test]
+    fn byte_lanes_keep_every_value_a_byte_node_takes() {
+        for v in -255..=255 {
+            let lanes = Vec4::new(v as f32, -v as f32, 255.0, -255.0);
+            assert_eq!(<[i16; 4]>::pack(lanes).unpack(), lanes);
+        }
+    }
+}

@@ -1,0 +1,215 @@
+//! The fast tier's node field is an acceleration, not an approximation of its own: a slab
+//! that holds it and one that computes the same lanes on the fly give every pixel's colour in
+//! the same bits, for every sample kind, mode and projection, and machines that hold it on
+//! some nodes and not on others give the same image. A field whose differences are off
+//! changes the image, so the comparisons would catch a field that is not the slab's own.
+
+use voxcube::dataset::{Volume, VolumeData};
+use voxcube::fabric::{sim, threads, RunConfig};
+use voxcube::nodes::NodeField;
+use voxcube::render::render;
+use voxcube::storage::SkipMode;
+use voxcube_kernel::counters::Counters;
+use voxcube_kernel::optics::shade::Light;
+use voxcube_kernel::trace::tracer::trace_pixel;
+use voxcube_kernel::trace::view::{Accuracy, Approximation, View, ViewSpec};
+use voxcube_kernel::volume::grid::Model;
+use voxcube_kernel::volume::nodes::{self, Lanes};
+use voxcube_kernel::volume::sample::Sample;
+use voxcube_kernel::volume::slab::Slab;
+use voxcube_kernel::Vec3;
+use voxcube_tests::{
+    constant_transfer, lit, ortho, perspective, spec, surfaces, volume_f32, volume_u8,
+};
+
+/// A field with hills and valleys along every axis: differences of every sign.
+fn hills(x: u32, y: u32, z: u32) -> f32 {
+    let (x, y, z) = (x as f32, y as f32, z as f32);
+    100.0 + 60.0 * (x * 0.41).sin() * (y * 0.23 + 0.3).cos() + 50.0 * (z * 0.37 - x * 0.11).sin()
+}
+
+fn volumes() -> Vec<Volume> {
+    let dims = [17, 13, 15];
+    let spacing = Vec3::new(1.0, 0.8, 1.3);
+    let bytes = volume_u8(dims, spacing, |x, y, z| hills(x, y, z) as u8);
+    let floats = volume_f32(dims, spacing, |x, y, z| hills(x, y, z) * 0.37);
+    let words = Volume {
+        grid: bytes.grid,
+        data: VolumeData::U16(match &bytes.data {
+            VolumeData::U8(d) => d.iter().map(|&v| u16::from(v) * 257).collect(),
+            _ => unreachable!("a byte volume"),
+        }),
+    };
+    vec![bytes, floats, words]
+}
+
+/// Fast-tier views of `volume` that read gradients from the node field: composited and
+/// surfaces, parallel and perspective, a directional and a point light.
+fn views(volume: &Volume) -> Vec<View> {
+    let [nx, ny, nz] = volume.grid.dims().map(|n| n as f32);
+    let centre = Vec3::new(nx * 0.5, ny * 0.4, nz * 0.65);
+    let scale = match &volume.data {
+        VolumeData::U16(_) => 257.0,
+        VolumeData::F32(_) => 0.37,
+        VolumeData::U8(_) => 1.0,
+    };
+    let lights = [
+        Light::directional(Vec3::new(0.3, -0.6, -1.0), Vec3::ONE, false).expect("light"),
+        Light::point(Vec3::new(-4.0, 20.0, 9.0), Vec3::splat(0.6), false).expect("light"),
+    ];
+    let cameras = [
+        ortho(centre + Vec3::new(30.0, 11.0, -17.0), centre, Vec3::Y, 26.0),
+        perspective(centre + Vec3::new(-20.0, 25.0, 14.0), centre, Vec3::Z, 45.0),
+    ];
+    let mut out = Vec::new();
+    for camera in cameras {
+        for mode in [
+            constant_transfer(0.05),
+            surfaces(&[(120.0 * scale, 0.5), (150.0 * scale, 0.0)]),
+        ] {
+            let mut s = lit(spec(camera, 48, 40, Model::Cell, 0.5, mode), &lights);
+            s.accuracy = Accuracy::Fast;
+            let view = View::new(s, &volume.grid).expect("valid view");
+            assert!(view
+                .approximations()
+                .contains(&Approximation::NodeGradients));
+            out.push(view);
+        }
+    }
+    out
+}
+
+/// Every pixel's unquantised colour as bits, from the whole volume with or without its node
+/// field; and the field's bytes.
+fn colours(volume: &Volume, view: &View, held: bool) -> (Vec<[u32; 3]>, usize) {
+    fn go<T: Sample + Sync>(
+        volume: &Volume,
+        data: &[T],
+        view: &View,
+        held: bool,
+    ) -> (Vec<[u32; 3]>, usize) {
+        let slab = Slab::whole(volume.grid, data).expect("whole slab");
+        let mode = SkipMode {
+            nodes: held,
+            ..SkipMode::ALL
+        };
+        let field = NodeField::build(&slab, view, mode, 2);
+        let slab = field.apply(slab);
+        assert_eq!(slab.nodes().is_some(), held);
+        let mut c = Counters::default();
+        let colours = (0..view.pixel_count() as u32)
+            .map(|p| {
+                trace_pixel(view, &slab, p, &mut c)
+                    .to_array()
+                    .map(f32::to_bits)
+            })
+            .collect();
+        assert_eq!(c.slab_misses, 0);
+        (colours, field.bytes())
+    }
+    match &volume.data {
+        VolumeData::U8(d) => go(volume, d, view, held),
+        VolumeData::U16(d) => go(volume, d, view, held),
+        VolumeData::F32(d) => go(volume, d, view, held),
+    }
+}
+
+#[test]
+fn held_or_computed_on_the_fly_the_node_field_gives_every_colour_in_the_same_bits() {
+    for volume in volumes() {
+        let kind = volume.data.kind();
+        for view in views(&volume) {
+            let (held, bytes) = colours(&volume, &view, true);
+            let (fly, none) = colours(&volume, &view, false);
+            let nodes = volume.grid.dims().iter().product::<u32>() as usize;
+            assert_eq!((bytes, none), (nodes * kind.node_bytes(), 0), "{kind:?}");
+            // Not a blank image: the comparison sees the shading.
+            let lit = held.iter().filter(|c| **c != [0; 3]).count();
+            assert!(lit > held.len() / 10, "{kind:?}: {lit} pixels lit");
+            assert!(held == fly, "{kind:?}: a colour differs");
+        }
+    }
+}
+
+#[test]
+fn machines_that_hold_the_field_and_machines_that_do_not_give_the_same_image() {
+    // SOD: the direct render holds the field; eight simulated nodes hold theirs; nodes on
+    // threads that hold none (as a 4 MiB nCUBE 2 node holding the whole volume cannot)
+    // compute the lanes on the fly.
+    let Some(jobs) = voxcube_tests::sod_jobs() else {
+        return;
+    };
+    let job = &jobs[0];
+    let v = job
+        .views
+        .iter()
+        .find(|v| {
+            matches!(
+                v.view.spec().mode,
+                voxcube_kernel::trace::view::Mode::Composite(_)
+            )
+        })
+        .expect("SOD's composited view");
+    let view = View::new(
+        ViewSpec {
+            accuracy: Accuracy::Fast,
+            ..v.view.spec().clone()
+        },
+        &job.volume.grid,
+    )
+    .expect("the fast view");
+    assert!(view.node_gradients(), "SOD's composited view is shaded");
+    let direct = render(&job.volume, &view).expect("renders").pixels;
+    let eight = RunConfig::cluster(8, 5).expect("layout");
+    let run = sim::run(&job.volume, &view, &eight).unwrap_or_else(|e| panic!("{e}"));
+    assert!(
+        run.pixels == direct,
+        "8 nodes holding the field: image differs"
+    );
+    let whole = RunConfig {
+        skipping: SkipMode {
+            nodes: false,
+            ..SkipMode::ALL
+        },
+        ..RunConfig::machine(2, 1, 1).expect("layout")
+    };
+    let run = threads::run(&job.volume, &view, &whole, 2).unwrap_or_else(|e| panic!("{e}"));
+    assert!(
+        run.pixels == direct,
+        "nodes computing on the fly: image differs"
+    );
+}
+
+#[test]
+fn negative_control_a_field_whose_differences_are_off_changes_the_image() {
+    let volume = &volumes()[0];
+    let VolumeData::U8(data) = &volume.data else {
+        unreachable!("a byte volume")
+    };
+    let view = &views(volume)[0];
+    let slab = Slab::whole(volume.grid, data).expect("whole slab");
+    let planes = nodes::planes_for(&volume.grid, slab.stored());
+    let mut lanes = vec![<[i16; 4]>::default(); nodes::len_for(&volume.grid, slab.stored())];
+    nodes::fill(&slab, planes.clone(), &mut lanes, &mut Counters::default()).expect("fills");
+    let trace = |slab: &Slab<'_, u8>| {
+        let mut c = Counters::default();
+        (0..view.pixel_count() as u32)
+            .map(|p| trace_pixel(view, slab, p, &mut c))
+            .collect::<Vec<_>>()
+    };
+    let own = nodes::Nodes::new(&volume.grid, planes.clone(), &lanes).expect("field");
+    let right = trace(&slab.with_nodes(own));
+    assert_eq!(right, trace(&slab), "the slab's own field");
+    // One more unit along X in every node's difference: a field off by a little.
+    let off: Vec<[i16; 4]> = lanes
+        .iter()
+        .map(|l| <[i16; 4]>::pack(l.unpack() + voxcube_kernel::Vec4::new(0.0, 1.0, 0.0, 0.0)))
+        .collect();
+    let off = nodes::Nodes::new(&volume.grid, planes, &off).expect("field");
+    let wrong = trace(&slab.with_nodes(off));
+    let differ = right.iter().zip(&wrong).filter(|(a, b)| a != b).count();
+    assert!(
+        differ > 0,
+        "a field off by one unit left every colour as it was"
+    );
+}
