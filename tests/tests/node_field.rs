@@ -80,14 +80,14 @@ fn views(volume: &Volume) -> Vec<View> {
 }
 
 /// Every pixel's unquantised colour as bits, from the whole volume with or without its node
-/// field; and the field's bytes.
-fn colours(volume: &Volume, view: &View, held: bool) -> (Vec<[u32; 3]>, usize) {
+/// field; the field's bytes; and the counters.
+fn colours(volume: &Volume, view: &View, held: bool) -> (Vec<[u32; 3]>, usize, Counters) {
     fn go<T: Sample + Sync>(
         volume: &Volume,
         data: &[T],
         view: &View,
         held: bool,
-    ) -> (Vec<[u32; 3]>, usize) {
+    ) -> (Vec<[u32; 3]>, usize, Counters) {
         let slab = Slab::whole(volume.grid, data).expect("whole slab");
         let mode = SkipMode {
             nodes: held,
@@ -105,7 +105,7 @@ fn colours(volume: &Volume, view: &View, held: bool) -> (Vec<[u32; 3]>, usize) {
             })
             .collect();
         assert_eq!(c.slab_misses, 0);
-        (colours, field.bytes())
+        (colours, field.bytes(), c)
     }
     match &volume.data {
         VolumeData::U8(d) => go(volume, d, view, held),
@@ -119,8 +119,10 @@ fn held_or_computed_on_the_fly_the_node_field_gives_every_colour_in_the_same_bit
     for volume in volumes() {
         let kind = volume.data.kind();
         for view in views(&volume) {
-            let (held, bytes) = colours(&volume, &view, true);
-            let (fly, none) = colours(&volume, &view, false);
+            let (held, bytes, counted) = colours(&volume, &view, true);
+            let (fly, none, also) = colours(&volume, &view, false);
+            // The same work counted: the counters do not say whether a node held the field.
+            assert_eq!(counted, also, "{kind:?}");
             let nodes = volume.grid.dims().iter().product::<u32>() as usize;
             assert_eq!((bytes, none), (nodes * kind.node_bytes(), 0), "{kind:?}");
             // Not a blank image: the comparison sees the shading.

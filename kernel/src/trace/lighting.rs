@@ -63,7 +63,7 @@ pub fn lighting<T: Sample>(
     let Some(shading) = &spec.shading else {
         return out;
     };
-    let n = normal(view, slab, p, None, cap_normal, view_dir, counters);
+    let n = normal(view, slab, (p, None, None), cap_normal, view_dir, counters);
     let world = view.to_world(p);
     out.ambient = base * shading.ambient;
     out.lights = spec.lights.len() as u8;
@@ -93,13 +93,15 @@ pub fn lighting<T: Sample>(
 /// summed in the same order, a visibility of 1 multiplying each exactly. It keeps no
 /// [`Lighting`] (directions, distances, shadow mask), which compositing never reads and which
 /// is a tenth of a lit sample's work. `site` is where `p` reads the grid under the view's
-/// model ([`field::locate`]), which the sample loop has found already.
+/// model ([`field::locate`]), which the sample loop has found already, and `gradient` the
+/// gradient there where it has that too (from the node field's lanes,
+/// [`nodes::lanes_at`]): counted as the read it stands for.
 #[inline(always)]
 pub fn unshadowed_color<T: Sample>(
     view: &View,
     slab: &Slab<'_, T>,
     base: Vec3,
-    (p, site): (Vec3, &Site),
+    (p, site, gradient): (Vec3, &Site, Option<Vec3>),
     view_dir: Vec3,
     counters: &mut Counters,
 ) -> Vec3 {
@@ -107,7 +109,14 @@ pub fn unshadowed_color<T: Sample>(
     let Some(shading) = &spec.shading else {
         return base;
     };
-    let n = normal(view, slab, p, Some(site), None, view_dir, counters);
+    let n = normal(
+        view,
+        slab,
+        (p, Some(site), gradient),
+        None,
+        view_dir,
+        counters,
+    );
     let world = view.to_world(p);
     let mut color = base * shading.ambient;
     for light in &spec.lights {
@@ -127,14 +136,14 @@ pub fn unshadowed_color<T: Sample>(
     color
 }
 
-/// The shading normal at `p` (whose [`Site`] is `site` where known): the cut face's when
-/// given, else the gradient's, facing the viewer; counts the shading and any fallback.
+/// The shading normal at `p` (whose [`Site`] and gradient are given where known): the cut
+/// face's when given, else the gradient's, facing the viewer; counts the shading, the
+/// gradient and any fallback.
 #[inline(always)]
 fn normal<T: Sample>(
     view: &View,
     slab: &Slab<'_, T>,
-    p: Vec3,
-    site: Option<&Site>,
+    (p, site, known): (Vec3, Option<&Site>, Option<Vec3>),
     cap_normal: Option<Vec3>,
     view_dir: Vec3,
     counters: &mut Counters,
@@ -145,6 +154,11 @@ fn normal<T: Sample>(
         Some(n) => shade::face_viewer(n, view_dir),
         None => {
             let g = match (view.node_gradients(), site) {
+                (true, _) if known.is_some() => {
+                    counters.interpolations += 1;
+                    counters.gradients += 1;
+                    known.unwrap_or_default()
+                }
                 (true, Some(site)) => nodes::value_and_gradient(slab, site, counters).1,
                 (true, None) => {
                     let site = field::locate(slab.grid(), spec.model, p);
@@ -211,7 +225,9 @@ mod tests {
         let fast = View::new(
             ViewSpec {
                 accuracy: crate::trace::view::Accuracy::Fast,
-                ..view(&grid, Some(Shading::default()), &lights).spec().clone()
+                ..view(&grid, Some(Shading::default()), &lights)
+                    .spec()
+                    .clone()
             },
             &grid,
         )
@@ -236,7 +252,7 @@ mod tests {
                 let (mut c, mut d) = (Counters::default(), Counters::default());
                 let full = lighting(v, &slab, base, p, None, dir, &mut c).color(&[1.0; MAX_LIGHTS]);
                 let site = field::locate(&grid, v.spec().model, p);
-                let fast = unshadowed_color(v, &slab, base, (p, &site), dir, &mut d);
+                let fast = unshadowed_color(v, &slab, base, (p, &site, None), dir, &mut d);
                 assert_eq!(bits(fast), bits(full), "{p} {base}");
                 assert_eq!(c, d, "{p}");
             }

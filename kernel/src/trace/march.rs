@@ -18,6 +18,7 @@ use crate::skip::cells::{self, CellMask};
 use crate::trace::lighting::unshadowed_color;
 use crate::volume::field;
 use crate::volume::grid::{Grid, Model};
+use crate::volume::nodes;
 
 use crate::optics::surface::{self, IsoSurface};
 use crate::optics::transfer::corrected_opacity;
@@ -97,6 +98,10 @@ pub fn march<T: Sample>(
     let full_below = view.classified().map_or(0, |_| ray.lattice.full_below());
     // A primary ray passes at once over the samples before its pixel's depth bound: they lie
     // in no cell the masks keep, so the turns below would skip each of them.
+    // Where the node field is held and the view shades composited samples by it, each sample
+    // reads its value and gradient in one interpolation of the field's lanes.
+    let lanes =
+        view.node_gradients() && slab.nodes().is_some() && matches!(spec.mode, Mode::Composite(_));
     let mut depths = match &blocks {
         Some(blocks) if by_cell && ray.kind == RayKind::Primary => blocks.depths(),
         _ => None,
@@ -170,7 +175,15 @@ pub fn march<T: Sample>(
         }
         counters.samples += 1;
         let site = corner.site(grid);
-        let v = field::value_at(slab, spec.model, &site, counters);
+        let (v, gradient) = match lanes {
+            true => {
+                // Counted as the value's read; the gradient where the shading takes it.
+                counters.interpolations += 1;
+                let (v, g) = nodes::lanes_at(slab, &site, counters);
+                (v, Some(g))
+            }
+            false => (field::value_at(slab, spec.model, &site, counters), None),
+        };
         if ray.prev_stale {
             ray.prev_stale = false;
             ray.prev = if view.below_surfaces(v) {
@@ -250,7 +263,7 @@ pub fn march<T: Sample>(
                         view,
                         slab,
                         base,
-                        (p4.truncate(), &site),
+                        (p4.truncate(), &site, gradient),
                         ray.ray.dir_world,
                         counters,
                     );

@@ -239,6 +239,18 @@ pub fn value_and_gradient<T: Sample>(
 ) -> (f32, Vec3) {
     counters.interpolations += 1;
     counters.gradients += 1;
+    lanes_at(slab, site, counters)
+}
+
+/// [`value_and_gradient`] without counting the interpolation and the gradient (only reads
+/// that miss): for a caller that counts them as the reads it stands for, so that the counters
+/// do not depend on whether a node holds the field.
+#[inline(always)]
+pub fn lanes_at<T: Sample>(
+    slab: &Slab<'_, T>,
+    site: &Site,
+    counters: &mut Counters,
+) -> (f32, Vec3) {
     let corners = match slab.nodes().and_then(|nodes| nodes.cell(site)) {
         Some(corners) => corners,
         None => on_the_fly(slab, site, counters),
