@@ -1,5 +1,5 @@
 //! Empty-space skipping changes no pixel: every test scene, directly and on clusters, and SOD,
-//! render the same bits with skipping off, with one block per jump, with leaps over every
+//! in each accuracy tier, render the same bits with skipping off, with one block per jump, with leaps over every
 //! empty block around, and with single empty cells skipped too, while skipping really skips,
 //! leaping really leaps and cell masks really mask; and passing over the pixels of a row that
 //! a node certainly does not start, or that certainly miss, changes no pixel or count either,
@@ -12,24 +12,65 @@ use voxcube::dataset::{Volume, VolumeData};
 use voxcube::fabric::sim;
 use voxcube::fabric::RunConfig;
 use voxcube::render::render_skipping;
-use voxcube::scene::Scene;
+use voxcube::scene::{DatasetJob, Scene};
 use voxcube::storage::{cell_leap_octants, SkipMode, Skipping};
 use voxcube_kernel::optics::transfer::{ControlPoint, TransferFunction};
 use voxcube_kernel::skip::scan;
 use voxcube_kernel::trace::pixel::rgba8;
 use voxcube_kernel::trace::tracer::trace_pixel;
-use voxcube_kernel::trace::view::{Mode, View, ViewSpec};
+use voxcube_kernel::trace::view::{Accuracy, Mode, View, ViewSpec};
 use voxcube_kernel::volume::grid::{Grid, Model};
 use voxcube_kernel::volume::sample::Sample;
 use voxcube_kernel::volume::slab::Slab;
 use voxcube_kernel::Vec3;
 
+/// A view as the check reads it: its name, in one tier.
+struct Named<'a> {
+    name: &'a str,
+    view: &'a View,
+}
+
+/// `view` in each tier whose image may differ: the exact tier, and the fast tier where it
+/// makes an approximation (elsewhere it is the exact image).
+fn in_each_tier(view: &View, job: &DatasetJob) -> Vec<View> {
+    let fast = View::new(
+        ViewSpec {
+            accuracy: Accuracy::Fast,
+            ..view.spec().clone()
+        },
+        &job.volume.grid,
+    )
+    .expect("the view, in the fast tier");
+    let exact = View::new(
+        ViewSpec {
+            accuracy: Accuracy::Exact,
+            ..view.spec().clone()
+        },
+        &job.volume.grid,
+    )
+    .expect("the view, in the exact tier");
+    match fast.approximations().is_empty() {
+        true => vec![exact],
+        false => vec![exact, fast],
+    }
+}
+
+/// Skipping in every mode changes no pixel and skips what it should, in each tier, on one
+/// node and on clusters.
 fn check(text: &str, file: &str) {
     let jobs = Scene::parse(text, file, std::path::Path::new("."))
         .and_then(Scene::load)
         .unwrap_or_else(|e| panic!("{e}"));
     for job in &jobs {
-        for v in &job.views {
+        for (v, view) in job
+            .views
+            .iter()
+            .flat_map(|v| in_each_tier(&v.view, job).into_iter().map(move |t| (v, t)))
+        {
+            let v = Named {
+                name: &v.name,
+                view: &view,
+            };
             let off = render_skipping(&job.volume, &v.view, SkipMode::OFF).expect("renders");
             let blocks = render_skipping(&job.volume, &v.view, SkipMode::BLOCKS).expect("renders");
             let on = render_skipping(&job.volume, &v.view, SkipMode::LEAPS).expect("renders");
@@ -259,6 +300,70 @@ fn jumps_through_empty_cells_change_no_pixel_where_scanning_does_not_pay() {
         assert_eq!(runs[1].counters, runs[2].counters);
         assert!(runs[0].counters.skipped > runs[0].counters.samples);
     }
+}
+
+/// In the fast tier a sample reads its table's nearest entry, which may show where the
+/// transfer function itself shows nothing: here a constant medium at the value where the
+/// function's opacity starts to rise from zero, whose nearest entry lies just above it.
+/// Skipping asks the table, so it skips none of the medium and the image is the one without
+/// skipping; skipping by the function instead (a fault) skips all of it, and the image loses
+/// the medium.
+#[test]
+fn skipping_asks_the_fast_tiers_own_table_where_the_function_shows_nothing() {
+    let volume = voxcube_tests::volume_f32([40, 16, 16], Vec3::ONE, |_, _, _| 1.0);
+    let point = |value: f32, opacity: f32| ControlPoint {
+        value,
+        color: Vec3::ONE,
+        opacity,
+    };
+    let tf = TransferFunction::new(&[point(0.0, 0.0), point(1.0, 0.0), point(1.01, 1.0)])
+        .expect("valid transfer function");
+    assert_eq!(
+        tf.max_opacity(1.0, 1.0),
+        0.0,
+        "the function shows nothing at 1"
+    );
+    let camera = voxcube_tests::ortho(
+        Vec3::new(-30.0, 7.5, 7.5),
+        Vec3::new(20.0, 7.5, 7.5),
+        Vec3::Y,
+        24.0,
+    );
+    let spec = voxcube_tests::spec(camera, 24, 24, Model::Cell, 0.5, Mode::Composite(tf));
+    let exact = voxcube_tests::view(spec.clone(), &volume);
+    let fast = voxcube_tests::view(
+        ViewSpec {
+            accuracy: Accuracy::Fast,
+            ..spec
+        },
+        &volume,
+    );
+    let lit = |pixels: &[[u8; 4]]| pixels.iter().filter(|p| p[..3] != [0, 0, 0]).count();
+    let image = |view: &View, mode| render_skipping(&volume, view, mode).expect("renders");
+    assert_eq!(
+        lit(&image(&exact, SkipMode::OFF).pixels),
+        0,
+        "exact: nothing shows"
+    );
+    let off = image(&fast, SkipMode::OFF);
+    assert!(
+        lit(&off.pixels) > 100,
+        "fast: the medium shows by its entry"
+    );
+    for mode in [SkipMode::BLOCKS, SkipMode::LEAPS, SkipMode::ALL] {
+        let on = image(&fast, mode);
+        assert!(on.pixels == off.pixels, "{mode:?} changed the image");
+        assert_eq!(
+            on.counters.samples, off.counters.samples,
+            "{mode:?} skipped a sample"
+        );
+    }
+    let wrong = image(&fast.clone().with_exact_emptiness(), SkipMode::ALL);
+    assert_eq!(
+        lit(&wrong.pixels),
+        0,
+        "skipping by the function skips the medium"
+    );
 }
 
 #[test]

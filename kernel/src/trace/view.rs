@@ -218,6 +218,10 @@ pub struct View {
     /// Whether shading reads gradients from the node field (fast tier, shaded, cell model,
     /// differences one cell apart).
     node_gradients: bool,
+    /// A test-only fault: the fast tier skips by the transfer function's own emptiness
+    /// instead of its table's.
+    #[cfg(feature = "mutants")]
+    exact_emptiness: bool,
 }
 
 impl View {
@@ -323,6 +327,8 @@ impl View {
             min_iso,
             row_leaps,
             spec,
+            #[cfg(feature = "mutants")]
+            exact_emptiness: false,
         })
     }
 
@@ -336,8 +342,8 @@ impl View {
             // Below every iso value is below the least of them (NaN is below none).
             Mode::Surfaces(_) => self.below_surfaces(r.max),
             Mode::Composite(tf) => match &self.classified {
-                Some(table) => table.empty(r.min, r.max),
-                None => !(tf.max_opacity(r.min, r.max) > 0.0),
+                Some(table) if !self.skips_by_the_function() => table.empty(r.min, r.max),
+                _ => !(tf.max_opacity(r.min, r.max) > 0.0),
             },
         }
     }
@@ -351,6 +357,24 @@ impl View {
             self.classified = Some(Classified::new(tf, dt));
         }
         self
+    }
+
+    /// The same view skipping by the transfer function's own emptiness in the fast tier too,
+    /// where samples read its table: a test-only fault, for the negative control that
+    /// skipping asks the tier's own table.
+    #[cfg(feature = "mutants")]
+    pub fn with_exact_emptiness(mut self) -> View {
+        self.exact_emptiness = true;
+        self
+    }
+
+    /// Whether the fault of [`View::with_exact_emptiness`] is in: never outside tests.
+    #[inline(always)]
+    fn skips_by_the_function(&self) -> bool {
+        #[cfg(feature = "mutants")]
+        return self.exact_emptiness;
+        #[cfg(not(feature = "mutants"))]
+        false
     }
 
     /// The highlight table, when the view is shaded with a highlight in the fast tier.
