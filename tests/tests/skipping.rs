@@ -27,7 +27,7 @@ use voxcube_kernel::Vec3;
 /// A view as the check reads it: its name, in one tier.
 struct Named<'a> {
     name: &'a str,
-    view: &'a View,
+    view: View,
 }
 
 /// `view` in each tier whose image may differ: the exact tier, and the fast tier where it
@@ -69,7 +69,7 @@ fn check(text: &str, file: &str) {
         {
             let v = Named {
                 name: &v.name,
-                view: &view,
+                view,
             };
             let off = render_skipping(&job.volume, &v.view, SkipMode::OFF).expect("renders");
             let blocks = render_skipping(&job.volume, &v.view, SkipMode::BLOCKS).expect("renders");
