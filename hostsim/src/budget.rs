@@ -65,14 +65,16 @@ pub fn worker_bytes() -> usize {
     size_of::<NodeWorker<'static, u8>>() + size_of::<voxcube_kernel::trace::view::View>()
 }
 
-/// Bytes of the structures a slab storing planes `stored` of `grid` keeps beside its planes:
+/// Bytes of the structures a slab owning planes `owned` of `grid` keeps beside its planes (and
+/// ghost planes of `needs`):
 /// its min/max blocks, with the leap maps of `needs` (a byte per block each,
 /// [`voxcube_kernel::skip::leaps`]), its view's cell mask ([`voxcube_kernel::skip::cells`]),
 /// its cell leap maps (a byte per cell each, [`voxcube_kernel::skip::cell_leaps`]), its depth
 /// bounds ([`voxcube_kernel::skip::depths`]) and its node field
 /// ([`voxcube_kernel::volume::nodes`]).
-pub fn structure_bytes(grid: &Grid, stored: std::ops::Range<u32>, needs: ViewNeeds) -> usize {
-    needs.node_bytes * voxcube_kernel::volume::nodes::len_for(grid, stored.clone())
+pub fn structure_bytes(grid: &Grid, owned: std::ops::Range<u32>, needs: ViewNeeds) -> usize {
+    let stored = stored_planes(grid, owned.clone(), needs.ghost);
+    needs.node_bytes * voxcube_kernel::volume::nodes::len_for(grid, owned)
         + voxcube_kernel::skip::blocks::extent_for(grid, stored).2
             * (size_of::<voxcube_kernel::skip::blocks::Range>()
                 + needs.maps * size_of::<u8>()
@@ -207,7 +209,7 @@ pub fn largest_node(
         .map(|j| {
             let s = stored_planes(grid, partition.planes(j), needs.ghost);
             (s.end - s.start) as usize * grid.plane_len() * sample_bytes
-                + structure_bytes(grid, s, needs)
+                + structure_bytes(grid, partition.planes(j), needs)
         })
         .max()?;
     Some(NodeMemory {
@@ -232,10 +234,11 @@ pub fn max_owned_planes(
     let nx = grid.dims()[0];
     let fits = |owned: u32| {
         // An interior slab stores its ghosts on both sides: the most a slab of this size does.
-        let stored = 0..(owned + 2 * needs.ghost).min(nx);
+        let first = needs.ghost.min(nx.saturating_sub(owned));
+        let stored = stored_planes(grid, first..first + owned, needs.ghost);
         let memory = NodeMemory {
             slab: (stored.end - stored.start) as usize * grid.plane_len() * sample_bytes
-                + structure_bytes(grid, stored, needs),
+                + structure_bytes(grid, first..first + owned, needs),
             buffer,
             worker: worker_bytes(),
             allowance: CODE_AND_STACK,
@@ -306,7 +309,7 @@ mod tests {
         let memory = |owned: u32| {
             let stored = 0..owned + 2 * ghost;
             stored.len() * grid.plane_len()
-                + structure_bytes(&grid, stored, needs)
+                + structure_bytes(&grid, ghost..ghost + owned, needs)
                 + buffer
                 + worker_bytes()
                 + CODE_AND_STACK
@@ -327,13 +330,22 @@ mod tests {
             depths: 0,
             node_bytes: 0,
         };
-        assert_eq!(structure_bytes(&grid, 0..10, needs(1, 0)), blocks * 17);
+        assert_eq!(structure_bytes(&grid, 3..7, needs(1, 0)), blocks * 17);
+        // A node field of 8 bytes a node over the owned planes and one more each side.
+        let with_field = ViewNeeds {
+            node_bytes: 8,
+            ..needs(1, 0)
+        };
         assert_eq!(
-            structure_bytes(&grid, 0..10, needs(8, 0)) - structure_bytes(&grid, 0..10, needs(1, 0)),
+            structure_bytes(&grid, 3..7, with_field) - structure_bytes(&grid, 3..7, needs(1, 0)),
+            6 * 97 * 116 * 8
+        );
+        assert_eq!(
+            structure_bytes(&grid, 3..7, needs(8, 0)) - structure_bytes(&grid, 3..7, needs(1, 0)),
             blocks * 7
         );
         assert_eq!(
-            structure_bytes(&grid, 0..10, needs(1, 2)) - structure_bytes(&grid, 0..10, needs(1, 0)),
+            structure_bytes(&grid, 3..7, needs(1, 2)) - structure_bytes(&grid, 3..7, needs(1, 0)),
             blocks * 2 * 64
         );
     }

@@ -172,7 +172,7 @@ fn volume_from(dims: [u32; 3], data: VolumeData) -> Volume {
     // Fixed, valid dimensions and unit spacing: this cannot fail.
     #[allow(clippy::expect_used, reason = "constant, valid dimensions")]
     let grid = Grid::new(dims, Vec3::ONE).expect("built-in grids are valid");
-    Volume { grid, data }
+    Volume::new(grid, data)
 }
 
 #[cfg(test)]

@@ -69,9 +69,20 @@ pub struct Volume {
     pub grid: Grid,
     /// The samples, plane-major.
     pub data: VolumeData,
+    /// The node fields built from `data` (a new volume for new samples starts with none).
+    pub fields: crate::nodes::Fields,
 }
 
 impl Volume {
+    /// The volume of `data` on `grid`, with nothing built from it yet.
+    pub fn new(grid: Grid, data: VolumeData) -> Volume {
+        Volume {
+            grid,
+            data,
+            fields: crate::nodes::Fields::default(),
+        }
+    }
+
     /// Value statistics (exact sums in `f64`).
     pub fn stats(&self) -> Stats {
         fn of<T: Copy + Into<f64>>(v: &[T]) -> Stats {

@@ -264,10 +264,10 @@ mod tests {
         let data = plane_major_from_fn([10, 10, 10], |x, y, z| {
             u8::from((4..6).contains(&x) && (2..5).contains(&y) && z == 7) * 100
         });
-        let volume = Volume {
-            grid: Grid::new([10, 10, 10], Vec3::ONE).unwrap_or_else(|e| panic!("{e}")),
-            data: VolumeData::U8(data),
-        };
+        let volume = Volume::new(
+            Grid::new([10, 10, 10], Vec3::ONE).unwrap_or_else(|e| panic!("{e}")),
+            VolumeData::U8(data),
+        );
         let view = view_of("[[datasets]]\nname = \"m\"\nbuiltin = \"sphere\"\n[[datasets.views]]\n[[datasets.views.surfaces]]\niso = 50.0\n");
         // Cells touching a 100 corner: x 3..=5, y 1..=4, z 6..=7 (cell model).
         assert_eq!(

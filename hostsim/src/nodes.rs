@@ -1,11 +1,16 @@
-//! A node's copy of the fast tier's node field (`voxcube_kernel::volume::nodes`): built from
-//! its slab where its view reads one and the node holds it, and attached to the slab it traces.
+//! A node's copy of the fast tier's node field (`voxcube_kernel::volume::nodes`), and the
+//! fields built from one volume: a field depends on the samples of a slab's planes alone, so
+//! it is built once per volume and set of planes, and shared by every view, orbit frame and
+//! repetition that reads one.
 //!
 //! Invariant: holding the field or not changes no pixel (the kernel computes the same lanes
 //! on the fly), so a node that cannot hold it, or whose build fails, renders without it.
 
 use crate::storage::{even_parts, run_parts, split_sizes, Part, SkipMode};
+use std::any::Any;
+use std::fmt;
 use std::ops::Range;
+use std::sync::{Arc, Mutex, PoisonError};
 use voxcube_kernel::counters::Counters;
 use voxcube_kernel::trace::view::View;
 use voxcube_kernel::volume::nodes::{self, Lanes, Nodes};
@@ -20,21 +25,13 @@ pub struct NodeField<N> {
 }
 
 impl<N: Lanes> NodeField<N> {
-    /// The field of `slab` when `view` reads one ([`View::node_gradients`]) and `mode` holds
-    /// it, built on up to `threads` OS threads in parts of planes (each node reads only the
-    /// slab, so the parts are the same bits as one pass); else none.
-    pub fn build<T: Sample<Node = N> + Sync>(
-        slab: &Slab<'_, T>,
-        view: &View,
-        mode: SkipMode,
-        threads: usize,
-    ) -> NodeField<N> {
-        if !(mode.nodes && view.node_gradients()) {
-            return NodeField::default();
-        }
+    /// The field of `slab`'s planes ([`nodes::planes_for`]), built on up to `threads` OS
+    /// threads in parts of planes (each node reads only the slab, so the parts are the same
+    /// bits as one pass); none where the slab does not store the planes its nodes read.
+    pub fn build<T: Sample<Node = N> + Sync>(slab: &Slab<'_, T>, threads: usize) -> NodeField<N> {
         let grid = slab.grid();
-        let planes = nodes::planes_for(grid, slab.stored());
-        let mut lanes = vec![N::default(); nodes::len_for(grid, slab.stored())];
+        let planes = nodes::planes_for(grid, slab.owned());
+        let mut lanes = vec![N::default(); nodes::len_for(grid, slab.owned())];
         let parts = even_parts(planes.len() as u32, threads.max(1) as u32);
         let sizes = parts.iter().map(|p| p.len() * grid.plane_len());
         let jobs = split_sizes(&mut lanes, sizes)
@@ -55,16 +52,71 @@ impl<N: Lanes> NodeField<N> {
         self.lanes.len() * size_of::<N>()
     }
 
-    /// `slab`, reading this field (unchanged when it holds none or does not match).
+    /// `slab`, reading this field (unchanged when it holds none or not the slab's planes).
     pub fn apply<'a, T: Sample<Node = N>>(&'a self, slab: Slab<'a, T>) -> Slab<'a, T> {
-        if self.lanes.is_empty() {
+        if self.lanes.is_empty() || self.planes != nodes::planes_for(slab.grid(), slab.owned()) {
             return slab;
         }
         match Nodes::new(slab.grid(), self.planes.clone(), &self.lanes) {
-            Ok(field) if self.planes == nodes::planes_for(slab.grid(), slab.stored()) => {
-                slab.with_nodes(field)
-            }
-            _ => slab,
+            Ok(field) => slab.with_nodes(field),
+            Err(_) => slab,
         }
+    }
+}
+
+/// A built field, its lane type erased so that one volume's cache holds any sample kind's.
+type Built = Arc<dyn Any + Send + Sync>;
+
+/// The fields built so far, each with the planes it holds.
+type Shelf = Mutex<Vec<(Range<u32>, Built)>>;
+
+/// The node fields built from one volume, by the planes they hold. Cloning shares them.
+#[derive(Clone, Default)]
+pub struct Fields {
+    built: Arc<Shelf>,
+}
+
+impl Fields {
+    /// The field `slab` (of this cache's volume) reads for `view` when `mode` holds one: the one
+    /// built for its planes before, else built now on up to `threads` OS threads and kept;
+    /// none where the view reads none ([`View::node_gradients`]) or `mode` holds none.
+    pub fn field<T: Sample + Sync>(
+        &self,
+        slab: &Slab<'_, T>,
+        view: &View,
+        mode: SkipMode,
+        threads: usize,
+    ) -> Arc<NodeField<T::Node>> {
+        if !(mode.nodes && view.node_gradients()) {
+            return Arc::default();
+        }
+        let planes = nodes::planes_for(slab.grid(), slab.owned());
+        // Built under the lock: the nodes of a machine that want the same planes wait for one
+        // build instead of each building it.
+        let mut built = self.built.lock().unwrap_or_else(PoisonError::into_inner);
+        let found = built
+            .iter()
+            .filter(|(p, _)| *p == planes)
+            .find_map(|(_, field)| Arc::clone(field).downcast::<NodeField<T::Node>>().ok());
+        if let Some(field) = found {
+            return field;
+        }
+        let field = Arc::new(NodeField::build(slab, threads));
+        built.push((planes, Arc::clone(&field) as Built));
+        field
+    }
+}
+
+impl fmt::Debug for Fields {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let built = self.built.lock().map_or(0, |b| b.len());
+        write!(f, "Fields({built} built)")
+    }
+}
+
+/// Every cache is equal: what a volume has built says nothing about what it is.
+impl PartialEq for Fields {
+    fn eq(&self, _: &Fields) -> bool {
+        true
     }
 }

@@ -488,7 +488,7 @@ pub struct NodeStorage<'d, T: voxcube_kernel::volume::sample::Sample> {
     /// By ring position: every cluster holds the same slab there.
     skipping: Vec<Skipping>,
     /// The node field by ring position, as `skipping`.
-    fields: Vec<crate::nodes::NodeField<T::Node>>,
+    fields: Vec<std::sync::Arc<crate::nodes::NodeField<T::Node>>>,
 }
 
 impl<'d, T: voxcube_kernel::volume::sample::Sample + Sync> NodeStorage<'d, T> {
@@ -529,12 +529,14 @@ impl<'d, T: voxcube_kernel::volume::sample::Sample + Sync> NodeStorage<'d, T> {
     }
 
     /// The same storage, with the skipping storage and node field of each ring position for
-    /// `view` (`mode`), built from cluster 0's node there on up to `threads` OS threads.
+    /// `view` (`mode`), built from cluster 0's node there on up to `threads` OS threads; the
+    /// fields taken from, or kept in, the volume's `fields`.
     pub fn with_skipping(
         mut self,
         view: &View,
         mode: SkipMode,
         threads: usize,
+        fields: &crate::nodes::Fields,
     ) -> NodeStorage<'d, T> {
         let slabs: Vec<_> = (0..self.layout.size())
             .map(|j| self.bare_slab(self.layout.node(0, j)).ok())
@@ -551,7 +553,7 @@ impl<'d, T: voxcube_kernel::volume::sample::Sample + Sync> NodeStorage<'d, T> {
             .iter()
             .map(|s| {
                 s.as_ref()
-                    .map(|s| crate::nodes::NodeField::build(s, view, mode, threads))
+                    .map(|s| fields.field(s, view, mode, threads))
                     .unwrap_or_default()
             })
             .collect();

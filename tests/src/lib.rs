@@ -40,18 +40,18 @@ pub fn sod_jobs() -> Option<Vec<voxcube::scene::DatasetJob>> {
 
 /// A u8 volume with `f(x, y, z)` at each node.
 pub fn volume_u8(dims: [u32; 3], spacing: Vec3, f: impl Fn(u32, u32, u32) -> u8) -> Volume {
-    Volume {
-        grid: Grid::new(dims, spacing).expect("test grid"),
-        data: VolumeData::U8(plane_major_from_fn(dims, f)),
-    }
+    Volume::new(
+        Grid::new(dims, spacing).expect("test grid"),
+        VolumeData::U8(plane_major_from_fn(dims, f)),
+    )
 }
 
 /// An f32 volume with `f(x, y, z)` at each node.
 pub fn volume_f32(dims: [u32; 3], spacing: Vec3, f: impl Fn(u32, u32, u32) -> f32) -> Volume {
-    Volume {
-        grid: Grid::new(dims, spacing).expect("test grid"),
-        data: VolumeData::F32(plane_major_from_fn(dims, f)),
-    }
+    Volume::new(
+        Grid::new(dims, spacing).expect("test grid"),
+        VolumeData::F32(plane_major_from_fn(dims, f)),
+    )
 }
 
 /// Opaque (or not) iso-surfaces.

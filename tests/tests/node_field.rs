@@ -6,7 +6,6 @@
 
 use voxcube::dataset::{Volume, VolumeData};
 use voxcube::fabric::{sim, threads, RunConfig};
-use voxcube::nodes::NodeField;
 use voxcube::render::render;
 use voxcube::storage::SkipMode;
 use voxcube_kernel::counters::Counters;
@@ -33,13 +32,13 @@ fn volumes() -> Vec<Volume> {
     let spacing = Vec3::new(1.0, 0.8, 1.3);
     let bytes = volume_u8(dims, spacing, |x, y, z| hills(x, y, z) as u8);
     let floats = volume_f32(dims, spacing, |x, y, z| hills(x, y, z) * 0.37);
-    let words = Volume {
-        grid: bytes.grid,
-        data: VolumeData::U16(match &bytes.data {
+    let words = Volume::new(
+        bytes.grid,
+        VolumeData::U16(match &bytes.data {
             VolumeData::U8(d) => d.iter().map(|&v| u16::from(v) * 257).collect(),
             _ => unreachable!("a byte volume"),
         }),
-    };
+    );
     vec![bytes, floats, words]
 }
 
@@ -93,7 +92,10 @@ fn colours(volume: &Volume, view: &View, held: bool) -> (Vec<[u32; 3]>, usize, C
             nodes: held,
             ..SkipMode::ALL
         };
-        let field = NodeField::build(&slab, view, mode, 2);
+        let field = volume.fields.field(&slab, view, mode, 2);
+        // Built once for the volume: asked again, the same field.
+        let again = volume.fields.field(&slab, view, mode, 1);
+        assert!(std::sync::Arc::ptr_eq(&field, &again) || !held);
         let slab = field.apply(slab);
         assert_eq!(slab.nodes().is_some(), held);
         let mut c = Counters::default();
@@ -190,8 +192,8 @@ fn negative_control_a_field_whose_differences_are_off_changes_the_image() {
     };
     let view = &views(volume)[0];
     let slab = Slab::whole(volume.grid, data).expect("whole slab");
-    let planes = nodes::planes_for(&volume.grid, slab.stored());
-    let mut lanes = vec![<[i16; 4]>::default(); nodes::len_for(&volume.grid, slab.stored())];
+    let planes = nodes::planes_for(&volume.grid, slab.owned());
+    let mut lanes = vec![<[i16; 4]>::default(); nodes::len_for(&volume.grid, slab.owned())];
     nodes::fill(&slab, planes.clone(), &mut lanes, &mut Counters::default()).expect("fills");
     let trace = |slab: &Slab<'_, u8>| {
         let mut c = Counters::default();

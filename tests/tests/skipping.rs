@@ -779,10 +779,11 @@ fn every_node_skips_by_the_same_storage_however_the_build_is_threaded() {
         let layout = Layout::new(clusters, size).expect("layout");
         let partition = Partition::uniform(grid.dims()[0], size as usize).expect("partition");
         let ghost = view.ghost_planes();
-        let storage = |threads: usize| {
-            NodeStorage::new(&grid, layout, &partition, ghost, data.as_slice(), None)
-                .with_skipping(&view, mode, threads)
-        };
+        let storage =
+            |threads: usize| {
+                NodeStorage::new(&grid, layout, &partition, ghost, data.as_slice(), None)
+                    .with_skipping(&view, mode, threads, &voxcube::nodes::Fields::default())
+            };
         let one = storage(1);
         for threads in [2, 3, 16] {
             let many = storage(threads);

@@ -45,10 +45,10 @@ pub fn molecule_at(n: u32) -> Volume {
         }
         v.round().clamp(0.0, 255.0) as u8
     });
-    Volume {
-        grid: Grid::new([n; 3], Vec3::ONE).unwrap_or_else(|e| unreachable!("{e}")),
-        data: VolumeData::U8(data),
-    }
+    Volume::new(
+        Grid::new([n; 3], Vec3::ONE).unwrap_or_else(|e| unreachable!("{e}")),
+        VolumeData::U8(data),
+    )
 }
 
 /// One measured frame.

@@ -11,6 +11,7 @@ use super::error::RunError;
 use super::host::Host;
 use super::shift::{ShiftJob, ShiftReport};
 use super::{Distributed, NodeReport, RunShape};
+use crate::dataset::Volume;
 use crate::storage::NodeStorage;
 use std::borrow::Cow;
 use std::time::{Duration, Instant};
@@ -149,12 +150,13 @@ impl<'v> Plan<'v> {
     /// moving planes from uniform slabs (and the shift's report).
     pub fn load<'d, T: Sample + Sync>(
         &self,
-        grid: &'d Grid,
+        volume: &'d Volume,
         data: &'d [T],
         cfg: &RunConfig,
         threads: usize,
         shift: impl FnOnce(&ShiftJob<'_>) -> Result<(Vec<Vec<T>>, ShiftReport), RunError>,
     ) -> Result<(NodeStorage<'d, T>, Option<ShiftReport>), RunError> {
+        let grid = &volume.grid;
         let (shifted, report) = match (&cfg.cuts, cfg.shift) {
             (Some(_), true) => {
                 let job = ShiftJob {
@@ -178,7 +180,7 @@ impl<'v> Plan<'v> {
             data,
             shifted,
         )
-        .with_skipping(&self.view, cfg.skipping, threads);
+        .with_skipping(&self.view, cfg.skipping, threads, &volume.fields);
         Ok((storage, report))
     }
 

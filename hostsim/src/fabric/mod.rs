@@ -103,7 +103,7 @@ impl<'a> RunShape<'a> {
         let stored = stored_planes(grid, planes.clone(), needs.ghost);
         let memory = NodeMemory {
             slab: (stored.end - stored.start) as usize * grid.plane_len() * self.sample_bytes
-                + structure_bytes(grid, stored.clone(), needs),
+                + structure_bytes(grid, planes.clone(), needs),
             buffer: peak,
             worker: worker_bytes(),
             allowance: CODE_AND_STACK,

@@ -222,7 +222,7 @@ fn run_typed<T: Sample + Send + Sync>(
 ) -> Result<Distributed, RunError> {
     let grid = volume.grid;
     let plan = Plan::new(&grid, view, cfg)?;
-    let ran = run_hosted(&plan, &grid, data, cfg, threads, progress)?;
+    let ran = run_hosted(&plan, volume, data, cfg, threads, progress)?;
     let Ran {
         host,
         lost,
@@ -240,7 +240,7 @@ fn run_typed<T: Sample + Send + Sync>(
             let already = host.received();
             let retrace = |survivors: &RunConfig, _: &[u16]| {
                 let plan = Plan::new(&grid, view, survivors)?;
-                let again = run_hosted(&plan, &grid, data, survivors, threads, &|n| {
+                let again = run_hosted(&plan, volume, data, survivors, threads, &|n| {
                     progress(already + n)
                 })?;
                 if let Some(lost) = again.lost {
@@ -290,7 +290,7 @@ struct Ran {
 /// Run `plan` on the threads until the host ends: with every pixel, or with a cluster lost.
 fn run_hosted<T: Sample + Send + Sync>(
     plan: &Plan<'_>,
-    grid: &Grid,
+    volume: &Volume,
     data: &[T],
     cfg: &RunConfig,
     threads: usize,
@@ -302,7 +302,7 @@ fn run_hosted<T: Sample + Send + Sync>(
         t => t,
     }
     .clamp(1, nodes);
-    let (storage, shifted) = plan.load(grid, data, cfg, threads, |job| {
+    let (storage, shifted) = plan.load(volume, data, cfg, threads, |job| {
         Ok(shift(job, data, threads)?)
     })?;
     let workers = plan.workers(&storage, cfg)?;

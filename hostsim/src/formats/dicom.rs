@@ -317,7 +317,7 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
         }
         other => other,
     };
-    Ok(Volume { grid, data })
+    Ok(Volume::new(grid, data))
 }
 
 fn frames_are_8bit(slices: &[Slice]) -> bool {

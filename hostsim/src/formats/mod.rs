@@ -165,10 +165,7 @@ pub fn rescale(volume: Volume, slope: f64, intercept: f64) -> Result<Volume, Loa
             "value scaling slope {slope}, intercept {intercept} overflows 32-bit floats"
         )));
     }
-    Ok(Volume {
-        grid: volume.grid,
-        data: VolumeData::F32(data),
-    })
+    Ok(Volume::new(volume.grid, VolumeData::F32(data)))
 }
 
 /// Byte order of multi-byte samples.
@@ -353,5 +350,5 @@ pub fn decode(
             VolumeData::F32(to_plane_major(&v, dims))
         }
     };
-    Ok(Volume { grid, data })
+    Ok(Volume::new(grid, data))
 }

@@ -63,6 +63,13 @@ pub enum NodesError {
         /// Nodes given.
         actual: usize,
     },
+    /// The slab does not store every plane the field's nodes read.
+    NotStored {
+        /// The planes the nodes read.
+        read: Range<u32>,
+        /// The planes the slab stores.
+        stored: Range<u32>,
+    },
 }
 
 impl fmt::Display for NodesError {
@@ -71,6 +78,14 @@ impl fmt::Display for NodesError {
             NodesError::StorageLength { expected, actual } => write!(
                 f,
                 "node field storage holds {actual} nodes, its planes need {expected}"
+            ),
+            NodesError::NotStored {
+                ref read,
+                ref stored,
+            } => write!(
+                f,
+                "a node field's nodes read planes [{}, {}), the slab stores [{}, {})",
+                read.start, read.end, stored.start, stored.end
             ),
         }
     }
@@ -94,33 +109,25 @@ pub fn node<T: Sample>(slab: &Slab<'_, T>, [x, y, z]: [u32; 3], counters: &mut C
     Vec4::new(v, dx, dy, dz)
 }
 
-/// The planes of a slab storing `stored` whose nodes a field holds: every stored node whose
-/// neighbours along X are stored too (or lie past the grid's faces).
-pub fn planes_for(grid: &Grid, stored: Range<u32>) -> Range<u32> {
+/// The planes whose nodes the field of a slab owning `owned` holds: those of its own samples'
+/// cells (the cell model's high corners lie one plane past the owned ones), and the plane
+/// before them, where a surface found between a predecessor's sample and the slab's first
+/// lies. Depends on the owned planes alone, so one field serves every view of a volume.
+pub fn planes_for(grid: &Grid, owned: Range<u32>) -> Range<u32> {
     let nx = grid.dims()[0];
-    let first = if stored.start == 0 {
-        0
-    } else {
-        stored.start + 1
-    };
-    let end = if stored.end >= nx {
-        nx
-    } else {
-        stored.end.saturating_sub(1)
-    };
-    first..end.max(first)
+    owned.start.saturating_sub(1)..owned.end.saturating_add(1).min(nx)
 }
 
-/// Nodes a field over a slab storing `stored` holds.
-pub fn len_for(grid: &Grid, stored: Range<u32>) -> usize {
-    let planes = planes_for(grid, stored);
-    (planes.end - planes.start) as usize * grid.plane_len()
+/// Nodes the field of a slab owning `owned` holds.
+pub fn len_for(grid: &Grid, owned: Range<u32>) -> usize {
+    planes_for(grid, owned).len() * grid.plane_len()
 }
 
 /// Write the lanes of every node of planes `planes` into `out` (plane-major, as a slab stores
 /// them), each equal in every bit to [`node`] of `slab`; `out` must hold exactly those
-/// planes' nodes. A part of a field: callers may fill the planes of [`planes_for`] in pieces,
-/// on as many threads as they like.
+/// planes' nodes, and `slab` must store the planes they read (one more each side, inside the
+/// grid). A part of a field: callers may fill the planes of [`planes_for`] in pieces, on as
+/// many threads as they like.
 pub fn fill<T: Sample>(
     slab: &Slab<'_, T>,
     planes: Range<u32>,
@@ -137,6 +144,12 @@ pub fn fill<T: Sample>(
         });
     }
     let [nx, ..] = grid.dims();
+    let read = planes.start.saturating_sub(1)..planes.end.saturating_add(1).min(nx);
+    let stored = slab.stored();
+    let holds = stored.start <= read.start && read.end <= stored.end;
+    if !(planes.is_empty() || holds) {
+        return Err(NodesError::NotStored { read, stored });
+    }
     let rows = out.chunks_exact_mut(ny as usize);
     let places = planes.flat_map(|x| (0..nz).map(move |z| (x, z)));
     for ((x, z), out) in places.zip(rows) {
@@ -151,7 +164,7 @@ pub fn fill<T: Sample>(
             row(x, z.saturating_sub(1)),
         );
         let (Some(here), Some(ahead), Some(behind), Some(above), Some(below)) = stencil else {
-            // A row next to planes the slab does not store: node by node, the misses counted.
+            // Not taken: every row read is stored (checked above). Node by node, as defined.
             for (y, lanes) in (0..ny).zip(out.iter_mut()) {
                 *lanes = T::Node::pack(node(slab, [x, y, z], counters));
             }
@@ -347,9 +360,9 @@ mod tests {
     }
 
     fn whole_field<T: Sample>(slab: &Slab<'_, T>) -> ([T::Node; 9 * 7 * 8], Range<u32>) {
-        let planes = planes_for(slab.grid(), slab.stored());
+        let planes = planes_for(slab.grid(), slab.owned());
         let mut out = [T::Node::default(); 9 * 7 * 8];
-        let len = len_for(slab.grid(), slab.stored());
+        let len = len_for(slab.grid(), slab.owned());
         fill(
             slab,
             planes.clone(),
@@ -426,14 +439,14 @@ mod tests {
         // A cut slab: planes 3 and 4 owned, 1 to 6 stored, the field over 2 to 5.
         let plane = grid.plane_len();
         let part = Slab::new(grid, 3..5, 2, &bytes[plane..7 * plane]).unwrap();
-        assert_eq!(planes_for(&grid, part.stored()), 2..6);
+        assert_eq!(planes_for(&grid, part.owned()), 2..6);
         check(&part);
     }
 
     fn check<T: Sample>(slab: &Slab<'_, T>) {
         let grid = *slab.grid();
         let (storage, planes) = whole_field(slab);
-        let len = len_for(&grid, slab.stored());
+        let len = len_for(&grid, slab.owned());
         let nodes = Nodes::new(&grid, planes.clone(), &storage[..len]).unwrap();
         let held = slab.with_nodes(nodes);
         // Each stored node is `node` of the slab.
@@ -497,6 +510,19 @@ mod tests {
         let mut out = [[0i16; 4]; 56];
         assert!(fill(&slab, 0..2, &mut out, &mut Counters::default()).is_err());
         assert!(fill(&slab, 3..4, &mut out, &mut Counters::default()).is_ok());
+        // A slab with one ghost plane stores planes 2 to 5 for planes 3 and 4: their field's
+        // planes 2 to 5 read 1 to 6, which it does not store. Refused, not filled with zeros.
+        let plane = grid.plane_len();
+        let thin = Slab::new(grid, 3..5, 1, &data[2 * plane..6 * plane]).unwrap();
+        let planes = planes_for(&grid, thin.owned());
+        let mut out = [[0i16; 4]; 4 * 56];
+        assert_eq!(
+            fill(&thin, planes, &mut out, &mut Counters::default()),
+            Err(NodesError::NotStored {
+                read: 1..7,
+                stored: 2..6
+            })
+        );
     }
 
     #[test]

@@ -90,7 +90,7 @@ fn explore_typed<T: Sample + Sync>(
 ) -> Result<Exhaustive, RunError> {
     let grid = volume.grid;
     let plan = Plan::new(&grid, view, cfg)?;
-    let (storage, _) = plan.load(&grid, data, cfg, 1, |job| {
+    let (storage, _) = plan.load(volume, data, cfg, 1, |job| {
         Ok(super::super::shift::run(job, data, None)?)
     })?;
     let root = Sim::new(&plan, plan.workers(&storage, cfg)?, cfg);

@@ -71,7 +71,7 @@ fn run_typed<T: Sample + Sync>(
 ) -> Result<Distributed, RunError> {
     let grid = volume.grid;
     let plan = Plan::new(&grid, view, cfg)?;
-    let (storage, shift) = plan.load(&grid, data, cfg, 1, |job| {
+    let (storage, shift) = plan.load(volume, data, cfg, 1, |job| {
         Ok(super::shift::run(job, data, cfg.time.as_ref())?)
     })?;
     let mut sim = Sim::new(&plan, plan.workers(&storage, cfg)?, cfg);
@@ -155,7 +155,7 @@ fn simulate<T: Sample + Sync>(
 ) -> Result<Retraced, RunError> {
     let grid = volume.grid;
     let plan = Plan::new(&grid, view, cfg)?;
-    let (storage, _) = plan.load(&grid, data, cfg, 1, |_| {
+    let (storage, _) = plan.load(volume, data, cfg, 1, |_| {
         Err(RunError::Host(
             "a re-trace loads its slabs, it does not shift them".into(),
         ))
