@@ -170,7 +170,7 @@ fn bad_nrrd_headers() {
         ),
         (
             b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nencoding: gzip\n\nnot gzip",
-            "gzip data is corrupt",
+            "corrupt compressed data",
         ),
     ];
     for (bytes, expected) in cases {

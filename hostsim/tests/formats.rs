@@ -668,3 +668,47 @@ fn info_on_a_raw_file_asks_for_a_scene() {
         "{err}"
     );
 }
+
+/// A `.nii.gz` with any one byte changed is read to the original samples or refused, never
+/// read to other samples: the gzip stream's CRC-32 and length are checked before a sample is
+/// taken. A change in the gzip trailer (the CRC-32 and ISIZE) or in the deflate data is
+/// refused as corrupt compressed data, naming the file.
+#[test]
+fn a_corrupt_gzip_nifti_is_refused_never_read_to_other_samples() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let original = gzip(&nifti(4, 16, 1.0, 0.0, &le(&samples())));
+    let path = dir.path().join("blob.nii.gz");
+    std::fs::write(&path, &original).expect("write");
+    let reference = voxcube::formats::nifti::load(&path, None).expect("the intact file reads");
+    let (mut refused, mut same) = (0, 0);
+    let n = original.len();
+    // A spread of offsets through the header, the deflate data, and every trailer byte.
+    let offsets = (0..n).step_by((n / 200).max(1)).chain(n - 8..n);
+    for offset in offsets {
+        let mut bad = original.clone();
+        bad[offset] ^= 0xa5;
+        std::fs::write(&path, &bad).expect("write");
+        match voxcube::formats::nifti::load(&path, None) {
+            Ok(volume) => {
+                assert!(
+                    volume.grid == reference.grid && volume.data == reference.data,
+                    "byte {offset} of {n} changed: read to other samples"
+                );
+                same += 1;
+            }
+            Err(e) => {
+                let message = e.to_string();
+                assert!(message.contains("blob.nii.gz"), "{message}");
+                // Past the 10-byte gzip header, every change is in the stream or trailer.
+                if offset >= 10 {
+                    assert!(
+                        message.contains("corrupt compressed data"),
+                        "byte {offset}: {message}"
+                    );
+                }
+                refused += 1;
+            }
+        }
+    }
+    assert!(refused > 150, "{refused} refused, {same} read alike");
+}

@@ -190,8 +190,8 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
         flate2::read::ZlibDecoder::new(&payload[start..])
             .read_to_end(&mut out)
             .map_err(|e| {
-                data_err(header_err(format!(
-                    "CompressedData: zlib data is corrupt: {e}"
+                data_err(LoadErrorKind::Corrupt(format!(
+                    "CompressedData: the zlib stream does not decode or fails its Adler-32 check ({e})"
                 )))
             })?;
         out

@@ -219,6 +219,9 @@ pub enum LoadErrorKind {
     /// A header field is missing, malformed or unsupported.
     #[error("{0}")]
     Header(String),
+    /// A compressed stream does not decode, or fails its checksum or declared length.
+    #[error("corrupt compressed data: {0}")]
+    Corrupt(String),
 }
 
 /// A dataset file that could not be loaded.

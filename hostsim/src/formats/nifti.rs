@@ -39,8 +39,7 @@ fn is_nifti2(path: &Path) -> bool {
     use std::io::Read;
     let mut head = [0u8; 4];
     let plain = std::fs::File::open(path).and_then(|mut f| f.read_exact(&mut head));
-    let gz = path.to_string_lossy().to_ascii_lowercase().ends_with(".gz");
-    let read = if gz {
+    let read = if is_gzip(path) {
         std::fs::File::open(path)
             .and_then(|f| flate2::read::GzDecoder::new(f).read_exact(&mut head))
     } else {
@@ -49,9 +48,32 @@ fn is_nifti2(path: &Path) -> bool {
     read.is_ok() && (head == 540i32.to_le_bytes() || head == 540i32.to_be_bytes())
 }
 
+/// Whether `path` names a gzip-compressed file (`.nii.gz`).
+fn is_gzip(path: &Path) -> bool {
+    path.to_string_lossy().to_ascii_lowercase().ends_with(".gz")
+}
+
+/// Decode the whole gzip stream of `path` into nothing, so that its CRC-32 and length (ISIZE)
+/// are checked before any sample is taken from it: the `nifti` crate stops reading at the
+/// last sample, before the trailer, and a flipped bit in the deflate data can decode to other
+/// samples without a deflate error. Streamed: memory stays bounded whatever the file says.
+fn verify_gzip(path: &Path) -> Result<(), LoadErrorKind> {
+    let file = std::fs::File::open(path)?;
+    let mut stream = flate2::read::GzDecoder::new(std::io::BufReader::new(file));
+    match std::io::copy(&mut stream, &mut std::io::sink()) {
+        Ok(_) => Ok(()),
+        Err(e) => Err(LoadErrorKind::Corrupt(format!(
+            "the gzip stream does not decode or fails its CRC-32 or length check ({e})"
+        ))),
+    }
+}
+
 /// Load a NIfTI-1 volume. `spacing` overrides `pixdim`.
 pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
     let at = |k| LoadError::new(path, k);
+    if is_gzip(path) {
+        verify_gzip(path).map_err(at)?;
+    }
     if is_nifti2(path) {
         return Err(at(header_err(
             "NIfTI-2 (540-byte header) is not supported; convert to NIfTI-1 (for example `nifti_tool -copy_image -convert2dtype` or nibabel's Nifti1Image)",
