@@ -242,6 +242,12 @@ fn write_all(dir: &Path) -> Vec<(&'static str, String)> {
         "zipped.mha",
         &[mhd_header(&extra, "LOCAL").as_bytes(), &packed].concat(),
     );
+    // Big-endian, said by ITK's other name for the byte order.
+    let msb = mhd_header("", "LOCAL").replace(
+        "BinaryDataByteOrderMSB = False",
+        "ElementByteOrderMSB = True",
+    );
+    w("msb.mha", &[msb.as_bytes(), &be(&v)].concat());
     w("blob.vtk", &vtk_legacy(&v));
     w("blob.vti", vti(&v).as_bytes());
     dicom_series(&dir.join("series"), &v, "1.2.826.0.1.3680043.2.1125.9");
@@ -257,6 +263,7 @@ fn write_all(dir: &Path) -> Vec<(&'static str, String)> {
         ("mhd", "path = \"blob.mhd\"".into()),
         ("mha", "path = \"blob.mha\"".into()),
         ("mha-zlib", "path = \"zipped.mha\"".into()),
+        ("mha-element-msb", "path = \"msb.mha\"".into()),
         ("vtk", "path = \"blob.vtk\"".into()),
         ("vti", "path = \"blob.vti\"".into()),
         ("dicom", "path = \"series\"".into()),

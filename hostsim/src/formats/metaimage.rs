@@ -2,7 +2,8 @@
 //! (`.mha`, `ElementDataFile = LOCAL`) or in a file the header names (`.mhd`).
 //!
 //! Read: `NDims` (3), `DimSize`, `ElementType`, `ElementNumberOfChannels` (1),
-//! `ElementSpacing` (or `ElementSize`), `BinaryDataByteOrderMSB`/`ByteOrderMSB`,
+//! `ElementSpacing` (or `ElementSize`), `BinaryDataByteOrderMSB`/`ByteOrderMSB`/
+//! `ElementByteOrderMSB` (ITK's three names for the byte order; two that disagree are an error),
 //! `CompressedData` (zlib), `HeaderSize` (bytes to skip in the data file; -1: the data
 //! is the file's last bytes), `ElementDataFile`. `Offset`, `TransformMatrix` and
 //! `AnatomicalOrientation` are not applied (index space). A short header needs no crate.
@@ -61,6 +62,8 @@ struct Header {
     ty: Option<FileType>,
     spacing: Option<Vec3>,
     big_endian: bool,
+    /// The key that set the byte order, when one did.
+    order_key: Option<String>,
     compressed: bool,
     header_size: i64,
     data_file: Option<String>,
@@ -118,7 +121,16 @@ fn parse_header(bytes: &[u8]) -> Result<Header, LoadErrorKind> {
                     "ElementNumberOfChannels is {value}; voxcube reads scalar volumes (1)"
                 )))
             }
-            "BinaryDataByteOrderMSB" | "ByteOrderMSB" => h.big_endian = truthy(key, value)?,
+            "BinaryDataByteOrderMSB" | "ByteOrderMSB" | "ElementByteOrderMSB" => {
+                let msb = truthy(key, value)?;
+                if let Some(first) = h.order_key.as_ref().filter(|_| h.big_endian != msb) {
+                    return Err(header_err(format!(
+                        "{first} and {key} disagree on the byte order; give one"
+                    )));
+                }
+                h.big_endian = msb;
+                h.order_key = Some(key.to_string());
+            }
             "CompressedData" => h.compressed = truthy(key, value)?,
             "HeaderSize" => {
                 h.header_size = value
@@ -211,6 +223,9 @@ mod tests {
     fn header_fields_parse_and_bad_ones_are_named() {
         let text = b"ObjectType = Image\nNDims = 3\nDimSize = 2 3 4\nElementType = MET_SHORT\nElementSpacing = 1 2 0.5\nBinaryDataByteOrderMSB = True\nElementDataFile = LOCAL\nDATA";
         let h = parse_header(text).unwrap();
+        // ITK's other name for the byte order is honoured too.
+        let element = String::from_utf8_lossy(text).replace("BinaryData", "Element");
+        assert!(parse_header(element.as_bytes()).unwrap().big_endian);
         assert_eq!(h.dims, Some([2, 3, 4]));
         assert_eq!(h.ty, Some(FileType::I16));
         assert_eq!(h.spacing, Some(Vec3::new(1.0, 2.0, 0.5)));
@@ -227,6 +242,10 @@ mod tests {
                 "DimSize: expected three numbers",
             ),
             (b"P6\n", "is not \"Key = Value\""),
+            (
+                b"NDims = 3\nBinaryDataByteOrderMSB = False\nElementByteOrderMSB = True\n",
+                "BinaryDataByteOrderMSB and ElementByteOrderMSB disagree",
+            ),
             (b"Foo = 1\n", "not a MetaImage header"),
             (b"NDims = 3\nDimSize = 1 1 1\n", "missing ElementDataFile"),
             (
