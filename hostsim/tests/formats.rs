@@ -249,6 +249,17 @@ fn write_all(dir: &Path) -> Vec<(&'static str, String)> {
     );
     w("msb.mha", &[msb.as_bytes(), &be(&v)].concat());
     w("blob.vtk", &vtk_legacy(&v));
+    // Blank lines between the header's keyword lines, as VTK's own samples have them.
+    let legacy = vtk_legacy(&v);
+    let header = legacy.len() - 2 * v.len() - 1;
+    let spaced = String::from_utf8_lossy(&legacy[..header])
+        .replace("blob\n", "blob\n\n")
+        .replace("DIMENSIONS", "\nDIMENSIONS")
+        .replace("ORIGIN 0 0 0\n", "ORIGIN 0 0 0\n \n\n");
+    w(
+        "spaced.vtk",
+        &[spaced.as_bytes(), &legacy[header..]].concat(),
+    );
     w("blob.vti", vti(&v).as_bytes());
     dicom_series(&dir.join("series"), &v, "1.2.826.0.1.3680043.2.1125.9");
     let raw = format!(
@@ -265,6 +276,7 @@ fn write_all(dir: &Path) -> Vec<(&'static str, String)> {
         ("mha-zlib", "path = \"zipped.mha\"".into()),
         ("mha-element-msb", "path = \"msb.mha\"".into()),
         ("vtk", "path = \"blob.vtk\"".into()),
+        ("vtk-blank-lines", "path = \"spaced.vtk\"".into()),
         ("vti", "path = \"blob.vti\"".into()),
         ("dicom", "path = \"series\"".into()),
     ]

@@ -88,12 +88,42 @@ fn buffer_bytes(buffer: IOBuffer) -> Result<(Vec<u8>, FileType), LoadErrorKind> 
     })
 }
 
+/// A legacy file's bytes without the blank lines between its header's keyword lines, which
+/// VTK's own reader skips and `vtkio` refuses (VTK's sample `ironProt.vtk` has one after
+/// `ASCII`). The first two lines are kept as they are (the second, the title, may be
+/// blank), and everything after the `LOOKUP_TABLE` line, where the samples begin (binary
+/// ones may hold any bytes), is left untouched.
+fn without_blank_header_lines(bytes: &[u8]) -> std::borrow::Cow<'_, [u8]> {
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut rest = bytes;
+    for n in 0.. {
+        let Some(end) = rest.iter().position(|&b| b == b'\n') else {
+            break;
+        };
+        let (line, after) = rest.split_at(end + 1);
+        let blank = line.iter().all(u8::is_ascii_whitespace);
+        if n < 2 || !blank {
+            out.extend_from_slice(line);
+        }
+        rest = after;
+        if line.trim_ascii_start().starts_with(b"LOOKUP_TABLE") {
+            break;
+        }
+    }
+    if out.len() + rest.len() == bytes.len() {
+        return std::borrow::Cow::Borrowed(bytes);
+    }
+    out.extend_from_slice(rest);
+    std::borrow::Cow::Owned(out)
+}
+
 /// Load a VTK image-data volume. `spacing` overrides the file's.
 pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
     let at = |k| LoadError::new(path, k);
     let bytes = super::read(path)?;
     let legacy = bytes.starts_with(b"# vtk DataFile");
     let vtk = if legacy {
+        let bytes = without_blank_header_lines(&bytes);
         Vtk::parse_legacy_be(&bytes[..]).map_err(|e| at(diagnose_legacy(&bytes, &e)))?
     } else {
         Vtk::parse_xml(&bytes[..])
@@ -159,4 +189,33 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
         ))));
     }
     decode(&samples, dims, spacing, ty, Endian::Little).map_err(at)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::without_blank_header_lines;
+
+    #[test]
+    fn blank_header_lines_go_and_the_title_and_the_samples_stay() {
+        let samples = b"\n\n \n\x00\n";
+        let file = [
+            &b"# vtk DataFile Version 3.0\n\nBINARY\n\nDATASET STRUCTURED_POINTS\n  \n"[..],
+            b"LOOKUP_TABLE default\n",
+            samples,
+        ]
+        .concat();
+        let kept = without_blank_header_lines(&file);
+        let expected = [
+            &b"# vtk DataFile Version 3.0\n\nBINARY\nDATASET STRUCTURED_POINTS\n"[..],
+            b"LOOKUP_TABLE default\n",
+            samples,
+        ]
+        .concat();
+        assert_eq!(&kept[..], &expected[..]);
+        // A file without blank lines is the file itself, not a copy.
+        assert!(matches!(
+            without_blank_header_lines(&expected),
+            std::borrow::Cow::Borrowed(_)
+        ));
+    }
 }
