@@ -323,9 +323,15 @@ fn scene_text(name: &str, path: &Path, volume: &Volume, isos: &[f64], nodes: u32
         .first()
         .copied()
         .unwrap_or((stats.min + stats.max) / 2.0);
+    // The cell model interpolates between two samples along each axis: a volume one sample
+    // thick (a single image) renders in the voxel model.
+    let model = match [nx, ny, nz].contains(&1) {
+        true => "# One sample thick: the voxel model (the cell model needs two along each axis).\nmodel = \"voxel\"\n",
+        false => "",
+    };
     let _ = writeln!(
         s,
-        "[[datasets.views]]\nname = \"surfaces\"\nwidth = 400\nheight = 400\nnodes = {nodes}"
+        "[[datasets.views]]\nname = \"surfaces\"\nwidth = 400\nheight = 400\nnodes = {nodes}\n{model}"
     );
     let _ = writeln!(s, "[[datasets.views.surfaces]]\niso = {iso_a:?}");
     match isos.get(1) {
@@ -341,7 +347,7 @@ fn scene_text(name: &str, path: &Path, volume: &Volume, isos: &[f64], nodes: u32
     }
     let _ = writeln!(
         s,
-        "[[datasets.views]]\nname = \"composite\"\nmode = \"composite\"\nwidth = 400\nheight = 400\nnodes = {nodes}"
+        "[[datasets.views]]\nname = \"composite\"\nmode = \"composite\"\nwidth = 400\nheight = 400\nnodes = {nodes}\n{model}"
     );
     for (value, color, opacity) in transfer(volume, isos) {
         let _ = writeln!(

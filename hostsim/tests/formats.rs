@@ -677,6 +677,30 @@ fn info_describes_a_volume_and_its_scene_renders_something_on_the_first_try() {
     }
 }
 
+/// A single image (one sample thick): the scene `info --scene` suggests renders, in the
+/// voxel model, since the cell model needs two samples along each axis.
+#[test]
+fn info_suggests_a_scene_that_renders_for_a_one_slice_volume() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let header = "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 24 20 1\nencoding: raw\n\n";
+    let image: Vec<u8> = (0..24 * 20).map(|i| ((i * 7) % 200) as u8).collect();
+    let nrrd = dir.path().join("slice.nrrd");
+    std::fs::write(&nrrd, [header.as_bytes(), &image].concat()).expect("write");
+    let (ok, scene, err) = run(&["info".as_ref(), "--scene".as_ref(), nrrd.as_os_str()]);
+    assert!(ok, "{err}");
+    assert!(scene.contains("model = \"voxel\""), "{scene}");
+    let file = dir.path().join("slice.toml");
+    std::fs::write(&file, &scene).expect("write");
+    let out = dir.path().join("out");
+    let (ok, _, err) = run(&[
+        "render".as_ref(),
+        file.as_os_str(),
+        "-o".as_ref(),
+        out.as_os_str(),
+    ]);
+    assert!(ok, "{err}\n{scene}");
+}
+
 #[test]
 fn info_on_a_raw_file_asks_for_a_scene() {
     let dir = tempfile::tempdir().expect("tempdir");
