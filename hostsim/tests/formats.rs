@@ -228,6 +228,13 @@ fn write_all(dir: &Path) -> Vec<(&'static str, String)> {
         "scaled.nii.gz",
         &gzip(&nifti(512, 16, 1.0, -1024.0, &shifted)),
     );
+    // A header and image pair, both gzipped.
+    let mut hdr = nifti(4, 16, 1.0, 0.0, &[]);
+    hdr.truncate(348);
+    hdr[108..112].copy_from_slice(&0f32.to_le_bytes());
+    hdr[344..348].copy_from_slice(b"ni1\0");
+    w("pair.hdr.gz", &gzip(&hdr));
+    w("pair.img.gz", &gzip(&le(&v)));
     w("blob.mhd", mhd_header("", "blob.raw").as_bytes());
     w(
         "blob.mha",
@@ -271,6 +278,7 @@ fn write_all(dir: &Path) -> Vec<(&'static str, String)> {
         ("nrrd", "path = \"blob.nrrd\"".into()),
         ("nifti", "path = \"blob.nii\"".into()),
         ("nifti-gz-scaled", "path = \"scaled.nii.gz\"".into()),
+        ("nifti-pair-gz", "path = \"pair.hdr.gz\"".into()),
         ("mhd", "path = \"blob.mhd\"".into()),
         ("mha", "path = \"blob.mha\"".into()),
         ("mha-zlib", "path = \"zipped.mha\"".into()),
@@ -754,4 +762,18 @@ fn a_corrupt_gzip_nifti_is_refused_never_read_to_other_samples() {
         }
     }
     assert!(refused > 150, "{refused} refused, {same} read alike");
+    // A header and image pair: a corrupt image stream is named as such.
+    write_all(dir.path());
+    let image = dir.path().join("pair.img.gz");
+    let mut bad = std::fs::read(&image).expect("read");
+    let last = bad.len() - 1;
+    bad[last] ^= 1;
+    std::fs::write(&image, &bad).expect("write");
+    let message = voxcube::formats::nifti::load(&dir.path().join("pair.hdr.gz"), None)
+        .expect_err("a corrupt image stream")
+        .to_string();
+    assert!(
+        message.contains("pair.img.gz") && message.contains("corrupt compressed data"),
+        "{message}"
+    );
 }

@@ -88,7 +88,7 @@ impl Format {
             "nrrd" | "nhdr" => Format::Nrrd,
             "den" => Format::Den,
             "nii" | "hdr" => Format::Nifti,
-            "gz" if name.ends_with(".nii.gz") => Format::Nifti,
+            "gz" if name.ends_with(".nii.gz") || name.ends_with(".hdr.gz") => Format::Nifti,
             "mha" | "mhd" => Format::MetaImage,
             "vtk" | "vti" => Format::Vtk,
             "dcm" | "dicom" => Format::Dicom,

@@ -1,4 +1,5 @@
-//! NIfTI-1 volumes (`.nii`, `.nii.gz`, and `.hdr` with its `.img`), read with the `nifti`
+//! NIfTI-1 volumes (`.nii`, `.nii.gz`, and `.hdr` or `.hdr.gz` with its `.img` or `.img.gz`),
+//! read with the `nifti`
 //! crate: `dim`, `datatype`, `pixdim` (the spacing) and `scl_slope`/`scl_inter` (the value
 //! scaling) are honoured; `qform`/`sform` orientation is not applied (index space).
 //!
@@ -9,7 +10,7 @@
 use super::{decode, rescale, Endian, FileType, LoadError, LoadErrorKind};
 use crate::dataset::Volume;
 use nifti::{NiftiObject, NiftiType, ReaderOptions};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use voxcube_kernel::Vec3;
 
 fn header_err(msg: impl Into<String>) -> LoadErrorKind {
@@ -68,18 +69,57 @@ fn verify_gzip(path: &Path) -> Result<(), LoadErrorKind> {
     }
 }
 
+/// The image file beside a header `path` (`.hdr` or `.hdr.gz`): `.img` or `.img.gz`,
+/// whichever exists, the one compressed as the header is taken first; `None` for a single file
+/// (`.nii`, `.nii.gz`).
+fn image_of(path: &Path) -> Option<PathBuf> {
+    let name = path.file_name()?.to_str()?;
+    let lower = name.to_ascii_lowercase();
+    let (stem, gz) = match (lower.strip_suffix(".hdr.gz"), lower.strip_suffix(".hdr")) {
+        (Some(s), _) => (&name[..s.len()], true),
+        (None, Some(s)) => (&name[..s.len()], false),
+        (None, None) => return None,
+    };
+    let order = if gz {
+        [".img.gz", ".img"]
+    } else {
+        [".img", ".img.gz"]
+    };
+    let [first, second] = order.map(|ext| path.with_file_name(format!("{stem}{ext}")));
+    Some(if second.is_file() && !first.is_file() {
+        second
+    } else {
+        first
+    })
+}
+
 /// Load a NIfTI-1 volume. `spacing` overrides `pixdim`.
 pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
     let at = |k| LoadError::new(path, k);
-    if is_gzip(path) {
-        verify_gzip(path).map_err(at)?;
+    let image = image_of(path);
+    if let Some(image) = image.as_deref().filter(|i| !i.is_file()) {
+        let missing = std::io::Error::new(
+            std::io::ErrorKind::NotFound,
+            "the image file of this header (.img or .img.gz beside it) is missing",
+        );
+        return Err(LoadError::new(image, missing));
+    }
+    // Every gzip stream the samples come through is checked whole first.
+    for stream in std::iter::once(path).chain(image.as_deref()) {
+        if is_gzip(stream) && stream.is_file() {
+            verify_gzip(stream).map_err(|k| LoadError::new(stream, k))?;
+        }
     }
     if is_nifti2(path) {
         return Err(at(header_err(
             "NIfTI-2 (540-byte header) is not supported; convert to NIfTI-1 (for example `nifti_tool -copy_image -convert2dtype` or nibabel's Nifti1Image)",
         )));
     }
-    let object = ReaderOptions::new().read_file(path).map_err(|e| {
+    let read = match &image {
+        Some(image) => ReaderOptions::new().read_file_pair(path, image),
+        None => ReaderOptions::new().read_file(path),
+    };
+    let object = read.map_err(|e| {
         at(match e {
             nifti::NiftiError::Io(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
                 header_err(
