@@ -54,11 +54,17 @@ pub struct Stats {
     pub max: f64,
     /// Mean value.
     pub mean: f64,
+    /// Root-mean-square deviation from the mean (σ): what density maps are contoured in.
+    pub rms: f64,
 }
 
 impl fmt::Display for Stats {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "min {} max {} mean {:.2}", self.min, self.max, self.mean)
+        write!(
+            f,
+            "min {} max {} mean {:.2} rms {:.2}",
+            self.min, self.max, self.mean, self.rms
+        )
     }
 }
 
@@ -93,10 +99,14 @@ impl Volume {
                 max = max.max(x);
                 sum += x;
             }
+            let mean = sum / v.len().max(1) as f64;
+            // A second pass about the mean: no cancellation between two large sums.
+            let squares: f64 = v.iter().map(|&x| (x.into() - mean).powi(2)).sum();
             Stats {
                 min,
                 max,
-                mean: sum / v.len().max(1) as f64,
+                mean,
+                rms: (squares / v.len().max(1) as f64).sqrt(),
             }
         }
         match &self.data {

@@ -170,6 +170,16 @@ pub fn describe(name: &str, volume: &Volume) -> Result<String, InfoError> {
         mib(volume.data.len() * volume.data.kind().bytes())
     );
     let _ = writeln!(out, "values      {stats}");
+    // Density maps are contoured at the mean plus whole and half multiples of σ.
+    let contours: Vec<String> = [1.0, 1.5, 2.0, 3.0]
+        .iter()
+        .map(|k| format!("{k}σ {:.4}", stats.mean + k * stats.rms))
+        .collect();
+    let _ = writeln!(
+        out,
+        "mean + k·σ  {} (density-map contour levels)",
+        contours.join(", ")
+    );
     let _ = writeln!(out, "histogram   (bar length: log of the count)");
     let row = Histogram::of(volume, ROWS);
     let peak = row.counts.iter().copied().max().unwrap_or(1).max(1);

@@ -79,6 +79,67 @@ fn nifti(datatype: i16, bitpix: i16, slope: f32, inter: f32, data: &[u8]) -> Vec
     h
 }
 
+/// A whole number below 2048 in magnitude as IEEE half-precision bits (exact).
+fn half(v: i16) -> u16 {
+    if v == 0 {
+        return 0;
+    }
+    let (sign, m) = (u16::from(v < 0) << 15, v.unsigned_abs());
+    let e = 15 - m.leading_zeros() as u16; // floor(log2 m)
+    let fraction = ((u32::from(m) << 10 >> e) & 0x3ff) as u16;
+    sign | ((e + 15) << 10) | fraction
+}
+
+/// A CCP4/MRC map of the samples (X fastest) in `mode` (1: i16, 2: f32, 12: f16), its columns,
+/// rows and sections along the axes `order` (MAPC, MAPR, MAPS: 1 X, 2 Y, 3 Z), big-endian or
+/// not, with `extended` bytes of extended header.
+fn mrc(v: &[i16], mode: i32, order: [i32; 3], big: bool, extended: usize) -> Vec<u8> {
+    let axes = order.map(|a| (a - 1) as usize);
+    let counts = axes.map(|a| DIMS[a]);
+    let int = |n: i32| {
+        if big {
+            n.to_be_bytes()
+        } else {
+            n.to_le_bytes()
+        }
+    };
+    let float = |f: f32| int(f.to_bits() as i32);
+    let mut h = vec![0u8; 1024];
+    let mut put = |i: usize, w: [u8; 4]| h[4 * i..4 * i + 4].copy_from_slice(&w);
+    for slot in 0..3 {
+        put(slot, int(counts[slot] as i32));
+        put(7 + slot, int(DIMS[slot] as i32));
+        put(10 + slot, float(DIMS[slot] as f32 * SPACING[slot]));
+        put(13 + slot, float(90.0));
+        put(16 + slot, int(order[slot]));
+    }
+    put(3, int(mode));
+    put(23, int(extended as i32));
+    h[208..212].copy_from_slice(b"MAP ");
+    h[212..214].copy_from_slice(if big { &[0x11, 0x11] } else { &[0x44, 0x44] });
+    h.extend(std::iter::repeat_n(0xee, extended));
+    for s in 0..counts[2] {
+        for r in 0..counts[1] {
+            for c in 0..counts[0] {
+                let mut p = [0; 3];
+                (p[axes[0]], p[axes[1]], p[axes[2]]) = (c, r, s);
+                let x = v[p[0] + DIMS[0] * (p[1] + DIMS[1] * p[2])];
+                let bytes: Vec<u8> = match (mode, big) {
+                    (1, false) => x.to_le_bytes().into(),
+                    (1, true) => x.to_be_bytes().into(),
+                    (2, false) => f32::from(x).to_le_bytes().into(),
+                    (2, true) => f32::from(x).to_be_bytes().into(),
+                    (12, false) => half(x).to_le_bytes().into(),
+                    (12, true) => half(x).to_be_bytes().into(),
+                    _ => unreachable!("a mode the test writes"),
+                };
+                h.extend(bytes);
+            }
+        }
+    }
+    h
+}
+
 fn gzip(bytes: &[u8]) -> Vec<u8> {
     let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
     e.write_all(bytes).expect("gzip");
@@ -256,6 +317,11 @@ fn write_all(dir: &Path) -> Vec<(&'static str, String)> {
     );
     w("msb.mha", &[msb.as_bytes(), &be(&v)].concat());
     w("blob.vtk", &vtk_legacy(&v));
+    // Density maps: i16 in file order; f32 with columns along Z, rows along X, sections
+    // along Y, big-endian, behind an extended header; f16, gzipped.
+    w("blob.map", &mrc(&v, 1, [1, 2, 3], false, 0));
+    w("turned.mrc", &mrc(&v, 2, [3, 1, 2], true, 80));
+    w("half.ccp4.gz", &gzip(&mrc(&v, 12, [2, 3, 1], false, 0)));
     // Blank lines between the header's keyword lines, as VTK's own samples have them.
     let legacy = vtk_legacy(&v);
     let header = legacy.len() - 2 * v.len() - 1;
@@ -285,6 +351,9 @@ fn write_all(dir: &Path) -> Vec<(&'static str, String)> {
         ("mha-element-msb", "path = \"msb.mha\"".into()),
         ("vtk", "path = \"blob.vtk\"".into()),
         ("vtk-blank-lines", "path = \"spaced.vtk\"".into()),
+        ("mrc-i16", "path = \"blob.map\"".into()),
+        ("mrc-f32-turned-big-endian", "path = \"turned.mrc\"".into()),
+        ("mrc-f16-gz", "path = \"half.ccp4.gz\"".into()),
         ("vti", "path = \"blob.vti\"".into()),
         ("dicom", "path = \"series\"".into()),
     ]
@@ -366,7 +435,119 @@ fn every_format_renders_the_raw_file_s_pixels_on_one_node_and_on_a_cluster() {
     }
 }
 
+/// A density map read straight from its `.map` file renders the same pixels on one node, on
+/// the simulator's 4 nodes in 2 clusters and on 2 threads in 1 cluster.
+#[test]
+fn a_density_map_renders_alike_on_one_node_the_simulator_and_threads() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    write_all(dir.path());
+    let file = dir.path().join("map.toml");
+    let map = [("density", "path = \"blob.map\"".to_string())];
+    std::fs::write(&file, scene(&map)).expect("write scene");
+    let file = file.to_str().expect("utf-8 path");
+    let hash = |r: serde_json::Value| r["views"][0]["pixels_sha256"].as_str().map(String::from);
+    let one = hash(voxcube(dir.path(), &[file])).expect("a hash");
+    for shape in [
+        ["--nodes", "4", "--clusters", "2", "--fabric", "sim"],
+        ["--nodes", "2", "--clusters", "1", "--fabric", "threads"],
+    ] {
+        let args = [&[file][..], &shape[..]].concat();
+        assert_eq!(
+            hash(voxcube(dir.path(), &args)).as_deref(),
+            Some(&one[..]),
+            "{shape:?}"
+        );
+    }
+    // `info` gives the mean and σ, and the contour levels a crystallographer starts from.
+    let (ok, text, err) = run(&["info".as_ref(), dir.path().join("blob.map").as_os_str()]);
+    assert!(ok, "{err}");
+    let v: Vec<f64> = samples().into_iter().map(f64::from).collect();
+    let mean = v.iter().sum::<f64>() / v.len() as f64;
+    let rms = (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / v.len() as f64).sqrt();
+    for part in [
+        format!("mean {mean:.2} rms {rms:.2}"),
+        format!("2σ {:.4}", mean + 2.0 * rms),
+    ] {
+        assert!(text.contains(&part), "info omits {part:?}:\n{text}");
+    }
+}
+
 // ------------------------------------------------------------------ bad files
+
+/// A density map whose header lies or names what voxcube does not read is refused, naming the
+/// file and the field, without taking more memory than the file holds.
+#[test]
+fn a_density_map_whose_header_lies_is_refused_by_name() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let good = mrc(&samples(), 1, [1, 2, 3], false, 0);
+    let word = |bytes: &mut Vec<u8>, i: usize, n: i32| {
+        bytes[4 * i..4 * i + 4].copy_from_slice(&n.to_le_bytes());
+    };
+    let cases: Vec<(Vec<u8>, &str)> = vec![
+        (
+            {
+                let mut b = good.clone();
+                word(&mut b, 3, 3);
+                b
+            },
+            "MODE is 3",
+        ),
+        (
+            {
+                let mut b = good.clone();
+                word(&mut b, 17, 1);
+                b
+            },
+            "MAPC, MAPR, MAPS are [1, 1, 3]",
+        ),
+        (
+            {
+                let mut b = good.clone();
+                word(&mut b, 0, 1 << 30);
+                b
+            },
+            "truncated: expected",
+        ),
+        (
+            {
+                let mut b = good.clone();
+                word(&mut b, 2, -4);
+                b
+            },
+            "NC, NR, NS are",
+        ),
+        (
+            {
+                let mut b = good.clone();
+                word(&mut b, 23, -1);
+                b
+            },
+            "NSYMBT is -1",
+        ),
+        (good[..good.len() - 10].to_vec(), "truncated: expected"),
+        ([&good[..], &[0u8; 6]].concat(), "6 trailing bytes"),
+        (good[..600].to_vec(), "truncated: expected 1024 bytes"),
+    ];
+    for (bytes, expected) in cases {
+        let path = dir.path().join("bad.map");
+        std::fs::write(&path, &bytes).expect("write");
+        let message = voxcube::formats::mrc::load(&path, None)
+            .expect_err(expected)
+            .to_string();
+        assert!(
+            message.contains("bad.map") && message.contains(expected),
+            "{expected}: {message}"
+        );
+    }
+    // A gzipped map that is cut short is corrupt compressed data.
+    let packed = gzip(&good);
+    let path = dir.path().join("bad.map.gz");
+    std::fs::write(&path, &packed[..packed.len() - 9]).expect("write");
+    let message = voxcube::formats::mrc::load(&path, None)
+        .expect_err("cut")
+        .to_string();
+    assert!(message.contains("corrupt compressed data"), "{message}");
+}
 
 fn error_of(dir: &Path, table: &str) -> String {
     let file = dir.join("bad.toml");

@@ -7,6 +7,7 @@
 pub mod den;
 pub mod dicom;
 pub mod metaimage;
+pub mod mrc;
 pub mod nifti;
 pub mod nrrd;
 pub mod raw;
@@ -74,11 +75,13 @@ pub enum Format {
     Vtk,
     /// A folder of DICOM slices (or one multi-frame DICOM file).
     Dicom,
+    /// A CCP4/MRC density map (`.map`, `.mrc`, `.ccp4`, gzipped or not).
+    Mrc,
 }
 
 impl Format {
     /// Every format, as the scene file spells it.
-    pub const NAMES: &'static str = "raw, nrrd, den, nifti, metaimage, vtk, dicom";
+    pub const NAMES: &'static str = "raw, nrrd, den, nifti, metaimage, vtk, dicom, mrc";
 
     /// The format a path's extension names, if any.
     pub fn from_extension(path: &Path) -> Option<Format> {
@@ -92,6 +95,13 @@ impl Format {
             "mha" | "mhd" => Format::MetaImage,
             "vtk" | "vti" => Format::Vtk,
             "dcm" | "dicom" => Format::Dicom,
+            "map" | "mrc" | "ccp4" => Format::Mrc,
+            "gz" if [".map.gz", ".mrc.gz", ".ccp4.gz"]
+                .iter()
+                .any(|e| name.ends_with(e)) =>
+            {
+                Format::Mrc
+            }
             _ => return None,
         })
     }
@@ -113,6 +123,8 @@ impl Format {
             Some(Format::Dicom)
         } else if head.len() >= 348 && matches!(&head[344..348], b"n+1\0" | b"ni1\0") {
             Some(Format::Nifti)
+        } else if head.len() >= 212 && &head[208..212] == b"MAP " {
+            Some(Format::Mrc)
         } else if text.starts_with("NRRD000") {
             Some(Format::Nrrd)
         } else if text.starts_with("# vtk DataFile") || text.contains("<VTKFile") {
@@ -139,6 +151,7 @@ pub fn load(path: &Path, format: Format, spacing: Option<Vec3>) -> Result<Volume
         Format::MetaImage => metaimage::load(path, spacing),
         Format::Vtk => vtk::load(path, spacing),
         Format::Dicom => dicom::load(path, spacing),
+        Format::Mrc => mrc::load(path, spacing),
     }
 }
 
