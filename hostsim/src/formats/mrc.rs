@@ -296,6 +296,19 @@ mod tests {
     }
 
     #[test]
+    fn the_byte_order_is_the_stamp_s_or_else_the_one_whose_mode_makes_sense() {
+        let mut h = vec![0u8; HEADER];
+        h[12..16].copy_from_slice(&2i32.to_be_bytes());
+        assert_eq!(endian_of(&h), Endian::Big, "no stamp, a big-endian mode 2");
+        h[12..16].copy_from_slice(&2i32.to_le_bytes());
+        assert_eq!(endian_of(&h), Endian::Little, "no stamp, a little-endian mode 2");
+        h[212..214].copy_from_slice(&[0x11, 0x11]);
+        assert_eq!(endian_of(&h), Endian::Big, "the stamp decides");
+        h[212..214].copy_from_slice(&[0x44, 0x41]);
+        assert_eq!(endian_of(&h), Endian::Little, "the stamp decides");
+    }
+
+    #[test]
     fn samples_are_reordered_so_that_x_runs_fastest() {
         // Columns along Z (2 samples), rows along X (3), sections along Y (2).
         let counts = [2, 3, 2];
