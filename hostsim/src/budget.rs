@@ -8,13 +8,17 @@
 //! parts, with the buffer at its real peak) is checked against the same budget; exceeding it
 //! is an error, never silent.
 
-use crate::fabric::harness::NodeWorker;
 use crate::profile::{MachineProfile, BUILT_IN};
 use std::fmt;
 use std::sync::OnceLock;
 use voxcube_kernel::node::partition::Partition;
 use voxcube_kernel::volume::grid::Grid;
 use voxcube_kernel::volume::slab::stored_planes;
+
+/// A node's worker on the host's fabrics: continuations per direction, pixel records, outbox,
+/// and ack counters for the largest ring. Defined with the budget that counts its bytes; the
+/// fabrics' harness builds it.
+pub type NodeWorker<'a, T> = voxcube_kernel::node::worker::Worker<'a, T, 32, 64, 16>;
 
 /// Bytes set aside on every node for code and stack.
 pub const CODE_AND_STACK: usize = 256 * 1024;

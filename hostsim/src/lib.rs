@@ -20,6 +20,7 @@ pub mod framing;
 pub mod info;
 pub mod nodes;
 pub mod output;
+pub mod parts;
 pub mod profile;
 pub mod render;
 pub mod report;

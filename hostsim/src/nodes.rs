@@ -6,14 +6,15 @@
 //! Invariant: holding the field or not changes no pixel (the kernel computes the same lanes
 //! on the fly), so a node that cannot hold it, or whose build fails, renders without it.
 
-use crate::storage::{even_parts, run_parts, split_sizes, Part, SkipMode};
+use crate::parts::{even_parts, run_parts, split_sizes, Part};
 use std::any::Any;
 use std::fmt;
 use std::ops::Range;
 use std::sync::{Arc, Mutex, PoisonError};
 use voxcube_kernel::counters::Counters;
 use voxcube_kernel::trace::view::View;
-use voxcube_kernel::volume::nodes::{self, Lanes, Nodes};
+use voxcube_kernel::volume::lanes::{Lanes, Nodes};
+use voxcube_kernel::volume::nodes;
 use voxcube_kernel::volume::sample::Sample;
 use voxcube_kernel::volume::slab::Slab;
 
@@ -77,17 +78,18 @@ pub struct Fields {
 }
 
 impl Fields {
-    /// The field `slab` (of this cache's volume) reads for `view` when `mode` holds one: the one
-    /// built for its planes before, else built now on up to `threads` OS threads and kept;
-    /// none where the view reads none ([`View::node_gradients`]) or `mode` holds none.
+    /// The field `slab` (of this cache's volume) reads for `view` where the node is to `hold`
+    /// one: the one built for its planes before, else built now on up to `threads` OS threads
+    /// and kept; none where the view reads none ([`View::node_gradients`]) or the node holds
+    /// none.
     pub fn field<T: Sample + Sync>(
         &self,
         slab: &Slab<'_, T>,
         view: &View,
-        mode: SkipMode,
+        hold: bool,
         threads: usize,
     ) -> Arc<NodeField<T::Node>> {
-        if !(mode.nodes && view.node_gradients()) {
+        if !(hold && view.node_gradients()) {
             return Arc::default();
         }
         let planes = nodes::planes_for(slab.grid(), slab.owned());

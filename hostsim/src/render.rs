@@ -20,7 +20,7 @@ use voxcube_kernel::node::worker::Generation;
 use voxcube_kernel::trace::pixel::rgba8;
 use voxcube_kernel::trace::tracer::Pixels;
 use voxcube_kernel::trace::view::View;
-use voxcube_kernel::volume::sample::{Sample, SampleKind};
+use voxcube_kernel::volume::sample::Sample;
 use voxcube_kernel::volume::slab::{Slab, SlabError};
 
 /// What carries the work.
@@ -300,7 +300,7 @@ pub fn preflight(volume: &Volume, view: &View, machine: &Machine) -> Result<(), 
 }
 
 /// How `machine`'s nodes skip empty space in `view`: `machine.skipping`, without depth
-/// bounds where the view has none ([`depth_bytes`]) or a node could not hold them beside
+/// bounds where the view has none ([`crate::storage::depth_bytes`]) or a node could not hold them beside
 /// everything [`preflight`] counts, and without cell leap maps where the view takes none
 /// given its bounds ([`crate::storage::cell_leap_octants`]) or a node could not hold them
 /// beside all that. They are accelerations, not needs: a machine that fits without them
@@ -335,7 +335,7 @@ pub fn node_skipping(volume: &Volume, view: &View, machine: &Machine, balanced: 
     };
     // Depth bounds first: whether a view takes cell leap maps depends on whether it has them.
     let least = budget::ViewNeeds::of(view);
-    let bounds = depth_bytes(view, mode, cfg.layout.clusters());
+    let bounds = crate::storage::depth_bytes(view, mode, cfg.layout.clusters());
     let depths = bounds > 0 && fits(least.with_depths(bounds), cfg.buffer());
     let with_depths = least.with_depths(if depths { bounds } else { 0 });
     let maps = crate::storage::cell_leap_octants(view, SkipMode { depths, ..mode });
@@ -343,48 +343,13 @@ pub fn node_skipping(volume: &Volume, view: &View, machine: &Machine, balanced: 
     let held = maps > 0 && fits(with_depths.with_cell_maps(maps), cfg.buffer());
     let with_maps = with_depths.with_cell_maps(if held { maps } else { 0 });
     // Then the node field, which only the fast tier's shading reads.
-    let lanes = node_field_bytes(view, mode, volume.data.kind());
+    let lanes = crate::storage::node_field_bytes(view, mode, volume.data.kind());
     let nodes = lanes > 0 && fits(with_maps.with_node_bytes(lanes), cfg.buffer());
     SkipMode {
         cell_leaps: held,
         depths,
         nodes,
         ..mode
-    }
-}
-
-/// Bytes per grid node of the node field a node skipping as `mode` says holds for `view` over
-/// samples of `kind`: none where the view reads none ([`View::node_gradients`]) or `mode`
-/// holds none.
-pub fn node_field_bytes(view: &View, mode: SkipMode, kind: SampleKind) -> usize {
-    match mode.nodes && view.node_gradients() {
-        true => kind.node_bytes(),
-        false => 0,
-    }
-}
-
-/// Whether a node skipping as `mode` says takes depth bounds for `view`: with cell masks, in
-/// the cell model, for a parallel projection.
-pub fn has_depths(view: &View, mode: SkipMode) -> bool {
-    let by_cell = view.spec().model == voxcube_kernel::volume::grid::Model::Cell;
-    let parallel = matches!(
-        view.spec().camera.projection(),
-        voxcube_kernel::trace::camera::Projection::Orthographic { .. }
-    );
-    mode.skip && mode.cells && mode.depths && by_cell && parallel
-}
-
-/// Bytes of the depth bounds a node of a machine of `clusters` clusters holds for `view`,
-/// skipping as `mode` says: a bound per pixel of its cluster's rows (the first cluster's,
-/// which has the most), or none ([`has_depths`]).
-pub fn depth_bytes(view: &View, mode: SkipMode, clusters: u16) -> usize {
-    let rows = voxcube_kernel::node::topology::Rows::of_cluster(0, clusters);
-    match (has_depths(view, mode), rows) {
-        (true, Some(rows)) => {
-            let (width, height) = (view.spec().width, view.spec().height);
-            rows.count(height) as usize * width as usize * size_of::<f32>()
-        }
-        _ => 0,
     }
 }
 
@@ -472,7 +437,7 @@ fn render_typed<T: Sample + Sync>(
     // belong to the view, so they are part of its frame, as on every other fabric.
     let start = Instant::now();
     let skipping = Skipping::build(&slab, view, mode);
-    let field = volume.fields.field(&slab, view, mode, 1);
+    let field = volume.fields.field(&slab, view, mode.nodes, 1);
     let slab = field.apply(skipping.apply(slab));
     let mut counters = Counters::default();
     let n = view.pixel_count();

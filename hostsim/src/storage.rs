@@ -5,6 +5,7 @@
 //! Invariant: skipping changes no pixel, and a node's structures are built from the planes it
 //! stores alone, so they are the same bits however the build is split or where it runs.
 
+use crate::parts::{even_parts, run_parts, split_sizes, Part};
 use std::borrow::Cow;
 use std::ops::Range;
 use voxcube_kernel::node::partition::Partition;
@@ -93,6 +94,45 @@ impl SkipMode {
     }
 }
 
+/// Bytes per grid node of the node field a node skipping as `mode` says holds for `view` over
+/// samples of `kind`: none where the view reads none ([`View::node_gradients`]) or `mode`
+/// holds none.
+pub fn node_field_bytes(
+    view: &View,
+    mode: SkipMode,
+    kind: voxcube_kernel::volume::sample::SampleKind,
+) -> usize {
+    match mode.nodes && view.node_gradients() {
+        true => kind.node_bytes(),
+        false => 0,
+    }
+}
+
+/// Whether a node skipping as `mode` says takes depth bounds for `view`: with cell masks, in
+/// the cell model, for a parallel projection.
+pub fn has_depths(view: &View, mode: SkipMode) -> bool {
+    let by_cell = view.spec().model == voxcube_kernel::volume::grid::Model::Cell;
+    let parallel = matches!(
+        view.spec().camera.projection(),
+        voxcube_kernel::trace::camera::Projection::Orthographic { .. }
+    );
+    mode.skip && mode.cells && mode.depths && by_cell && parallel
+}
+
+/// Bytes of the depth bounds a node of a machine of `clusters` clusters holds for `view`,
+/// skipping as `mode` says: a bound per pixel of its cluster's rows (the first cluster's,
+/// which has the most), or none ([`has_depths`]).
+pub fn depth_bytes(view: &View, mode: SkipMode, clusters: u16) -> usize {
+    let rows = voxcube_kernel::node::topology::Rows::of_cluster(0, clusters);
+    match (has_depths(view, mode), rows) {
+        (true, Some(rows)) => {
+            let (width, height) = (view.spec().width, view.spec().height);
+            rows.count(height) as usize * width as usize * size_of::<f32>()
+        }
+        _ => 0,
+    }
+}
+
 /// The octants whose cell leap maps a node skipping as `mode` says holds for `view`: the one
 /// its primary rays take (transparency rays go on the same way), which trace nearly all
 /// samples. Any ray of another octant, as shadow rays mostly are, leaps by blocks; one in
@@ -112,7 +152,7 @@ pub fn cell_leap_octants(view: &View, mode: SkipMode) -> u8 {
         voxcube_kernel::trace::view::Mode::Surfaces(_)
     );
     let sparse = surfaces
-        && crate::render::has_depths(view, mode)
+        && has_depths(view, mode)
         && samples_per_cell(view).is_some_and(|n| n < MAP_SAMPLES_PER_CELL);
     match mode.skip && mode.cells && mode.cell_leaps && by_cell && primary.count_ones() == 1 {
         true if !sparse => primary,
@@ -161,64 +201,6 @@ pub struct Skipping {
     depths: Vec<f32>,
     depth_rows: voxcube_kernel::node::topology::Rows,
     depth_width: u32,
-}
-
-/// `all` cut into consecutive pieces of `sizes` (the last piece short if they overrun).
-pub(crate) fn split_sizes<E>(
-    mut all: &mut [E],
-    sizes: impl Iterator<Item = usize>,
-) -> impl Iterator<Item = &mut [E]> {
-    sizes.map(move |n| {
-        let rest = std::mem::take(&mut all);
-        let (piece, rest) = rest.split_at_mut(n.min(rest.len()));
-        all = rest;
-        piece
-    })
-}
-
-/// `0..total` cut into `n` consecutive parts whose sizes differ by at most one.
-pub(crate) fn even_parts(total: u32, n: u32) -> Vec<Range<u32>> {
-    let n = n.max(1);
-    let cut = |i: u32| (u64::from(i) * u64::from(total) / u64::from(n)) as u32;
-    (0..n).map(|i| cut(i)..cut(i + 1)).collect()
-}
-
-/// One part of a skipping build, saying whether it built.
-pub(crate) type Part<'a> = Box<dyn FnOnce() -> bool + Send + 'a>;
-
-/// Run `parts` on up to `threads` OS threads, the calling thread one of them, each taking the
-/// next part no thread has taken; whether each built (a part that panics built nothing).
-/// One thread a part put three threads on two cores for a paper view's masks and leap map,
-/// and left the calling thread waiting.
-pub(crate) fn run_parts(parts: Vec<Part<'_>>, threads: usize) -> Vec<bool> {
-    use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-    use std::sync::Mutex;
-    let built: Vec<AtomicBool> = parts.iter().map(|_| AtomicBool::new(false)).collect();
-    let parts: Vec<Mutex<Option<Part<'_>>>> =
-        parts.into_iter().map(|p| Mutex::new(Some(p))).collect();
-    let next = AtomicUsize::new(0);
-    let work = || loop {
-        let i = next.fetch_add(1, Ordering::Relaxed);
-        let Some(slot) = parts.get(i) else {
-            return;
-        };
-        let part = slot
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .take();
-        if let Some(part) = part {
-            let ok = std::panic::catch_unwind(std::panic::AssertUnwindSafe(part));
-            built[i].store(ok.unwrap_or(false), Ordering::Relaxed);
-        }
-    };
-    let helpers = threads.min(parts.len()).saturating_sub(1);
-    std::thread::scope(|scope| {
-        for _ in 0..helpers {
-            scope.spawn(work);
-        }
-        work();
-    });
-    built.into_iter().map(AtomicBool::into_inner).collect()
 }
 
 impl Skipping {
@@ -334,9 +316,7 @@ impl Skipping {
         let per_map = len * voxcube_kernel::skip::cell_leaps::PER_BLOCK;
         let mut cell_leaps = vec![0; cell_octants.count_ones() as usize * per_map];
         let (width, height) = (view.spec().width as usize, view.spec().height);
-        let bounded = with_masks
-            .as_ref()
-            .filter(|_| crate::render::has_depths(view, mode));
+        let bounded = with_masks.as_ref().filter(|_| has_depths(view, mode));
         let held = rows.count(height);
         let mut depths = match bounded {
             Some(_) => vec![0.0; held as usize * width],
@@ -553,7 +533,7 @@ impl<'d, T: voxcube_kernel::volume::sample::Sample + Sync> NodeStorage<'d, T> {
             .iter()
             .map(|s| {
                 s.as_ref()
-                    .map(|s| fields.field(s, view, mode, threads))
+                    .map(|s| fields.field(s, view, mode.nodes, threads))
                     .unwrap_or_default()
             })
             .collect();
@@ -589,36 +569,5 @@ impl<'d, T: voxcube_kernel::volume::sample::Sample + Sync> NodeStorage<'d, T> {
             self.ghost,
             &self.storage[usize::from(node)],
         )
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use std::sync::atomic::{AtomicU32, Ordering};
-
-    /// Every part runs exactly once, on any number of threads, and its result lands at its
-    /// own index; a part that panics built nothing and stops no other.
-    #[test]
-    fn each_part_runs_once_and_reports_in_order() {
-        for threads in [0, 1, 2, 3, 8] {
-            for n in [0usize, 1, 2, 5, 9] {
-                let runs: Vec<AtomicU32> = (0..n).map(|_| AtomicU32::new(0)).collect();
-                let parts = (0..n)
-                    .map(|i| -> Part<'_> {
-                        let runs = &runs;
-                        Box::new(move || {
-                            runs[i].fetch_add(1, Ordering::Relaxed);
-                            assert!(i != 4, "part 4 fails");
-                            i % 2 == 0
-                        })
-                    })
-                    .collect();
-                let built = run_parts(parts, threads);
-                let expected: Vec<bool> = (0..n).map(|i| i % 2 == 0 && i != 4).collect();
-                assert_eq!(built, expected, "{n} parts on {threads} threads");
-                assert!(runs.iter().all(|r| r.load(Ordering::Relaxed) == 1));
-            }
-        }
     }
 }

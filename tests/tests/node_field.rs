@@ -13,7 +13,8 @@ use voxcube_kernel::optics::shade::Light;
 use voxcube_kernel::trace::tracer::trace_pixel;
 use voxcube_kernel::trace::view::{Accuracy, Approximation, View, ViewSpec};
 use voxcube_kernel::volume::grid::Model;
-use voxcube_kernel::volume::nodes::{self, Lanes};
+use voxcube_kernel::volume::lanes::Lanes;
+use voxcube_kernel::volume::nodes;
 use voxcube_kernel::volume::sample::Sample;
 use voxcube_kernel::volume::slab::Slab;
 use voxcube_kernel::Vec3;
@@ -92,9 +93,9 @@ fn colours(volume: &Volume, view: &View, held: bool) -> (Vec<[u32; 3]>, usize, C
             nodes: held,
             ..SkipMode::ALL
         };
-        let field = volume.fields.field(&slab, view, mode, 2);
+        let field = volume.fields.field(&slab, view, mode.nodes, 2);
         // Built once for the volume: asked again, the same field.
-        let again = volume.fields.field(&slab, view, mode, 1);
+        let again = volume.fields.field(&slab, view, mode.nodes, 1);
         assert!(std::sync::Arc::ptr_eq(&field, &again) || !held);
         let slab = field.apply(slab);
         assert_eq!(slab.nodes().is_some(), held);
@@ -201,7 +202,8 @@ fn negative_control_a_field_whose_differences_are_off_changes_the_image() {
             .map(|p| trace_pixel(view, slab, p, &mut c))
             .collect::<Vec<_>>()
     };
-    let own = nodes::Nodes::new(&volume.grid, planes.clone(), &lanes).expect("field");
+    let own = voxcube_kernel::volume::lanes::Nodes::new(&volume.grid, planes.clone(), &lanes)
+        .expect("field");
     let right = trace(&slab.with_nodes(own));
     assert_eq!(right, trace(&slab), "the slab's own field");
     // One more unit along X in every node's difference: a field off by a little.
@@ -209,7 +211,7 @@ fn negative_control_a_field_whose_differences_are_off_changes_the_image() {
         .iter()
         .map(|l| <[i16; 4]>::pack(l.unpack() + voxcube_kernel::Vec4::new(0.0, 1.0, 0.0, 0.0)))
         .collect();
-    let off = nodes::Nodes::new(&volume.grid, planes, &off).expect("field");
+    let off = voxcube_kernel::volume::lanes::Nodes::new(&volume.grid, planes, &off).expect("field");
     let wrong = trace(&slab.with_nodes(off));
     let differ = right.iter().zip(&wrong).filter(|(a, b)| a != b).count();
     assert!(

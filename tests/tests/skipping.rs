@@ -885,7 +885,8 @@ fn nodes_hold_cell_leap_maps_only_where_they_fit() {
 /// has none.
 #[test]
 fn nodes_hold_depth_bounds_only_where_they_fit() {
-    use voxcube::render::{depth_bytes, node_skipping, preflight, Fabric, Machine};
+    use voxcube::render::{node_skipping, preflight, Fabric, Machine};
+    use voxcube::storage::depth_bytes;
     let small = blobs([40, 40, 40], Vec3::ONE, 7);
     let cam = voxcube_tests::ortho(
         Vec3::new(100.0, 16.0, 20.0),

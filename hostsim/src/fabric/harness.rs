@@ -20,15 +20,13 @@ use voxcube_kernel::node::msg::PIXELS_PER_SET;
 use voxcube_kernel::node::partition::Partition;
 use voxcube_kernel::node::stats::NodeStats;
 use voxcube_kernel::node::topology::Layout;
-use voxcube_kernel::node::worker::{Place, Setup, Worker, WorkerError, RAYS_PER_POLL};
+use voxcube_kernel::node::worker::{Place, Setup, WorkerError, RAYS_PER_POLL};
 use voxcube_kernel::trace::view::View;
 use voxcube_kernel::volume::grid::Grid;
 use voxcube_kernel::volume::sample::{Sample, SampleKind};
 use voxcube_kernel::volume::slab::Slab;
 
-/// A node's worker on the host's fabrics: continuations per direction, pixel records, outbox,
-/// and ack counters for the largest ring.
-pub type NodeWorker<'a, T> = Worker<'a, T, 32, 64, 16>;
+pub use crate::budget::NodeWorker;
 
 /// A ring of one's rays a poll: a pixel set's, which a `u8` must hold (checked here, not
 /// truncated by a cast should the set grow).
@@ -423,7 +421,8 @@ mod tests {
     fn a_ring_larger_than_the_workers_counters_is_refused() {
         at_position_0(2, 1, |setup| {
             assert_eq!(
-                Worker::<'_, u8, 32, 64, 16, 1>::check(setup).map(|_| ()),
+                voxcube_kernel::node::worker::Worker::<'_, u8, 32, 64, 16, 1>::check(setup)
+                    .map(|_| ()),
                 Err(WorkerError::Ring {
                     size: 2,
                     capacity: 1
@@ -431,7 +430,9 @@ mod tests {
             );
         });
         at_position_0(2, 1, |setup| {
-            assert!(Worker::<'_, u8, 32, 64, 16, 2>::check(setup).is_ok());
+            assert!(
+                voxcube_kernel::node::worker::Worker::<'_, u8, 32, 64, 16, 2>::check(setup).is_ok()
+            );
         });
     }
 }

@@ -84,12 +84,12 @@ impl<'a> RunShape<'a> {
             grid,
             needs: ViewNeeds::of(view)
                 .with_cell_maps(cell_maps)
-                .with_depths(crate::render::depth_bytes(
+                .with_depths(crate::storage::depth_bytes(
                     view,
                     cfg.skipping,
                     cfg.layout.clusters(),
                 ))
-                .with_node_bytes(crate::render::node_field_bytes(view, cfg.skipping, kind)),
+                .with_node_bytes(crate::storage::node_field_bytes(view, cfg.skipping, kind)),
             sample_bytes: kind.bytes(),
         }
     }

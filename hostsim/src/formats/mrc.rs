@@ -301,7 +301,11 @@ mod tests {
         h[12..16].copy_from_slice(&2i32.to_be_bytes());
         assert_eq!(endian_of(&h), Endian::Big, "no stamp, a big-endian mode 2");
         h[12..16].copy_from_slice(&2i32.to_le_bytes());
-        assert_eq!(endian_of(&h), Endian::Little, "no stamp, a little-endian mode 2");
+        assert_eq!(
+            endian_of(&h),
+            Endian::Little,
+            "no stamp, a little-endian mode 2"
+        );
         h[212..214].copy_from_slice(&[0x11, 0x11]);
         assert_eq!(endian_of(&h), Endian::Big, "the stamp decides");
         h[212..214].copy_from_slice(&[0x44, 0x41]);

@@ -6,6 +6,7 @@
 
 pub mod field;
 pub mod grid;
+pub mod lanes;
 pub mod nodes;
 pub mod sample;
 pub mod slab;

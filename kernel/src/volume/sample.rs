@@ -52,8 +52,8 @@ pub trait Sample: Copy + Default + 'static {
     /// The greater of two samples by value, as [`Sample::lesser`].
     fn greater(self, other: Self) -> Self;
     /// How the fast tier's node field stores a node of this kind
-    /// ([`crate::volume::nodes`]): a type that holds its value and differences exactly.
-    type Node: crate::volume::nodes::Lanes;
+    /// ([`crate::volume::lanes`]): a type that holds its value and differences exactly.
+    type Node: crate::volume::lanes::Lanes;
 }
 
 /// The three sample types differ only in their kind and their order: every conversion is

@@ -9,7 +9,7 @@
 
 use crate::skip::blocks::Blocks;
 use crate::volume::grid::Grid;
-use crate::volume::nodes::Nodes;
+use crate::volume::lanes::{corners, Nodes};
 use crate::volume::sample::Sample;
 use core::fmt;
 use core::ops::Range;
@@ -258,28 +258,6 @@ impl<'a, T: Sample> Slab<'a, T> {
             + y as usize;
         self.data.get(index).copied()
     }
-}
-
-/// The eight items of a cell in plane-major storage `data`, its low corner at `base` and its
-/// high corner `steps` items further along X, Y and Z (each zero or one node's stride),
-/// ordered by corner bits `z y x` from 000 to 111; `None` where any lies past `data`.
-#[inline(always)]
-pub(crate) fn corners<U: Copy>(
-    data: &[U],
-    base: usize,
-    [sx, sy, sz]: [usize; 3],
-) -> Option<[U; 8]> {
-    let at = |offset: usize| data.get(base + offset).copied();
-    Some([
-        at(0)?,
-        at(sx)?,
-        at(sy)?,
-        at(sx + sy)?,
-        at(sz)?,
-        at(sx + sz)?,
-        at(sy + sz)?,
-        at(sx + sy + sz)?,
-    ])
 }
 
 #[cfg(test)]
