@@ -2,9 +2,18 @@
 //! node kernel, and writes images and reports. The `voxcube` binary is a thin shell over
 //! [`cli`].
 //!
-//! Modules: [`scene`] (the TOML scene format, checked), [`dataset`] and [`formats`] (volumes
-//! and their files), [`framing`] (what a view can show), [`builtin`] (procedural volumes), [`render`] (one view on one node),
-//! [`output`] (PNG and checksums), [`report`] (summary and JSON), [`cli`].
+//! Modules, by role:
+//! - input: [`scene`] (the TOML scene format, checked), [`dataset`] and [`formats`] (volumes
+//!   and their files), [`builtin`] (procedural volumes), [`framing`] (what a view can show),
+//!   [`info`] (`voxcube info`);
+//! - a node's memory and storage: [`profile`] (machine profiles), [`budget`] (what a node
+//!   holds, against its memory), [`storage`] (slabs and skipping structures), [`nodes`] (the
+//!   fast tier's node fields, once per volume), [`parts`] (builds split over threads),
+//!   [`balance`] (cuts by measured cost);
+//! - running: [`render`] (one view on a machine), [`fabric`] (the simulator, threads, MPI),
+//!   [`rng`] (seeded schedules), [`timeline`] (virtual-time traces);
+//! - output: [`output`] (PNG and checksums), [`report`] (summary and JSON);
+//! - [`experiments`] (bench, paper, accuracy, explore) apart from the runtime, and [`cli`].
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
