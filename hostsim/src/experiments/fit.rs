@@ -7,7 +7,7 @@
 //! finds for each node count); it minimises the sum of squared log-time errors, so a row
 //! 10% slow weighs what a row 10% fast does, whatever its size.
 
-use super::paper::{sequential, timed, PaperError};
+use super::runs::{sequential, timed, PaperError};
 use crate::profile::MachineProfile;
 use crate::scene::DatasetJob;
 use std::collections::BTreeMap;

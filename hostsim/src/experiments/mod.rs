@@ -12,4 +12,5 @@ pub mod explore;
 pub mod fit;
 pub mod paper;
 pub mod peer;
+pub mod runs;
 pub mod scale;
