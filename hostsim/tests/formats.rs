@@ -958,3 +958,65 @@ fn a_corrupt_gzip_nifti_is_refused_never_read_to_other_samples() {
         "{message}"
     );
 }
+
+/// A zlib-compressed `.vti` of byte samples, in blocks of 32,768 bytes with VTK's header
+/// (`[blocks][block size][last block size][compressed sizes…]`, the last block size 0 when the
+/// last block is full, as VTK writes it), in base64, inline or appended.
+fn vti_zlib(dims: [usize; 3], data: &[u8], appended: bool) -> Vec<u8> {
+    use base64::Engine;
+    let b64 = base64::engine::general_purpose::STANDARD;
+    let block = 32_768;
+    let blocks: Vec<Vec<u8>> = data.chunks(block).map(zlib).collect();
+    let mut header = vec![
+        blocks.len() as u32,
+        block as u32,
+        (data.len() % block) as u32,
+    ];
+    header.extend(blocks.iter().map(|b| b.len() as u32));
+    let header: Vec<u8> = header.iter().flat_map(|n| n.to_le_bytes()).collect();
+    let packed = blocks.concat();
+    let e = format!("0 {} 0 {} 0 {}", dims[0] - 1, dims[1] - 1, dims[2] - 1);
+    let open = format!(
+        "<?xml version=\"1.0\"?>\n<VTKFile type=\"ImageData\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt32\" compressor=\"vtkZLibDataCompressor\">\n<ImageData WholeExtent=\"{e}\" Origin=\"0 0 0\" Spacing=\"1 1 1\">\n<Piece Extent=\"{e}\">\n<PointData Scalars=\"v\">\n"
+    );
+    let mut out = open.into_bytes();
+    if appended {
+        out.extend(b"<DataArray type=\"UInt8\" Name=\"v\" format=\"appended\" offset=\"0\"/>\n</PointData>\n</Piece>\n</ImageData>\n<AppendedData encoding=\"base64\">\n_");
+        out.extend(b64.encode(&header).as_bytes());
+        out.extend(b64.encode(&packed).as_bytes());
+        out.extend(b"\n</AppendedData>\n</VTKFile>\n");
+    } else {
+        out.extend(b"<DataArray type=\"UInt8\" Name=\"v\" format=\"binary\">\n  ");
+        out.extend(b64.encode(&header).as_bytes());
+        out.extend(b64.encode(&packed).as_bytes());
+        out.extend(b"\n</DataArray>\n</PointData>\n</Piece>\n</ImageData>\n</VTKFile>\n");
+    }
+    out
+}
+
+/// A compressed `.vti` whose samples fill its last block exactly (64×64×8 bytes: one full
+/// block) reads the same samples as a raw NRRD of them, inline or appended; and one that does
+/// not (64×64×9) still does.
+#[test]
+fn a_compressed_vti_whose_last_block_is_full_reads_its_samples() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    for nz in [8usize, 9, 16] {
+        let dims = [64, 64, nz];
+        let data: Vec<u8> = (0..64 * 64 * nz).map(|i| (i * 7 % 251) as u8).collect();
+        let header =
+            format!("NRRD0004\ntype: uchar\ndimension: 3\nsizes: 64 64 {nz}\nencoding: raw\n\n");
+        let nrrd = dir.path().join("same.nrrd");
+        std::fs::write(&nrrd, [header.as_bytes(), &data].concat()).expect("write");
+        let reference = voxcube::formats::nrrd::load(&nrrd, None).expect("the raw samples");
+        for appended in [false, true] {
+            let path = dir.path().join("blocks.vti");
+            std::fs::write(&path, vti_zlib(dims, &data, appended)).expect("write");
+            let volume = voxcube::formats::vtk::load(&path, None)
+                .unwrap_or_else(|e| panic!("{nz} planes, appended {appended}: {e}"));
+            assert!(
+                volume.data == reference.data,
+                "{nz} planes, appended {appended}: other samples"
+            );
+        }
+    }
+}
