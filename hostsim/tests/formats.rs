@@ -722,6 +722,46 @@ fn bad_dicom_series_name_the_file_and_the_field() {
         &error_of(dir.path(), "path = \"gap\""),
         &["gap", "unevenly spaced", "missing slice"],
     );
+    // Only two slices left, the middle one gone: their instance numbers show it.
+    let pair = dir.path().join("pair");
+    dicom_series(&pair, &v, "1.2.3");
+    for z in (0..DIMS[2]).filter(|z| ![0, 2].contains(z)) {
+        std::fs::remove_file(pair.join(format!("IM{:04}", DIMS[2] - z))).expect("rm");
+    }
+    assert_names(
+        &error_of(dir.path(), "path = \"pair\""),
+        &["pair", "InstanceNumbers", "1 and 3", "missing slice"],
+    );
+    // A slice turned to another plane (coronal among axial ones).
+    let turned = dir.path().join("turned");
+    dicom_series(&turned, &v, "1.2.3");
+    let f = turned.join("IM0004");
+    let mut slice = dicom_object::open_file(&f).expect("read");
+    slice.put(DataElement::new(
+        tags::IMAGE_ORIENTATION_PATIENT,
+        VR::DS,
+        PrimitiveValue::from("1\\0\\0\\0\\0\\1"),
+    ));
+    slice.write_to_file(&f).expect("write");
+    assert_names(
+        &error_of(dir.path(), "path = \"turned\""),
+        &["IM0004", "not parallel", "ImageOrientationPatient"],
+    );
+    // A palette-colour image: its pixels are indices, not values.
+    let palette = dir.path().join("palette");
+    dicom_series(&palette, &v, "1.2.3");
+    let f = palette.join("IM0002");
+    let mut slice = dicom_object::open_file(&f).expect("read");
+    slice.put(DataElement::new(
+        tags::PHOTOMETRIC_INTERPRETATION,
+        VR::CS,
+        PrimitiveValue::from("PALETTE COLOR"),
+    ));
+    slice.write_to_file(&f).expect("write");
+    assert_names(
+        &error_of(dir.path(), "path = \"palette\""),
+        &["IM0002", "PALETTE COLOR", "grey-scale"],
+    );
     // Two series in one folder.
     let two = dir.path().join("two");
     dicom_series(&two, &v, "1.2.3");

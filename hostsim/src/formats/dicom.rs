@@ -7,7 +7,9 @@
 //! distance between consecutive slices across it (which must be even within 1%). Values are
 //! `RescaleSlope`·v + `RescaleIntercept`. The orientation itself is not applied (index space).
 //! Files without the `DICM` preamble and `DICOMDIR` are passed over; two series in one folder
-//! is an error, as are colour images, uneven or repeated slices, and differing slice sizes.
+//! is an error, as are colour and palette-colour images, slices that are not parallel, uneven
+//! or repeated slices (and two slices whose instance numbers skip one), and differing slice
+//! sizes.
 
 use super::{LoadError, LoadErrorKind};
 use crate::dataset::{to_plane_major, Volume, VolumeData};
@@ -75,6 +77,18 @@ fn read_slice(path: &Path) -> Result<Slice, LoadError> {
         int(&object, tags::ROWS).ok_or_else(|| at(header_err("missing Rows (0028,0010)")))?;
     let columns =
         int(&object, tags::COLUMNS).ok_or_else(|| at(header_err("missing Columns (0028,0011)")))?;
+    let photometric = object
+        .element_opt(tags::PHOTOMETRIC_INTERPRETATION)
+        .ok()
+        .flatten()
+        .and_then(|e| e.to_str().ok())
+        .map(|s| s.trim_end_matches('\0').trim().to_string())
+        .unwrap_or_default();
+    if photometric == "PALETTE COLOR" {
+        return Err(at(header_err(
+            "PhotometricInterpretation (0028,0004) is PALETTE COLOR: the pixels are indices into a colour table; voxcube reads grey-scale images (MONOCHROME1 or MONOCHROME2)",
+        )));
+    }
     let spp = int(&object, tags::SAMPLES_PER_PIXEL).unwrap_or(1);
     if spp != 1 {
         return Err(at(header_err(format!(
@@ -175,8 +189,37 @@ fn order(slices: &mut [Slice], folder: &Path) -> Result<f64, LoadError> {
         slices.sort_by_key(|s| s.instance);
         return Ok(0.0);
     };
+    // Every slice in the first one's plane orientation: a sagittal and a coronal image of one
+    // series are no volume.
+    let unit = |v: [f64; 3]| {
+        let length = dot(v, v).sqrt();
+        v.map(|c| c / length)
+    };
+    let first = unit(n);
+    if let Some(tilted) = slices.iter().find(|s| {
+        s.normal
+            .is_some_and(|m| dot(unit(m), first).abs() < 1.0 - 1e-4)
+    }) {
+        return Err(at(header_err(format!(
+            "{} is not parallel to {}: its ImageOrientationPatient (0020,0037) differs; a folder must hold one stack of parallel slices",
+            tilted.path.display(),
+            slices[0].path.display()
+        ))));
+    }
     let depth = |s: &Slice| s.position.map_or(0.0, |p| dot(p, n));
     slices.sort_by(|a, b| depth(a).total_cmp(&depth(b)));
+    // Two slices show no uneven spacing; their instance numbers show a slice missing between.
+    if let [a, b] = &slices[..] {
+        if let (Some(i), Some(j)) = (a.instance, b.instance) {
+            if (i - j).abs() > 1 {
+                return Err(at(header_err(format!(
+                    "{} and {} are the only slices but their InstanceNumbers (0020,0013) are {i} and {j}: a missing slice?",
+                    a.path.display(),
+                    b.path.display()
+                ))));
+            }
+        }
+    }
     let gaps: Vec<f64> = slices
         .windows(2)
         .map(|w| depth(&w[1]) - depth(&w[0]))
