@@ -269,6 +269,24 @@ fn dicom_series(dir: &Path, v: &[i16], series: &str) {
     std::fs::write(dir.join("README.txt"), "not a slice").expect("write");
 }
 
+/// The series as old files write it: each slice a bare data set in implicit VR little endian,
+/// without the Part 10 preamble, `DICM` or a file meta group.
+fn dicom_bare_series(dir: &Path, v: &[i16]) {
+    std::fs::create_dir_all(dir).expect("mkdir");
+    let plane = DIMS[0] * DIMS[1];
+    let ts = dicom_transfer_syntax_registry::entries::IMPLICIT_VR_LITTLE_ENDIAN.erased();
+    for z in 0..DIMS[2] {
+        let stored: Vec<u16> = v[z * plane..(z + 1) * plane]
+            .iter()
+            .map(|&x| (i32::from(x) + 1024) as u16)
+            .collect();
+        let file = std::fs::File::create(dir.join(format!("{z}.ima"))).expect("create");
+        dicom_slice(z, &stored, -1024.0, "1.2.6")
+            .write_dataset_with_ts(file, &ts)
+            .expect("write");
+    }
+}
+
 /// Every format, written into `dir`; returns the scene's dataset tables.
 fn write_all(dir: &Path) -> Vec<(&'static str, String)> {
     let v = samples();
@@ -335,6 +353,7 @@ fn write_all(dir: &Path) -> Vec<(&'static str, String)> {
     );
     w("blob.vti", vti(&v).as_bytes());
     dicom_series(&dir.join("series"), &v, "1.2.826.0.1.3680043.2.1125.9");
+    dicom_bare_series(&dir.join("bare"), &v);
     let raw = format!(
         "path = \"blob.raw\"\ndims = [{}, {}, {}]\ntype = \"i16\"\nendian = \"little\"\nspacing = [{}, {}, {}]",
         DIMS[0], DIMS[1], DIMS[2], SPACING[0], SPACING[1], SPACING[2]
@@ -356,6 +375,10 @@ fn write_all(dir: &Path) -> Vec<(&'static str, String)> {
         ("mrc-f16-gz", "path = \"half.ccp4.gz\"".into()),
         ("vti", "path = \"blob.vti\"".into()),
         ("dicom", "path = \"series\"".into()),
+        (
+            "dicom-without-preamble",
+            "path = \"bare\"\nformat = \"dicom\"".into(),
+        ),
     ]
 }
 

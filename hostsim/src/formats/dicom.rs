@@ -6,7 +6,8 @@
 //! positions, by `InstanceNumber`. The spacing is `PixelSpacing` in the plane and the
 //! distance between consecutive slices across it (which must be even within 1%). Values are
 //! `RescaleSlope`·v + `RescaleIntercept`. The orientation itself is not applied (index space).
-//! Files without the `DICM` preamble and `DICOMDIR` are passed over; two series in one folder
+//! Files that start neither with the `DICM` preamble nor like a bare data set in implicit VR
+//! little endian (old files, before Part 10), and `DICOMDIR`, are passed over; two series in one folder
 //! is an error, as are colour and palette-colour images, slices that are not parallel, uneven
 //! or repeated slices (and two slices whose instance numbers skip one), and differing slice
 //! sizes.
@@ -66,9 +67,40 @@ fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
+/// A DICOM file: Part 10 (a preamble, `DICM` and a file meta group), or an old file of a
+/// bare data set in implicit VR little endian, given the meta group that syntax implies.
+fn open(path: &Path) -> Result<DefaultDicomObject, String> {
+    if has_preamble(path) {
+        return open_file(path).map_err(|e| e.to_string());
+    }
+    let ts = dicom_transfer_syntax_registry::entries::IMPLICIT_VR_LITTLE_ENDIAN.erased();
+    let file = std::fs::File::open(path).map_err(|e| e.to_string())?;
+    let object =
+        dicom_object::InMemDicomObject::read_dataset_with_ts(std::io::BufReader::new(file), &ts)
+            .map_err(|e| e.to_string())?;
+    // An old file may name no SOP class or instance: the meta group needs one of each.
+    let meta = dicom_object::FileMetaTableBuilder::new()
+        .transfer_syntax(ts.uid())
+        .media_storage_sop_class_uid("1.2.840.10008.5.1.4.1.1.7")
+        .media_storage_sop_instance_uid("2.25.0");
+    object.with_meta(meta).map_err(|e| e.to_string())
+}
+
+/// Whether a file without the preamble begins like a bare data set in implicit VR little
+/// endian: its first element in group 0x0008 (identification, where every image's data set
+/// starts), with a length the file can hold.
+fn is_bare_dataset(path: &Path) -> bool {
+    use std::io::Read;
+    let mut head = [0u8; 8];
+    let read = std::fs::File::open(path).and_then(|mut f| f.read_exact(&mut head));
+    let size = std::fs::metadata(path).map_or(0, |m| m.len());
+    let length = u64::from(u32::from_le_bytes([head[4], head[5], head[6], head[7]]));
+    read.is_ok() && head[..2] == [0x08, 0x00] && length + 8 <= size
+}
+
 fn read_slice(path: &Path) -> Result<Slice, LoadError> {
     let at = |k| LoadError::new(path, k);
-    let object = open_file(path).map_err(|e| {
+    let object = open(path).map_err(|e| {
         at(header_err(format!(
             "not a readable DICOM file, truncated or malformed ({e})"
         )))
@@ -158,14 +190,17 @@ fn slice_files(path: &Path) -> Result<Vec<PathBuf>, LoadError> {
         let entry = entry.map_err(|e| LoadError::new(path, e))?;
         let p = entry.path();
         let name = entry.file_name().to_string_lossy().to_string();
-        if p.is_file() && !name.starts_with('.') && name != "DICOMDIR" && has_preamble(&p) {
+        let dicom = has_preamble(&p) || is_bare_dataset(&p);
+        if p.is_file() && !name.starts_with('.') && name != "DICOMDIR" && dicom {
             files.push(p);
         }
     }
     if files.is_empty() {
         return Err(LoadError::new(
             path,
-            header_err("the folder holds no DICOM files (none starts with the DICM preamble)"),
+            header_err(
+                "the folder holds no DICOM files (none starts with the DICM preamble or a bare data set)",
+            ),
         ));
     }
     files.sort();
