@@ -177,7 +177,14 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
         Some("LOCAL") | None => (path.to_path_buf(), bytes[h.end..].to_vec()),
         Some(name) => {
             let file = path.parent().unwrap_or(Path::new(".")).join(name);
-            let data = read(&file)?;
+            // Named from the header, which holds the name: a missing data file is often a
+            // misspelt `ElementDataFile`.
+            let data = std::fs::read(&file).map_err(|e| {
+                at(header_err(format!(
+                    "ElementDataFile = {name}: cannot read {}: {e}",
+                    file.display()
+                )))
+            })?;
             (file, data)
         }
     };
