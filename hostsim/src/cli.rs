@@ -16,7 +16,7 @@ use std::cell::Cell;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 use voxcube_kernel::node::worker::Generation;
-use voxcube_kernel::trace::view::{Accuracy, View, ViewSpec};
+use voxcube_kernel::trace::view::{Accuracy, View};
 
 /// The version, and whether this build carries the kernel's test-only faults: a product build
 /// says `test faults: none`, which CI checks on the release binary.
@@ -128,8 +128,8 @@ pub enum Command {
         /// The accuracy tier of every view, overriding each view's `accuracy`: exact (the
         /// reference image) or fast (the approximations production ray casters make, each
         /// named in the report).
-        #[arg(long, value_enum)]
-        accuracy: Option<AccuracyArg>,
+        #[arg(long, value_parser = accuracy_names())]
+        accuracy: Option<Accuracy>,
         /// Write the simulator's timeline of the run in virtual time on the --machine profile
         /// (each node's compute, send, receive, test and idle spans) as Chrome trace-event
         /// JSON, which Perfetto and chrome://tracing open. Needs --fabric sim; with several
@@ -296,13 +296,13 @@ fn source(data: &std::path::Path, substitute: bool) -> crate::experiments::paper
     }
 }
 
-/// `--accuracy` values.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum AccuracyArg {
-    /// Every sample exact: the reference image.
-    Exact,
-    /// The fast tier's approximations.
-    Fast,
+/// `--accuracy` values: the kernel's tiers by their names, listed in `--help`.
+fn accuracy_names() -> impl clap::builder::TypedValueParser<Value = Accuracy> {
+    use clap::builder::TypedValueParser;
+    let names = Accuracy::ALL.map(Accuracy::name);
+    // Only the listed names get through the parser, each a tier's own.
+    clap::builder::PossibleValuesParser::new(names)
+        .map(|name: String| Accuracy::from_name(&name).unwrap_or_default())
 }
 
 /// `--generation` values.
@@ -625,24 +625,12 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                     "<built-in default scene>".to_string(),
                 ),
             };
+            let scene = match accuracy {
+                Some(tier) => scene.with_accuracy(tier),
+                None => scene,
+            };
             // Everything is loaded and checked before the first image is written.
-            let mut jobs = scene.load_orbits(orbit)?;
-            if let Some(tier) = accuracy {
-                let tier = match tier {
-                    AccuracyArg::Exact => Accuracy::Exact,
-                    AccuracyArg::Fast => Accuracy::Fast,
-                };
-                for job in &mut jobs {
-                    for v in &mut job.views {
-                        let spec = ViewSpec {
-                            accuracy: tier,
-                            ..v.view.spec().clone()
-                        };
-                        v.view = View::new(spec, &job.volume.grid)
-                            .map_err(|e| format!("{}/{}: {e}", job.name, v.name))?;
-                    }
-                }
-            }
+            let jobs = scene.load_orbits(orbit)?;
             let mut plan = Vec::new();
             for job in &jobs {
                 for v in &job.views {

@@ -112,12 +112,19 @@ enum ModelToml {
     Cell,
 }
 
-#[derive(Debug, Clone, Copy, Default, Deserialize, PartialEq, Eq)]
-#[serde(rename_all = "lowercase")]
-enum AccuracyToml {
-    #[default]
-    Exact,
-    Fast,
+/// A view's `accuracy`: a tier's name, read by the kernel's [`Accuracy::from_name`].
+fn accuracy<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Accuracy, D::Error> {
+    let name = String::deserialize(d)?;
+    Accuracy::from_name(&name).ok_or_else(|| {
+        let names: Vec<String> = Accuracy::ALL
+            .iter()
+            .map(|a| format!("`{}`", a.name()))
+            .collect();
+        serde::de::Error::custom(format!(
+            "unknown tier `{name}`, expected {}",
+            names.join(" or ")
+        ))
+    })
 }
 
 #[derive(Debug, Clone, Copy, Default, Deserialize, PartialEq, Eq)]
@@ -175,8 +182,8 @@ struct ViewToml {
     gradient_distance: f32,
     #[serde(default)]
     mode: ModeToml,
-    #[serde(default)]
-    accuracy: AccuracyToml,
+    #[serde(default, deserialize_with = "accuracy")]
+    accuracy: Accuracy,
     #[serde(default = "d_true")]
     shading: bool,
     #[serde(default)]
@@ -562,6 +569,17 @@ impl Scene {
             file: file.to_string(),
             datasets,
         })
+    }
+
+    /// The same scene with every view in tier `tier`, whatever its `accuracy` says (the
+    /// command line's `--accuracy`): set before any view is built, so each is built once.
+    pub fn with_accuracy(mut self, tier: Accuracy) -> Scene {
+        for (dataset, _) in &mut self.datasets {
+            for view in &mut dataset.views {
+                view.accuracy = tier;
+            }
+        }
+        self
     }
 
     /// Load every dataset and build every view; nothing is rendered yet.
@@ -1154,10 +1172,7 @@ fn build_view(v: &ViewToml, grid: &Grid, tweak: &CameraTweak) -> Result<View, (S
             }
         }
     }
-    let accuracy = match v.accuracy {
-        AccuracyToml::Exact => Accuracy::Exact,
-        AccuracyToml::Fast => Accuracy::Fast,
-    };
+    let accuracy = v.accuracy;
     let spec = ViewSpec {
         width: v.width,
         height: v.height,

@@ -43,12 +43,21 @@ pub enum Accuracy {
 }
 
 impl Accuracy {
-    /// The tier's name in scene files and reports.
+    /// Every tier, in the order the CLI and the docs list them.
+    pub const ALL: [Accuracy; 2] = [Accuracy::Exact, Accuracy::Fast];
+
+    /// The tier's name in scene files, on the command line and in reports.
     pub fn name(self) -> &'static str {
         match self {
             Accuracy::Exact => "exact",
             Accuracy::Fast => "fast",
         }
+    }
+
+    /// The tier of that name, if any: [`Accuracy::name`]'s inverse, the one reading of a
+    /// tier's name for the scene and the command line alike.
+    pub fn from_name(name: &str) -> Option<Accuracy> {
+        Accuracy::ALL.into_iter().find(|a| a.name() == name)
     }
 }
 
