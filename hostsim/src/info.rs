@@ -373,7 +373,18 @@ fn scene_text(name: &str, path: &Path, volume: &Volume, isos: &[f64], nodes: u32
 /// nCUBE 2 profile needs.
 pub fn suggested_scene(path: &Path, volume: &Volume) -> Result<String, InfoError> {
     let h = Histogram::of(volume, BINS);
-    let isos = suggested_isos(&h);
+    // A density map is contoured as crystallographers do, at the mean plus 1σ and 2σ (where
+    // those lie inside its values); any other volume at its histogram's thresholds.
+    let map = Format::from_extension(path) == Some(Format::Mrc);
+    let stats = volume.stats();
+    let isos = match map {
+        true => [1.0, 2.0]
+            .iter()
+            .map(|k| round(stats.mean + k * stats.rms))
+            .filter(|&v| v < stats.max)
+            .collect(),
+        false => suggested_isos(&h),
+    };
     let needs = first_view_needs(volume, &isos)?;
     let nodes = Profile::builtin("ncube2")
         .and_then(|p| smallest_fit(volume, &p, needs))

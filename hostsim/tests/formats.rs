@@ -493,6 +493,29 @@ fn a_density_map_renders_alike_on_one_node_the_simulator_and_threads() {
     ] {
         assert!(text.contains(&part), "info omits {part:?}:\n{text}");
     }
+    // Its suggested scene contours the map at mean + 1σ (to three figures), and renders.
+    let map = dir.path().join("blob.map");
+    let (ok, scene, err) = run(&["info".as_ref(), "--scene".as_ref(), map.as_os_str()]);
+    assert!(ok, "{err}");
+    let first: f64 = scene
+        .lines()
+        .find_map(|l| l.strip_prefix("iso = "))
+        .and_then(|v| v.parse().ok())
+        .expect("an iso value");
+    assert!(
+        (first - (mean + rms)).abs() < 0.01 * rms.abs(),
+        "{first}: {scene}"
+    );
+    let file = dir.path().join("suggested.toml");
+    std::fs::write(&file, &scene).expect("write");
+    let out = dir.path().join("suggested");
+    let (ok, _, err) = run(&[
+        "render".as_ref(),
+        file.as_os_str(),
+        "-o".as_ref(),
+        out.as_os_str(),
+    ]);
+    assert!(ok, "{err}\n{scene}");
 }
 
 // ------------------------------------------------------------------ bad files
