@@ -54,17 +54,11 @@ pub struct Stats {
     pub max: f64,
     /// Mean value.
     pub mean: f64,
-    /// Root-mean-square deviation from the mean (σ): what density maps are contoured in.
-    pub rms: f64,
 }
 
 impl fmt::Display for Stats {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "min {} max {} mean {:.2} rms {:.2}",
-            self.min, self.max, self.mean, self.rms
-        )
+        write!(f, "min {} max {} mean {:.2}", self.min, self.max, self.mean)
     }
 }
 
@@ -99,20 +93,31 @@ impl Volume {
                 max = max.max(x);
                 sum += x;
             }
-            let mean = sum / v.len().max(1) as f64;
-            // A second pass about the mean: no cancellation between two large sums.
-            let squares: f64 = v.iter().map(|&x| (x.into() - mean).powi(2)).sum();
             Stats {
                 min,
                 max,
-                mean,
-                rms: (squares / v.len().max(1) as f64).sqrt(),
+                mean: sum / v.len().max(1) as f64,
             }
         }
         match &self.data {
             VolumeData::U8(v) => of(v),
             VolumeData::U16(v) => of(v),
             VolumeData::F32(v) => of(v),
+        }
+    }
+
+    /// The root-mean-square deviation of the values from their `mean` (σ), what density maps
+    /// are contoured in: a pass of its own about the mean (no cancellation between two large
+    /// sums), taken only where it is asked for, not with every view's [`Volume::stats`].
+    pub fn rms(&self, mean: f64) -> f64 {
+        fn of<T: Copy + Into<f64>>(v: &[T], mean: f64) -> f64 {
+            let squares: f64 = v.iter().map(|&x| (x.into() - mean).powi(2)).sum();
+            (squares / v.len().max(1) as f64).sqrt()
+        }
+        match &self.data {
+            VolumeData::U8(v) => of(v, mean),
+            VolumeData::U16(v) => of(v, mean),
+            VolumeData::F32(v) => of(v, mean),
         }
     }
 

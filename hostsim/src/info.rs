@@ -169,11 +169,12 @@ pub fn describe(name: &str, volume: &Volume) -> Result<String, InfoError> {
         volume.data.len(),
         mib(volume.data.len() * volume.data.kind().bytes())
     );
-    let _ = writeln!(out, "values      {stats}");
+    let rms = volume.rms(stats.mean);
+    let _ = writeln!(out, "values      {stats} rms {rms:.2}");
     // Density maps are contoured at the mean plus whole and half multiples of σ.
     let contours: Vec<String> = [1.0, 1.5, 2.0, 3.0]
         .iter()
-        .map(|k| format!("{k}σ {:.4}", stats.mean + k * stats.rms))
+        .map(|k| format!("{k}σ {:.4}", stats.mean + k * rms))
         .collect();
     let _ = writeln!(
         out,
@@ -376,13 +377,16 @@ pub fn suggested_scene(path: &Path, volume: &Volume) -> Result<String, InfoError
     // A density map is contoured as crystallographers do, at the mean plus 1σ and 2σ (where
     // those lie inside its values); any other volume at its histogram's thresholds.
     let map = Format::from_extension(path) == Some(Format::Mrc);
-    let stats = volume.stats();
     let isos = match map {
-        true => [1.0, 2.0]
-            .iter()
-            .map(|k| round(stats.mean + k * stats.rms))
-            .filter(|&v| v < stats.max)
-            .collect(),
+        true => {
+            let stats = volume.stats();
+            let rms = volume.rms(stats.mean);
+            [1.0, 2.0]
+                .iter()
+                .map(|k| round(stats.mean + k * rms))
+                .filter(|&v| v < stats.max)
+                .collect()
+        }
         false => suggested_isos(&h),
     };
     let needs = first_view_needs(volume, &isos)?;

@@ -11,8 +11,6 @@ use std::any::Any;
 use std::fmt;
 use std::ops::Range;
 use std::sync::{Arc, Mutex, PoisonError};
-use voxcube_kernel::counters::Counters;
-use voxcube_kernel::trace::view::View;
 use voxcube_kernel::volume::lanes::{Lanes, Nodes};
 use voxcube_kernel::volume::nodes;
 use voxcube_kernel::volume::sample::Sample;
@@ -39,7 +37,7 @@ impl<N: Lanes> NodeField<N> {
             .zip(parts.iter())
             .map(|(out, part)| -> Part<'_> {
                 let part = planes.start + part.start..planes.start + part.end;
-                Box::new(move || nodes::fill(slab, part, out, &mut Counters::default()).is_ok())
+                Box::new(move || nodes::fill(slab, part, out).is_ok())
             })
             .collect();
         match run_parts(jobs, threads).into_iter().all(|built| built) {
@@ -78,18 +76,16 @@ pub struct Fields {
 }
 
 impl Fields {
-    /// The field `slab` (of this cache's volume) reads for `view` where the node is to `hold`
-    /// one: the one built for its planes before, else built now on up to `threads` OS threads
-    /// and kept; none where the view reads none ([`View::node_gradients`]) or the node holds
-    /// none.
+    /// The field `slab` (of this cache's volume) reads where its node is to `hold` one
+    /// (`crate::storage::holds_node_field`): the one built for its planes before, else built
+    /// now on up to `threads` OS threads and kept; none where it holds none.
     pub fn field<T: Sample + Sync>(
         &self,
         slab: &Slab<'_, T>,
-        view: &View,
         hold: bool,
         threads: usize,
     ) -> Arc<NodeField<T::Node>> {
-        if !(hold && view.node_gradients()) {
+        if !hold {
             return Arc::default();
         }
         let planes = nodes::planes_for(slab.grid(), slab.owned());

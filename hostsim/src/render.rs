@@ -437,7 +437,9 @@ fn render_typed<T: Sample + Sync>(
     // belong to the view, so they are part of its frame, as on every other fabric.
     let start = Instant::now();
     let skipping = Skipping::build(&slab, view, mode);
-    let field = volume.fields.field(&slab, view, mode.nodes, 1);
+    let field = volume
+        .fields
+        .field(&slab, crate::storage::holds_node_field(view, mode), 1);
     let slab = field.apply(skipping.apply(slab));
     let mut counters = Counters::default();
     let n = view.pixel_count();

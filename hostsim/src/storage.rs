@@ -94,15 +94,21 @@ impl SkipMode {
     }
 }
 
+/// Whether a node skipping as `mode` says holds a node field for `view`: where the view reads
+/// one ([`View::node_gradients`]) and `mode` holds it. The one rule the budget and the builds
+/// both follow.
+pub fn holds_node_field(view: &View, mode: SkipMode) -> bool {
+    mode.nodes && view.node_gradients()
+}
+
 /// Bytes per grid node of the node field a node skipping as `mode` says holds for `view` over
-/// samples of `kind`: none where the view reads none ([`View::node_gradients`]) or `mode`
-/// holds none.
+/// samples of `kind` ([`holds_node_field`]; none where it holds none).
 pub fn node_field_bytes(
     view: &View,
     mode: SkipMode,
     kind: voxcube_kernel::volume::sample::SampleKind,
 ) -> usize {
-    match mode.nodes && view.node_gradients() {
+    match holds_node_field(view, mode) {
         true => kind.node_bytes(),
         false => 0,
     }
@@ -533,7 +539,7 @@ impl<'d, T: voxcube_kernel::volume::sample::Sample + Sync> NodeStorage<'d, T> {
             .iter()
             .map(|s| {
                 s.as_ref()
-                    .map(|s| fields.field(s, view, mode.nodes, threads))
+                    .map(|s| fields.field(s, holds_node_field(view, mode), threads))
                     .unwrap_or_default()
             })
             .collect();

@@ -494,9 +494,7 @@ fn a_density_map_renders_alike_on_one_node_the_simulator_and_threads() {
         assert!(text.contains(&part), "info omits {part:?}:\n{text}");
     }
     // Its suggested scene contours the map at mean + 1σ (to three figures), and renders.
-    let map = dir.path().join("blob.map");
-    let (ok, scene, err) = run(&["info".as_ref(), "--scene".as_ref(), map.as_os_str()]);
-    assert!(ok, "{err}");
+    let scene = suggested_scene_renders(dir.path(), &dir.path().join("blob.map"));
     let first: f64 = scene
         .lines()
         .find_map(|l| l.strip_prefix("iso = "))
@@ -506,16 +504,6 @@ fn a_density_map_renders_alike_on_one_node_the_simulator_and_threads() {
         (first - (mean + rms)).abs() < 0.01 * rms.abs(),
         "{first}: {scene}"
     );
-    let file = dir.path().join("suggested.toml");
-    std::fs::write(&file, &scene).expect("write");
-    let out = dir.path().join("suggested");
-    let (ok, _, err) = run(&[
-        "render".as_ref(),
-        file.as_os_str(),
-        "-o".as_ref(),
-        out.as_os_str(),
-    ]);
-    assert!(ok, "{err}\n{scene}");
 }
 
 // ------------------------------------------------------------------ bad files
@@ -961,12 +949,18 @@ fn info_suggests_a_scene_that_renders_for_a_one_slice_volume() {
     let image: Vec<u8> = (0..24 * 20).map(|i| ((i * 7) % 200) as u8).collect();
     let nrrd = dir.path().join("slice.nrrd");
     std::fs::write(&nrrd, [header.as_bytes(), &image].concat()).expect("write");
-    let (ok, scene, err) = run(&["info".as_ref(), "--scene".as_ref(), nrrd.as_os_str()]);
-    assert!(ok, "{err}");
+    let scene = suggested_scene_renders(dir.path(), &nrrd);
     assert!(scene.contains("model = \"voxel\""), "{scene}");
-    let file = dir.path().join("slice.toml");
+}
+
+/// The scene `info --scene` suggests for `volume`, after checking that it renders (into
+/// `dir`).
+fn suggested_scene_renders(dir: &Path, volume: &Path) -> String {
+    let (ok, scene, err) = run(&["info".as_ref(), "--scene".as_ref(), volume.as_os_str()]);
+    assert!(ok, "{err}");
+    let file = dir.join("suggested.toml");
     std::fs::write(&file, &scene).expect("write");
-    let out = dir.path().join("out");
+    let out = dir.join("suggested");
     let (ok, _, err) = run(&[
         "render".as_ref(),
         file.as_os_str(),
@@ -974,6 +968,7 @@ fn info_suggests_a_scene_that_renders_for_a_one_slice_volume() {
         out.as_os_str(),
     ]);
     assert!(ok, "{err}\n{scene}");
+    scene
 }
 
 #[test]

@@ -151,6 +151,15 @@ pub fn trace_all(volume: &Volume, view: &View) -> (Vec<Vec3>, Counters) {
     }
 }
 
+/// `view` of `volume` in tier `tier`, all else as it is.
+pub fn in_tier(view: &View, volume: &Volume, tier: voxcube_kernel::trace::view::Accuracy) -> View {
+    let spec = ViewSpec {
+        accuracy: tier,
+        ..view.spec().clone()
+    };
+    View::new(spec, &volume.grid).expect("the view, in another tier")
+}
+
 /// Build a view, panicking with the reason if the spec is invalid (tests build valid ones).
 pub fn view(spec: ViewSpec, volume: &Volume) -> View {
     View::new(spec, &volume.grid).expect("valid view")

@@ -7,11 +7,11 @@
 use voxcube::dataset::{Volume, VolumeData};
 use voxcube::fabric::{sim, threads, RunConfig};
 use voxcube::render::render;
-use voxcube::storage::SkipMode;
+use voxcube::storage::{holds_node_field, SkipMode};
 use voxcube_kernel::counters::Counters;
 use voxcube_kernel::optics::shade::Light;
 use voxcube_kernel::trace::tracer::trace_pixel;
-use voxcube_kernel::trace::view::{Accuracy, Approximation, View, ViewSpec};
+use voxcube_kernel::trace::view::{Accuracy, Approximation, View};
 use voxcube_kernel::volume::grid::Model;
 use voxcube_kernel::volume::lanes::Lanes;
 use voxcube_kernel::volume::nodes;
@@ -93,9 +93,9 @@ fn colours(volume: &Volume, view: &View, held: bool) -> (Vec<[u32; 3]>, usize, C
             nodes: held,
             ..SkipMode::ALL
         };
-        let field = volume.fields.field(&slab, view, mode.nodes, 2);
+        let field = volume.fields.field(&slab, holds_node_field(view, mode), 2);
         // Built once for the volume: asked again, the same field.
-        let again = volume.fields.field(&slab, view, mode.nodes, 1);
+        let again = volume.fields.field(&slab, holds_node_field(view, mode), 1);
         assert!(std::sync::Arc::ptr_eq(&field, &again) || !held);
         let slab = field.apply(slab);
         assert_eq!(slab.nodes().is_some(), held);
@@ -155,14 +155,7 @@ fn machines_that_hold_the_field_and_machines_that_do_not_give_the_same_image() {
             )
         })
         .expect("SOD's composited view");
-    let view = View::new(
-        ViewSpec {
-            accuracy: Accuracy::Fast,
-            ..v.view.spec().clone()
-        },
-        &job.volume.grid,
-    )
-    .expect("the fast view");
+    let view = voxcube_tests::in_tier(&v.view, &job.volume, Accuracy::Fast);
     assert!(view.node_gradients(), "SOD's composited view is shaded");
     let direct = render(&job.volume, &view).expect("renders").pixels;
     let eight = RunConfig::cluster(8, 5).expect("layout");
@@ -195,7 +188,7 @@ fn negative_control_a_field_whose_differences_are_off_changes_the_image() {
     let slab = Slab::whole(volume.grid, data).expect("whole slab");
     let planes = nodes::planes_for(&volume.grid, slab.owned());
     let mut lanes = vec![<[i16; 4]>::default(); nodes::len_for(&volume.grid, slab.owned())];
-    nodes::fill(&slab, planes.clone(), &mut lanes, &mut Counters::default()).expect("fills");
+    nodes::fill(&slab, planes.clone(), &mut lanes).expect("fills");
     let trace = |slab: &Slab<'_, u8>| {
         let mut c = Counters::default();
         (0..view.pixel_count() as u32)

@@ -33,22 +33,8 @@ struct Named<'a> {
 /// `view` in each tier whose image may differ: the exact tier, and the fast tier where it
 /// makes an approximation (elsewhere it is the exact image).
 fn in_each_tier(view: &View, job: &DatasetJob) -> Vec<View> {
-    let fast = View::new(
-        ViewSpec {
-            accuracy: Accuracy::Fast,
-            ..view.spec().clone()
-        },
-        &job.volume.grid,
-    )
-    .expect("the view, in the fast tier");
-    let exact = View::new(
-        ViewSpec {
-            accuracy: Accuracy::Exact,
-            ..view.spec().clone()
-        },
-        &job.volume.grid,
-    )
-    .expect("the view, in the exact tier");
+    let fast = voxcube_tests::in_tier(view, &job.volume, Accuracy::Fast);
+    let exact = voxcube_tests::in_tier(view, &job.volume, Accuracy::Exact);
     match fast.approximations().is_empty() {
         true => vec![exact],
         false => vec![exact, fast],
@@ -331,13 +317,7 @@ fn skipping_asks_the_fast_tiers_own_table_where_the_function_shows_nothing() {
     );
     let spec = voxcube_tests::spec(camera, 24, 24, Model::Cell, 0.5, Mode::Composite(tf));
     let exact = voxcube_tests::view(spec.clone(), &volume);
-    let fast = voxcube_tests::view(
-        ViewSpec {
-            accuracy: Accuracy::Fast,
-            ..spec
-        },
-        &volume,
-    );
+    let fast = voxcube_tests::in_tier(&exact, &volume, Accuracy::Fast);
     let lit = |pixels: &[[u8; 4]]| pixels.iter().filter(|p| p[..3] != [0, 0, 0]).count();
     let image = |view: &View, mode| render_skipping(&volume, view, mode).expect("renders");
     assert_eq!(

@@ -7,7 +7,8 @@ use voxcube::fabric::{sim, threads, RunConfig};
 use voxcube::render::render;
 use voxcube::scene::{DatasetJob, Scene};
 use voxcube_kernel::node::topology::Layout;
-use voxcube_kernel::trace::view::{Accuracy, View, ViewSpec};
+use voxcube_kernel::trace::view::{Accuracy, View};
+use voxcube_tests::in_tier;
 
 /// The test scenes, on the built-in molecule, small images.
 const SCENES: &str = include_str!("scenes.toml");
@@ -16,15 +17,6 @@ fn scene(text: &str) -> Vec<DatasetJob> {
     Scene::parse(text, "test", std::path::Path::new("."))
         .and_then(Scene::load)
         .unwrap_or_else(|e| panic!("{e}"))
-}
-
-/// `view` in tier `tier`.
-fn in_tier(view: &View, job: &DatasetJob, tier: Accuracy) -> View {
-    let spec = ViewSpec {
-        accuracy: tier,
-        ..view.spec().clone()
-    };
-    View::new(spec, &job.volume.grid).expect("the view, in another tier")
 }
 
 /// PSNR of `b` against `a` over the RGB channels, dB (infinite when equal).
@@ -70,10 +62,10 @@ fn within_bounds(jobs: &[DatasetJob]) -> usize {
     let mut approximated = 0;
     for job in jobs {
         for v in &job.views {
-            let exact = render(&job.volume, &in_tier(&v.view, job, Accuracy::Exact))
+            let exact = render(&job.volume, &in_tier(&v.view, &job.volume, Accuracy::Exact))
                 .expect("renders")
                 .pixels;
-            let fast_view = in_tier(&v.view, job, Accuracy::Fast);
+            let fast_view = in_tier(&v.view, &job.volume, Accuracy::Fast);
             approximated += usize::from(!fast_view.approximations().is_empty());
             let fast = render(&job.volume, &fast_view).expect("renders").pixels;
             let (db, iou) = (
@@ -97,7 +89,7 @@ fn the_fast_tier_is_bit_identical_on_every_cluster_size_partition_and_fabric() {
     let job = &jobs[0];
     let mut approximated = 0;
     for v in &job.views {
-        let view = in_tier(&v.view, job, Accuracy::Fast);
+        let view = in_tier(&v.view, &job.volume, Accuracy::Fast);
         approximated += usize::from(!view.approximations().is_empty());
         let one = render(&job.volume, &view).expect("renders").pixels;
         for (size, seed) in [(2u32, 1u64), (3, 2), (4, 3), (8, 4)] {
@@ -169,7 +161,7 @@ fn negative_control_a_table_for_another_step_changes_the_image() {
         .iter()
         .find(|v| v.name == "composite")
         .expect("the composited test view");
-    let view = in_tier(&v.view, job, Accuracy::Fast);
+    let view = in_tier(&v.view, &job.volume, Accuracy::Fast);
     let right = render(&job.volume, &view).expect("renders").pixels;
     let stale = view.clone().with_stale_table(view.spec().dt * 0.5);
     let wrong = render(&job.volume, &stale).expect("renders").pixels;

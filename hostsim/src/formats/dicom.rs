@@ -47,6 +47,17 @@ fn floats(object: &DefaultDicomObject, tag: Tag) -> Option<Vec<f64>> {
         .and_then(|e| e.to_multi_float64().ok())
 }
 
+/// Element `tag` as text without its padding; empty where it is missing.
+fn text(object: &DefaultDicomObject, tag: Tag) -> String {
+    object
+        .element_opt(tag)
+        .ok()
+        .flatten()
+        .and_then(|e| e.to_str().ok())
+        .map(|s| s.trim_end_matches('\0').trim().to_string())
+        .unwrap_or_default()
+}
+
 fn int(object: &DefaultDicomObject, tag: Tag) -> Option<i64> {
     object
         .element_opt(tag)
@@ -109,13 +120,7 @@ fn read_slice(path: &Path) -> Result<Slice, LoadError> {
         int(&object, tags::ROWS).ok_or_else(|| at(header_err("missing Rows (0028,0010)")))?;
     let columns =
         int(&object, tags::COLUMNS).ok_or_else(|| at(header_err("missing Columns (0028,0011)")))?;
-    let photometric = object
-        .element_opt(tags::PHOTOMETRIC_INTERPRETATION)
-        .ok()
-        .flatten()
-        .and_then(|e| e.to_str().ok())
-        .map(|s| s.trim_end_matches('\0').trim().to_string())
-        .unwrap_or_default();
+    let photometric = text(&object, tags::PHOTOMETRIC_INTERPRETATION);
     if photometric == "PALETTE COLOR" {
         return Err(at(header_err(
             "PhotometricInterpretation (0028,0004) is PALETTE COLOR: the pixels are indices into a colour table; voxcube reads grey-scale images (MONOCHROME1 or MONOCHROME2)",
@@ -135,13 +140,7 @@ fn read_slice(path: &Path) -> Result<Slice, LoadError> {
             ))))
         }
     };
-    let series = object
-        .element_opt(tags::SERIES_INSTANCE_UID)
-        .ok()
-        .flatten()
-        .and_then(|e| e.to_str().ok())
-        .map(|s| s.trim_end_matches('\0').trim().to_string())
-        .unwrap_or_default();
+    let series = text(&object, tags::SERIES_INSTANCE_UID);
     let position =
         floats(&object, tags::IMAGE_POSITION_PATIENT).and_then(|v| <[f64; 3]>::try_from(v).ok());
     let normal = floats(&object, tags::IMAGE_ORIENTATION_PATIENT)

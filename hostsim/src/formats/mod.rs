@@ -137,6 +137,14 @@ impl Format {
     }
 }
 
+/// A gzip stream that does not decode, or fails its CRC-32 or length (ISIZE) check: the one
+/// error every reader of gzip data gives.
+pub(crate) fn corrupt_gzip(e: std::io::Error) -> LoadErrorKind {
+    LoadErrorKind::Corrupt(format!(
+        "the gzip stream does not decode or fails its CRC-32 or length check ({e})"
+    ))
+}
+
 /// Load `path` as `format` (not raw: a raw file needs the scene's layout). `spacing`
 /// overrides the file's.
 pub fn load(path: &Path, format: Format, spacing: Option<Vec3>) -> Result<Volume, LoadError> {

@@ -12,7 +12,7 @@
 //! Only a stream's own bytes are read: every declared size is checked against what the file
 //! holds before the samples are taken, and a gzip stream is decoded whole and checked.
 
-use super::{decode, Endian, FileType, LoadError, LoadErrorKind};
+use super::{check_size, corrupt_gzip, decode, Endian, FileType, LoadError, LoadErrorKind};
 use crate::dataset::Volume;
 use std::io::Read;
 use std::path::Path;
@@ -128,15 +128,16 @@ fn parse_header(bytes: &[u8]) -> Result<Header, LoadErrorKind> {
     })
 }
 
-/// The file type of a mode, and whether its samples are half-precision floats (which
-/// [`decode`] takes as f32 after [`widen_halves`]).
-fn file_type(mode: i32) -> Result<(FileType, bool), LoadErrorKind> {
+/// The type [`decode`] reads a mode's samples as, and the type whose width they take in the
+/// file: the same but for half-precision floats, stored in two bytes (as a `u16` is) and
+/// decoded as f32 after [`widen_halves`].
+fn file_type(mode: i32) -> Result<(FileType, FileType), LoadErrorKind> {
     Ok(match mode {
-        0 => (FileType::I8, false),
-        1 => (FileType::I16, false),
-        2 => (FileType::F32, false),
-        6 => (FileType::U16, false),
-        12 => (FileType::F32, true),
+        0 => (FileType::I8, FileType::I8),
+        1 => (FileType::I16, FileType::I16),
+        2 => (FileType::F32, FileType::F32),
+        6 => (FileType::U16, FileType::U16),
+        12 => (FileType::F32, FileType::U16),
         other => {
             return Err(header_err(format!(
             "MODE is {other}; voxcube reads modes 0 (i8), 1 (i16), 2 (f32), 6 (u16) and 12 (f16)"
@@ -202,36 +203,32 @@ fn contents(path: &Path) -> Result<Vec<u8>, LoadErrorKind> {
     if !gz {
         return Ok(std::fs::read(path)?);
     }
-    let corrupt = |e: std::io::Error| {
-        LoadErrorKind::Corrupt(format!(
-            "the gzip stream does not decode or fails its CRC-32 or length check ({e})"
-        ))
-    };
     let file = std::io::BufReader::new(std::fs::File::open(path)?);
     let mut stream = flate2::read::GzDecoder::new(file);
     let mut bytes = vec![0u8; HEADER];
-    stream.read_exact(&mut bytes).map_err(corrupt)?;
+    stream.read_exact(&mut bytes).map_err(corrupt_gzip)?;
     let h = parse_header(&bytes)?;
-    let (ty, halves) = file_type(h.mode)?;
-    let sample = if halves { 2 } else { ty.bytes() as u64 };
-    let expected = declared(&h, sample)?;
+    let (_, stored) = file_type(h.mode)?;
+    let expected = count(&h)?
+        .checked_mul(stored.bytes() as u64)
+        .and_then(|b| b.checked_add(HEADER as u64 + h.extended))
+        .ok_or_else(|| header_err("NC × NR × NS × the sample size overflows"))?;
     let rest = expected - HEADER as u64;
     (&mut stream)
         .take(rest + 1)
         .read_to_end(&mut bytes)
-        .map_err(corrupt)?;
+        .map_err(corrupt_gzip)?;
     // To the end of the stream, so that its trailer is checked.
-    std::io::copy(&mut stream, &mut std::io::sink()).map_err(corrupt)?;
+    std::io::copy(&mut stream, &mut std::io::sink()).map_err(corrupt_gzip)?;
     Ok(bytes)
 }
 
-/// The bytes a map with header `h` and samples of `sample` bytes holds.
-fn declared(h: &Header, sample: u64) -> Result<u64, LoadErrorKind> {
+/// The samples a map with header `h` holds, NC × NR × NS.
+fn count(h: &Header) -> Result<u64, LoadErrorKind> {
     h.counts
         .iter()
-        .try_fold(sample, |a, &n| a.checked_mul(u64::from(n)))
-        .and_then(|b| b.checked_add(HEADER as u64 + h.extended))
-        .ok_or_else(|| header_err("NC × NR × NS × the sample size overflows"))
+        .try_fold(1u64, |a, &n| a.checked_mul(u64::from(n)))
+        .ok_or_else(|| header_err("NC × NR × NS overflows"))
 }
 
 /// Load a CCP4/MRC map. `spacing` overrides the cell's.
@@ -239,20 +236,15 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
     let at = |k| LoadError::new(path, k);
     let bytes = contents(path).map_err(at)?;
     let h = parse_header(&bytes).map_err(at)?;
-    let (ty, halves) = file_type(h.mode).map_err(at)?;
-    let sample = if halves { 2 } else { ty.bytes() };
-    let expected = declared(&h, sample as u64).map_err(at)?;
-    let actual = bytes.len() as u64;
-    if actual < expected {
-        return Err(at(LoadErrorKind::Truncated { expected, actual }));
-    }
-    if actual > expected {
-        return Err(at(LoadErrorKind::Trailing {
-            expected,
-            actual,
-            extra: actual - expected,
-        }));
-    }
+    let (ty, stored) = file_type(h.mode).map_err(at)?;
+    let halves = ty != stored;
+    check_size(
+        &bytes,
+        HEADER as u64 + h.extended,
+        count(&h).map_err(at)?,
+        stored,
+    )
+    .map_err(at)?;
     let start = HEADER + h.extended as usize;
     let mut dims = [0u32; 3];
     for slot in 0..3 {

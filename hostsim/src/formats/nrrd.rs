@@ -240,11 +240,7 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
         let mut out = Vec::new();
         flate2::read::MultiGzDecoder::new(&payload[..])
             .read_to_end(&mut out)
-            .map_err(|e| {
-                data_err(LoadErrorKind::Corrupt(format!(
-                    "the gzip stream does not decode or fails its CRC-32 or length check ({e})"
-                )))
-            })?;
+            .map_err(|e| data_err(super::corrupt_gzip(e)))?;
         payload = out;
     }
     let count = dims

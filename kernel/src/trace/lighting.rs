@@ -153,20 +153,19 @@ fn normal<T: Sample>(
     match cap_normal {
         Some(n) => shade::face_viewer(n, view_dir),
         None => {
-            let g = match (view.node_gradients(), site) {
-                (true, _) if known.is_some() => {
+            let g = match known {
+                // Read with the sample's value, counted here as the read it stands for.
+                Some(g) => {
                     counters.interpolations += 1;
                     counters.gradients += 1;
-                    known.unwrap_or_default()
+                    g
                 }
-                (true, Some(site)) => nodes::value_and_gradient(slab, site, counters).1,
-                (true, None) => {
-                    let site = field::locate(slab.grid(), spec.model, p);
+                None if view.node_gradients() => {
+                    let site = site.copied();
+                    let site = site.unwrap_or_else(|| field::locate(slab.grid(), spec.model, p));
                     nodes::value_and_gradient(slab, &site, counters).1
                 }
-                (false, _) => {
-                    field::gradient(slab, spec.model, p, spec.gradient_distance, counters)
-                }
+                None => field::gradient(slab, spec.model, p, spec.gradient_distance, counters),
             };
             let (n, fallback) = shade::normal(g, view_dir);
             counters.normal_fallbacks += u64::from(fallback);

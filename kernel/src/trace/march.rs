@@ -96,12 +96,12 @@ pub fn march<T: Sample>(
     // Which samples stand for a whole Δt segment, asked once for the call, and only where the
     // fast tier's table reads it.
     let full_below = view.classified().map_or(0, |_| ray.lattice.full_below());
-    // A primary ray passes at once over the samples before its pixel's depth bound: they lie
-    // in no cell the masks keep, so the turns below would skip each of them.
     // Where the node field is held and the view shades composited samples by it, each sample
     // reads its value and gradient in one interpolation of the field's lanes.
     let lanes =
         view.node_gradients() && slab.nodes().is_some() && matches!(spec.mode, Mode::Composite(_));
+    // A primary ray passes at once over the samples before its pixel's depth bound: they lie
+    // in no cell the masks keep, so the turns below would skip each of them.
     let mut depths = match &blocks {
         Some(blocks) if by_cell && ray.kind == RayKind::Primary => blocks.depths(),
         _ => None,

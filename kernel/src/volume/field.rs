@@ -277,13 +277,21 @@ pub fn trilinear4<T: Sample>(
             corners[corner][lane] = v;
         }
     }
-    let [c000, c100, c010, c110, c001, c101, c011, c111] = corners.map(Vec4::from_array);
     let frac = |axis: usize| Vec4::from_array(sites.map(|s| s.frac[axis]));
-    let (fx, fy, fz) = (frac(0), frac(1), frac(2));
+    lerp_corners(corners.map(Vec4::from_array), [frac(0), frac(1), frac(2)]).to_array()
+}
+
+/// The trilinear interpolation of eight corners (corner bits `z y x` from 000 to 111) in four
+/// lanes at once, with fractions `f` along X, Y and Z: along X first, then Y, then Z, each
+/// lane rounding as the scalar [`lerp`] does, so every lane is [`trilinear`]'s value for its
+/// own corners. Four points' values, or one point's value and gradient lanes.
+#[inline(always)]
+pub(crate) fn lerp_corners(corners: [Vec4; 8], [fx, fy, fz]: [Vec4; 3]) -> Vec4 {
+    let [c000, c100, c010, c110, c001, c101, c011, c111] = corners;
     let lerp4 = |a: Vec4, b: Vec4, t: Vec4| a + t * (b - a);
     let (c00, c10) = (lerp4(c000, c100, fx), lerp4(c010, c110, fx));
     let (c01, c11) = (lerp4(c001, c101, fx), lerp4(c011, c111, fx));
-    lerp4(lerp4(c00, c10, fy), lerp4(c01, c11, fy), fz).to_array()
+    lerp4(lerp4(c00, c10, fy), lerp4(c01, c11, fy), fz)
 }
 
 /// A cell some of whose nodes lie outside the stored planes: each node read alone, the misses

@@ -38,8 +38,12 @@ pub fn node<T: Sample>(slab: &Slab<'_, T>, [x, y, z]: [u32; 3], counters: &mut C
 /// before them, where a surface found between a predecessor's sample and the slab's first
 /// lies. Depends on the owned planes alone, so one field serves every view of a volume.
 pub fn planes_for(grid: &Grid, owned: Range<u32>) -> Range<u32> {
-    let nx = grid.dims()[0];
-    owned.start.saturating_sub(1)..owned.end.saturating_add(1).min(nx)
+    one_more_each_side(grid, owned)
+}
+
+/// `planes` and the plane each side of them, inside the grid.
+fn one_more_each_side(grid: &Grid, planes: Range<u32>) -> Range<u32> {
+    planes.start.saturating_sub(1)..planes.end.saturating_add(1).min(grid.dims()[0])
 }
 
 /// Nodes the field of a slab owning `owned` holds.
@@ -56,10 +60,9 @@ pub fn fill<T: Sample>(
     slab: &Slab<'_, T>,
     planes: Range<u32>,
     out: &mut [T::Node],
-    counters: &mut Counters,
 ) -> Result<(), NodesError> {
     let grid = slab.grid();
-    let [_, ny, nz] = grid.dims();
+    let [nx, ny, nz] = grid.dims();
     let expected = planes.len() * grid.plane_len();
     if out.len() != expected {
         return Err(NodesError::StorageLength {
@@ -67,8 +70,7 @@ pub fn fill<T: Sample>(
             actual: out.len(),
         });
     }
-    let [nx, ..] = grid.dims();
-    let read = planes.start.saturating_sub(1)..planes.end.saturating_add(1).min(nx);
+    let read = one_more_each_side(grid, planes.clone());
     let stored = slab.stored();
     let holds = stored.start <= read.start && read.end <= stored.end;
     if !(planes.is_empty() || holds) {
@@ -88,11 +90,8 @@ pub fn fill<T: Sample>(
             row(x, z.saturating_sub(1)),
         );
         let (Some(here), Some(ahead), Some(behind), Some(above), Some(below)) = stencil else {
-            // Not taken: every row read is stored (checked above). Node by node, as defined.
-            for (y, lanes) in (0..ny).zip(out.iter_mut()) {
-                *lanes = T::Node::pack(node(slab, [x, y, z], counters));
-            }
-            continue;
+            // Not taken: every row read is stored (checked above).
+            return Err(NodesError::NotStored { read, stored });
         };
         let f = |row: &[T], y: usize| row[y].to_f32();
         let last = ny as usize - 1;
@@ -137,14 +136,8 @@ pub fn lanes_at<T: Sample>(
         Some(corners) => corners,
         None => on_the_fly(slab, site, counters),
     };
-    let [n000, n100, n010, n110, n001, n101, n011, n111] = corners;
-    let Vec3 { x, y, z } = site.frac;
-    let (fx, fy, fz) = (Vec4::splat(x), Vec4::splat(y), Vec4::splat(z));
-    let lerp = |a: Vec4, b: Vec4, t: Vec4| a + t * (b - a);
-    let (c00, c10) = (lerp(n000, n100, fx), lerp(n010, n110, fx));
-    let (c01, c11) = (lerp(n001, n101, fx), lerp(n011, n111, fx));
-    let lanes = lerp(lerp(c00, c10, fy), lerp(c01, c11, fy), fz);
-    let [v, dx, dy, dz] = lanes.to_array();
+    let frac = site.frac.to_array().map(Vec4::splat);
+    let [v, dx, dy, dz] = field::lerp_corners(corners, frac).to_array();
     (v, Vec3::new(dx, dy, dz) * 0.5 * slab.grid().inv_spacing())
 }
 
@@ -233,13 +226,7 @@ mod tests {
         let planes = planes_for(slab.grid(), slab.owned());
         let mut out = [T::Node::default(); 9 * 7 * 8];
         let len = len_for(slab.grid(), slab.owned());
-        fill(
-            slab,
-            planes.clone(),
-            &mut out[..len],
-            &mut Counters::default(),
-        )
-        .unwrap();
+        fill(slab, planes.clone(), &mut out[..len]).unwrap();
         (out, planes)
     }
 
@@ -378,8 +365,8 @@ mod tests {
             })
         );
         let mut out = [[0i16; 4]; 56];
-        assert!(fill(&slab, 0..2, &mut out, &mut Counters::default()).is_err());
-        assert!(fill(&slab, 3..4, &mut out, &mut Counters::default()).is_ok());
+        assert!(fill(&slab, 0..2, &mut out).is_err());
+        assert!(fill(&slab, 3..4, &mut out).is_ok());
         // A slab with one ghost plane stores planes 2 to 5 for planes 3 and 4: their field's
         // planes 2 to 5 read 1 to 6, which it does not store. Refused, not filled with zeros.
         let plane = grid.plane_len();
@@ -387,7 +374,7 @@ mod tests {
         let planes = planes_for(&grid, thin.owned());
         let mut out = [[0i16; 4]; 4 * 56];
         assert_eq!(
-            fill(&thin, planes, &mut out, &mut Counters::default()),
+            fill(&thin, planes, &mut out),
             Err(NodesError::NotStored {
                 read: 1..7,
                 stored: 2..6
