@@ -2,14 +2,14 @@
 //! which lights need a shadow ray. A surface hit's [`Lighting`] is what a distributed trace
 //! sends to the pixel's home; the home multiplies in the visibilities that come back and
 //! combines them by [`crate::trace::tree::surface_color`], exactly as the in-process tracer does. A
-//! composited sample, which no shadow darkens, gets the same colour from [`unshadowed_color`]
+//! composited sample, which no shadow darkens, gets the same colour from [`Unshadowed`]
 //! without the record.
 //!
 //! Invariant: `direct[l]` is zero for every light `l ≥ lights`; a light needs a shadow ray only
 //! if it casts shadows and lights the point (`direct[l] ≠ 0`).
 
 use crate::counters::Counters;
-use crate::optics::shade::{self, MAX_LIGHTS};
+use crate::optics::shade::{self, Light, LightKind, MAX_LIGHTS};
 use crate::trace::tree;
 use crate::trace::view::View;
 use crate::volume::field::{self, Site};
@@ -88,52 +88,83 @@ pub fn lighting<T: Sample>(
     out
 }
 
-/// The colour of a point that no shadow darkens (a composited sample), equal in every bit to
+/// The colour of points that no shadow darkens (composited samples), equal in every bit to
 /// [`lighting`]'s `.color` with every light fully visible, and counted alike: the same terms
 /// summed in the same order, a visibility of 1 multiplying each exactly. It keeps no
-/// [`Lighting`] (directions, distances, shadow mask), which compositing never reads and which
-/// is a tenth of a lit sample's work. `site` is where `p` reads the grid under the view's
-/// model ([`field::locate`]), which the sample loop has found already, and `gradient` the
-/// gradient there where it has that too (from the node field's lanes,
-/// [`nodes::lanes_at`]): counted as the read it stands for.
-#[inline(always)]
-pub fn unshadowed_color<T: Sample>(
-    view: &View,
-    slab: &Slab<'_, T>,
-    base: Vec3,
-    (p, site, gradient): (Vec3, &Site, Option<Vec3>),
-    view_dir: Vec3,
-    counters: &mut Counters,
-) -> Vec3 {
-    let spec = view.spec();
-    let Some(shading) = &spec.shading else {
-        return base;
-    };
-    let n = normal(
-        view,
-        slab,
-        (p, Some(site), gradient),
-        None,
-        view_dir,
-        counters,
-    );
-    let world = view.to_world(p);
-    let mut color = base * shading.ambient;
-    for light in &spec.lights {
-        // An unlit light adds its zero term, as `tree::surface_color` does.
-        color += light.toward(world).map_or(Vec3::ZERO, |toward| {
-            shade::direct(
-                shading,
-                view.highlights(),
-                base,
-                n,
-                view_dir,
-                toward.0,
-                light.color,
-            )
-        });
+/// [`Lighting`] (directions, distances, shadow mask), which compositing never reads, and it
+/// finds once what is the same at every point: the direction toward each light when every
+/// light is directional, so that no point is carried into world space for them.
+#[derive(Clone, Debug)]
+pub struct Unshadowed<'v> {
+    view: &'v View,
+    /// Each light's direction toward it and its colour, when every light is directional;
+    /// `None` when some light is a point light, whose direction depends on the point.
+    fixed: Option<heapless::Vec<(Vec3, Vec3), MAX_LIGHTS>>,
+}
+
+impl<'v> Unshadowed<'v> {
+    /// The unshadowed lighting of `view`'s points.
+    pub fn new(view: &'v View) -> Unshadowed<'v> {
+        // What `Light::toward` gives a directional light at every point.
+        let fixed = |light: &Light| match light.kind {
+            LightKind::Directional { direction } => Some((-direction, light.color)),
+            LightKind::Point { .. } => None,
+        };
+        Unshadowed {
+            view,
+            fixed: view.spec().lights.iter().map(fixed).collect(),
+        }
     }
-    color
+
+    /// The colour at index-space `p` of a point of colour `base`, seen along `view_dir`.
+    /// `site` is where `p` reads the grid under the view's model ([`field::locate`]), which
+    /// the sample loop has found already, and `gradient` the gradient there where it has
+    /// that too (from the node field's lanes, [`nodes::lanes_at`]): counted as the read it
+    /// stands for.
+    #[inline(always)]
+    pub fn color<T: Sample>(
+        &self,
+        slab: &Slab<'_, T>,
+        base: Vec3,
+        (p, site, gradient): (Vec3, &Site, Option<Vec3>),
+        view_dir: Vec3,
+        counters: &mut Counters,
+    ) -> Vec3 {
+        let view = self.view;
+        let spec = view.spec();
+        let Some(shading) = &spec.shading else {
+            return base;
+        };
+        let n = normal(
+            view,
+            slab,
+            (p, Some(site), gradient),
+            None,
+            view_dir,
+            counters,
+        );
+        let mut color = base * shading.ambient;
+        let lit = |toward: Vec3, light: Vec3| {
+            shade::direct(shading, view.highlights(), base, n, view_dir, toward, light)
+        };
+        match &self.fixed {
+            Some(lights) => {
+                for &(toward, light) in lights {
+                    color += lit(toward, light);
+                }
+            }
+            None => {
+                let world = view.to_world(p);
+                for light in &spec.lights {
+                    // An unlit light adds its zero term, as `tree::surface_color` does.
+                    color += light
+                        .toward(world)
+                        .map_or(Vec3::ZERO, |toward| lit(toward.0, light.color));
+                }
+            }
+        }
+        color
+    }
 }
 
 /// The shading normal at `p` (whose [`Site`] and gradient are given where known): the cut
@@ -251,7 +282,7 @@ mod tests {
                 let (mut c, mut d) = (Counters::default(), Counters::default());
                 let full = lighting(v, &slab, base, p, None, dir, &mut c).color(&[1.0; MAX_LIGHTS]);
                 let site = field::locate(&grid, v.spec().model, p);
-                let fast = unshadowed_color(v, &slab, base, (p, &site, None), dir, &mut d);
+                let fast = Unshadowed::new(v).color(&slab, base, (p, &site, None), dir, &mut d);
                 assert_eq!(bits(fast), bits(full), "{p} {base}");
                 assert_eq!(c, d, "{p}");
             }

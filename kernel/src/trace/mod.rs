@@ -6,11 +6,13 @@
 //! way on every node and never accumulated; a sample belongs to the slab owning its plane.
 
 pub mod camera;
+pub mod composite;
 pub mod lattice;
 pub mod lighting;
 pub mod march;
 pub mod pixel;
 pub mod ray;
+pub(crate) mod skipping;
 pub mod starts;
 pub mod state;
 pub mod tracer;
