@@ -744,6 +744,49 @@ fn bad_vtk_files_name_the_file_and_the_field() {
     );
 }
 
+/// A DICOM header that declares more bytes than its file holds is refused before dicom-rs
+/// reads it (which would allocate what it declares): in a series, and in a sequence of
+/// unknown VR, whose elements are in implicit VR.
+#[test]
+fn a_dicom_length_past_the_end_of_its_file_is_refused_naming_the_element() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let v = samples();
+    let lie = dir.path().join("lie");
+    dicom_series(&lie, &v, "1.2.3");
+    let f = lie.join("IM0003");
+    let mut bytes = std::fs::read(&f).expect("read");
+    // A private element after the pixel data, declaring 4 GB.
+    bytes.extend_from_slice(&[0xE1, 0x7F, 0x10, 0x00, b'O', b'B', 0, 0]);
+    bytes.extend_from_slice(&0xFFFF_FFF0u32.to_le_bytes());
+    bytes.extend_from_slice(b"abcd");
+    std::fs::write(&f, &bytes).expect("write");
+    assert_names(
+        &error_of(dir.path(), "path = \"lie\""),
+        &[
+            "IM0003",
+            "(7FE1,0010)",
+            "declares 4294967280 bytes",
+            "only 4 follow",
+        ],
+    );
+    // The same length on an element inside a sequence of unknown VR.
+    let nested = dir.path().join("nested");
+    dicom_series(&nested, &v, "1.2.3");
+    let f = nested.join("IM0002");
+    let mut bytes = std::fs::read(&f).expect("read");
+    bytes.extend_from_slice(&[
+        0xE1, 0x7F, 0x10, 0x00, b'U', b'N', 0, 0, 0xFF, 0xFF, 0xFF, 0xFF,
+    ]);
+    bytes.extend_from_slice(&[0xFE, 0xFF, 0x00, 0xE0, 0xFF, 0xFF, 0xFF, 0xFF]);
+    bytes.extend_from_slice(&[0xE1, 0x7F, 0x11, 0x00]);
+    bytes.extend_from_slice(&0xFFFF_FF00u32.to_le_bytes());
+    std::fs::write(&f, &bytes).expect("write");
+    assert_names(
+        &error_of(dir.path(), "path = \"nested\""),
+        &["IM0002", "(7FE1,0011)", "declares 4294967040 bytes"],
+    );
+}
+
 #[test]
 fn bad_dicom_series_name_the_file_and_the_field() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -1125,7 +1168,18 @@ fn damaged_files_of_every_format_are_read_right_or_refused() {
         ("blob.vti", false),
         ("blob.map", false),
         ("half.ccp4.gz", true),
+        ("slice.dcm", false),
+        ("bare.dcm", false),
     ];
+    // One slice of each DICOM series, as a file of its own.
+    for (series, name) in [("series", "slice.dcm"), ("bare", "bare.dcm")] {
+        let slice = std::fs::read_dir(dir.path().join(series))
+            .expect("the series")
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .find(|p| p.extension().is_none() || p.extension().is_some_and(|e| e != "txt"))
+            .expect("a slice");
+        std::fs::copy(slice, dir.path().join(name)).expect("copy");
+    }
     let damaged = tempfile::tempdir().expect("tempdir");
     let mut state = 0x9e37_79b9_7f4a_7c15u64;
     let mut next = move || {

@@ -10,7 +10,8 @@
 //! little endian (old files, before Part 10), and `DICOMDIR`, are passed over; two series in one folder
 //! is an error, as are colour and palette-colour images, slices that are not parallel, uneven
 //! or repeated slices (and two slices whose instance numbers skip one), and differing slice
-//! sizes.
+//! sizes. Every element length a file declares is checked against the file before dicom-rs
+//! reads it ([`super::dicom_lengths`]), which would allocate what a header declares.
 
 use super::{LoadError, LoadErrorKind};
 use crate::dataset::{to_plane_major, Volume, VolumeData};
@@ -81,7 +82,11 @@ fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
 /// A DICOM file: Part 10 (a preamble, `DICM` and a file meta group), or an old file of a
 /// bare data set in implicit VR little endian, given the meta group that syntax implies.
 fn open(path: &Path) -> Result<DefaultDicomObject, String> {
-    if has_preamble(path) {
+    // dicom-rs allocates what a header declares before it reads the value: every declared
+    // length is checked against the file first.
+    let part10 = has_preamble(path);
+    super::dicom_lengths::check(path, part10).map_err(|e| e.to_string())?;
+    if part10 {
         return open_file(path).map_err(|e| e.to_string());
     }
     let ts = dicom_transfer_syntax_registry::entries::IMPLICIT_VR_LITTLE_ENDIAN.erased();

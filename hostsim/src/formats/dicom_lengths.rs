@@ -1,0 +1,426 @@
+//! A DICOM file's element headers, walked before dicom-rs reads it: every value length a
+//! header declares must fit in the bytes that follow it in the file, so that no header can
+//! make the reader allocate more than the file holds.
+//!
+//! Invariants: only headers are read (tag, VR, length), never a value, so the walk takes
+//! constant memory whatever the file declares; it steps into every sequence and item (their
+//! elements are checked too) and switches to implicit VR inside a sequence of unknown VR
+//! (`UN` of undefined length, PS3.5 §6.2.2), restoring the syntax at its delimiter. A data
+//! set in a deflated transfer syntax is not walked: its lengths are those of the inflated
+//! stream, which dicom-rs does not read here anyway.
+
+use dicom_core::dictionary::{DataDictionary, DataDictionaryEntry, VirtualVr};
+use dicom_core::{Tag, VR};
+use dicom_dictionary_std::StandardDataDictionary;
+use std::io::{BufReader, Read, Seek};
+use std::path::Path;
+
+/// A value length meaning "until its delimiter".
+const UNDEFINED: u32 = 0xFFFF_FFFF;
+
+/// How the elements being walked are encoded.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Syntax {
+    Implicit,
+    Explicit { big_endian: bool },
+}
+
+impl Syntax {
+    /// The data set's syntax for transfer syntax `uid`; `None` for a deflated one.
+    fn of(uid: &str) -> Option<Syntax> {
+        match uid.trim_end_matches(['\0', ' ']) {
+            "1.2.840.10008.1.2" => Some(Syntax::Implicit),
+            "1.2.840.10008.1.2.2" => Some(Syntax::Explicit { big_endian: true }),
+            "1.2.840.10008.1.2.1.99" | "1.2.840.10008.1.2.4.95" => None,
+            // Every other syntax (native or encapsulated) is explicit VR little endian.
+            _ => Some(Syntax::Explicit { big_endian: false }),
+        }
+    }
+}
+
+/// VRs whose explicit header holds a 2-byte length (PS3.5 Table 7.1-2). Every other VR, and
+/// a VR that is none (read as `UN`, as dicom-rs reads it), has two reserved bytes and a
+/// 4-byte length.
+const SHORT_VRS: [VR; 21] = [
+    VR::AE,
+    VR::AS,
+    VR::AT,
+    VR::CS,
+    VR::DA,
+    VR::DS,
+    VR::DT,
+    VR::FL,
+    VR::FD,
+    VR::IS,
+    VR::LO,
+    VR::LT,
+    VR::PN,
+    VR::SH,
+    VR::SL,
+    VR::SS,
+    VR::ST,
+    VR::TM,
+    VR::UI,
+    VR::UL,
+    VR::US,
+];
+
+/// Why a file's headers cannot be trusted.
+#[derive(Debug, thiserror::Error)]
+pub enum LengthError {
+    /// Reading the file failed.
+    #[error("{0}")]
+    Io(#[from] std::io::Error),
+    /// A header declares more bytes than the file holds after it.
+    #[error(
+        "element ({group:04X},{element:04X}) at byte {offset} declares {declared} bytes, but only {left} follow it in the file"
+    )]
+    TooLong {
+        /// The element's tag.
+        group: u16,
+        /// The element's tag.
+        element: u16,
+        /// Where its header starts.
+        offset: u64,
+        /// The length it declares.
+        declared: u64,
+        /// The bytes after its header.
+        left: u64,
+    },
+    /// The file ends inside a header.
+    #[error("the file ends inside an element header at byte {offset}")]
+    CutHeader {
+        /// Where the header starts.
+        offset: u64,
+    },
+}
+
+/// Check every element header of the DICOM file at `path`: a Part 10 file (preamble, `DICM`,
+/// meta group) when `part10`, else a bare data set in implicit VR little endian.
+pub fn check(path: &Path, part10: bool) -> Result<(), LengthError> {
+    let file = std::fs::File::open(path)?;
+    let len = file.metadata()?.len();
+    let mut walk = Walk {
+        reader: BufReader::new(file),
+        pos: 0,
+        len,
+    };
+    if !part10 {
+        return walk.elements(Syntax::Implicit, None);
+    }
+    walk.skip(132)?;
+    // The meta group is explicit VR little endian, and names the data set's syntax.
+    let mut uid = String::new();
+    walk.elements(
+        Syntax::Explicit { big_endian: false },
+        Some(&mut |tag, value| {
+            if tag == Tag(0x0002, 0x0010) {
+                uid = String::from_utf8_lossy(value).into_owned();
+            }
+        }),
+    )?;
+    match Syntax::of(&uid) {
+        Some(syntax) => walk.elements(syntax, None),
+        None => Ok(()),
+    }
+}
+
+/// An element of undefined length being walked, with the syntax around it.
+#[derive(Clone, Copy, Debug)]
+enum Open {
+    /// A sequence: its items hold elements.
+    Sequence(Syntax),
+    /// Encapsulated pixel data: its items are fragments of bytes.
+    Fragments(Syntax),
+}
+
+impl Open {
+    fn syntax(self) -> Syntax {
+        match self {
+            Open::Sequence(s) | Open::Fragments(s) => s,
+        }
+    }
+}
+
+/// A walk over a file's element headers.
+struct Walk<R> {
+    reader: R,
+    /// The byte the reader is at.
+    pos: u64,
+    /// The file's length.
+    len: u64,
+}
+
+/// Called with the tag and value of each meta group element (values of at most 64 bytes).
+type MetaVisitor<'a> = Option<&'a mut dyn FnMut(Tag, &[u8])>;
+
+impl<R: Read + Seek> Walk<R> {
+    fn skip(&mut self, n: u64) -> Result<(), LengthError> {
+        let step = i64::try_from(n).map_err(|_| std::io::Error::other("skip too far"))?;
+        self.reader.seek_relative(step)?;
+        self.pos += n;
+        Ok(())
+    }
+
+    fn bytes<const N: usize>(&mut self, offset: u64) -> Result<[u8; N], LengthError> {
+        let mut b = [0u8; N];
+        self.reader.read_exact(&mut b).map_err(|e| match e.kind() {
+            std::io::ErrorKind::UnexpectedEof => LengthError::CutHeader { offset },
+            _ => LengthError::Io(e),
+        })?;
+        self.pos += N as u64;
+        Ok(b)
+    }
+
+    /// Walk elements in `syntax` to the end of the file; with `meta`, only the meta group's
+    /// (group 0002), stopping before the first element of another group.
+    fn elements(
+        &mut self,
+        mut syntax: Syntax,
+        mut meta: MetaVisitor<'_>,
+    ) -> Result<(), LengthError> {
+        // What each open element of undefined length holds, and the syntax to restore at
+        // its delimiter.
+        let mut open: Vec<Open> = Vec::new();
+        while self.pos < self.len {
+            let offset = self.pos;
+            let big = syntax == Syntax::Explicit { big_endian: true };
+            let u16_of = |b: [u8; 2]| match big {
+                true => u16::from_be_bytes(b),
+                false => u16::from_le_bytes(b),
+            };
+            let u32_of = |b: [u8; 4]| match big {
+                true => u32::from_be_bytes(b),
+                false => u32::from_le_bytes(b),
+            };
+            if meta.is_some() {
+                // Peek at the group: the meta group ends where another begins.
+                let group = self.bytes::<2>(offset)?;
+                self.reader.seek_relative(-2)?;
+                self.pos -= 2;
+                if u16_of(group) != 0x0002 {
+                    return Ok(());
+                }
+            }
+            let head = self.bytes::<8>(offset)?;
+            let tag = Tag(u16_of([head[0], head[1]]), u16_of([head[2], head[3]]));
+            let rest = [head[4], head[5], head[6], head[7]];
+            let (vr, length) = match syntax {
+                // Items and delimiters carry a 4-byte length and no VR in every syntax.
+                _ if tag.group() == 0xFFFE => (None, u32_of(rest)),
+                Syntax::Implicit => (implicit_vr(tag), u32_of(rest)),
+                Syntax::Explicit { .. } => {
+                    let vr = VR::from_binary([head[4], head[5]]).unwrap_or(VR::UN);
+                    match SHORT_VRS.contains(&vr) {
+                        true => (Some(vr), u32::from(u16_of([head[6], head[7]]))),
+                        false => (Some(vr), u32_of(self.bytes::<4>(offset)?)),
+                    }
+                }
+            };
+            let in_fragments = matches!(open.last(), Some(Open::Fragments(_)));
+            match (tag, length) {
+                // A sequence's end: its syntax back.
+                (Tag(0xFFFE, 0xE0DD), _) => {
+                    if let Some(outer) = open.pop() {
+                        syntax = outer.syntax();
+                    }
+                    continue;
+                }
+                // An item's start or end, or a fragment of encapsulated pixel data.
+                (Tag(0xFFFE, _), _) => {}
+                // Undefined length: a sequence, whose items follow (in implicit VR where its VR
+                // is unknown), or encapsulated pixel data, whose fragments follow.
+                (_, UNDEFINED) => {
+                    let sequence =
+                        matches!(vr, Some(VR::SQ | VR::UN)) || syntax == Syntax::Implicit;
+                    open.push(match sequence {
+                        true => Open::Sequence(syntax),
+                        false => Open::Fragments(syntax),
+                    });
+                    if vr == Some(VR::UN) {
+                        syntax = Syntax::Implicit;
+                    }
+                }
+                _ => {}
+            }
+            if length == UNDEFINED {
+                continue;
+            }
+            let declared = u64::from(length);
+            let left = self.len - self.pos;
+            if declared > left {
+                return Err(LengthError::TooLong {
+                    group: tag.group(),
+                    element: tag.element(),
+                    offset,
+                    declared,
+                    left,
+                });
+            }
+            // A sequence's or an item's elements follow its header; a fragment is bytes.
+            let container = (tag.group() == 0xFFFE && !in_fragments) || vr == Some(VR::SQ);
+            match (&mut meta, container) {
+                (_, true) => {}
+                (Some(visit), false) if declared <= 64 => {
+                    let mut value = [0u8; 64];
+                    let value = &mut value[..declared as usize];
+                    self.reader.read_exact(value)?;
+                    self.pos += declared;
+                    visit(tag, value);
+                }
+                _ => self.skip(declared)?,
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The VR the standard dictionary gives `tag` (its sequences matter: their elements are
+/// walked); `None` for a private or unknown tag, whose value is bytes to dicom-rs.
+fn implicit_vr(tag: Tag) -> Option<VR> {
+    match StandardDataDictionary.by_tag(tag)?.vr() {
+        VirtualVr::Exact(vr) => Some(vr),
+        _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An explicit VR little endian Part 10 file holding data set `dataset`.
+    fn part10(dataset: &[u8]) -> Vec<u8> {
+        let uid = b"1.2.840.10008.1.2.1\0";
+        let mut meta = Vec::new();
+        meta.extend_from_slice(&[0x02, 0x00, 0x10, 0x00, b'U', b'I']);
+        meta.extend_from_slice(&(uid.len() as u16).to_le_bytes());
+        meta.extend_from_slice(uid);
+        let mut file = vec![0u8; 128];
+        file.extend_from_slice(b"DICM");
+        file.extend_from_slice(&[0x02, 0x00, 0x00, 0x00, b'U', b'L', 4, 0]);
+        file.extend_from_slice(&(meta.len() as u32).to_le_bytes());
+        file.extend_from_slice(&meta);
+        file.extend_from_slice(dataset);
+        file
+    }
+
+    fn long(tag: (u16, u16), vr: &[u8; 2], length: u32) -> Vec<u8> {
+        let mut h = Vec::new();
+        h.extend_from_slice(&tag.0.to_le_bytes());
+        h.extend_from_slice(&tag.1.to_le_bytes());
+        h.extend_from_slice(vr);
+        h.extend_from_slice(&[0, 0]);
+        h.extend_from_slice(&length.to_le_bytes());
+        h
+    }
+
+    fn item(length: u32) -> Vec<u8> {
+        let mut h = vec![0xFE, 0xFF, 0x00, 0xE0];
+        h.extend_from_slice(&length.to_le_bytes());
+        h
+    }
+
+    fn checked(bytes: &[u8]) -> Result<(), LengthError> {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("f.dcm");
+        std::fs::write(&path, bytes).unwrap();
+        check(&path, true)
+    }
+
+    fn too_long(result: Result<(), LengthError>) -> Option<(u16, u16, u64)> {
+        match result {
+            Err(LengthError::TooLong {
+                group,
+                element,
+                declared,
+                ..
+            }) => Some((group, element, declared)),
+            _ => None,
+        }
+    }
+
+    #[test]
+    fn lengths_that_fit_pass_and_one_that_does_not_is_named() {
+        let mut ok = long((0x0010, 0x0010), b"UT", 4);
+        ok.extend_from_slice(b"abcd");
+        assert!(checked(&part10(&ok)).is_ok());
+        let mut lie = long((0x0010, 0x0010), b"UT", 0xFFFF_FFF0);
+        lie.extend_from_slice(b"abcd");
+        assert_eq!(
+            too_long(checked(&part10(&lie))),
+            Some((0x0010, 0x0010, 0xFFFF_FFF0))
+        );
+    }
+
+    #[test]
+    fn an_element_inside_a_sequence_of_defined_length_is_checked() {
+        let inner = long((0x0010, 0x0021), b"OB", 0xFFFF_FF00);
+        let mut items = item(inner.len() as u32);
+        items.extend_from_slice(&inner);
+        let mut sq = long((0x0008, 0x1140), b"SQ", items.len() as u32);
+        sq.extend_from_slice(&items);
+        assert_eq!(
+            too_long(checked(&part10(&sq))),
+            Some((0x0010, 0x0021, 0xFFFF_FF00))
+        );
+    }
+
+    #[test]
+    fn a_sequence_of_unknown_vr_is_walked_in_implicit_vr_to_its_delimiter() {
+        // UN of undefined length: an item of undefined length whose element (implicit VR)
+        // declares 4 GB.
+        let mut un = long((0x0009, 0x1010), b"UN", UNDEFINED);
+        un.extend_from_slice(&item(UNDEFINED));
+        un.extend_from_slice(&[0x09, 0x00, 0x11, 0x10]);
+        un.extend_from_slice(&0xFFFF_FF00u32.to_le_bytes());
+        assert_eq!(
+            too_long(checked(&part10(&un))),
+            Some((0x0009, 0x1011, 0xFFFF_FF00))
+        );
+        // The same sequence well formed, then an explicit element after its delimiter: the
+        // syntax comes back.
+        let mut good = long((0x0009, 0x1010), b"UN", UNDEFINED);
+        good.extend_from_slice(&item(UNDEFINED));
+        good.extend_from_slice(&[0x09, 0x00, 0x11, 0x10, 2, 0, 0, 0, b'a', b'b']);
+        good.extend_from_slice(&[0xFE, 0xFF, 0x0D, 0xE0, 0, 0, 0, 0]);
+        good.extend_from_slice(&[0xFE, 0xFF, 0xDD, 0xE0, 0, 0, 0, 0]);
+        good.extend_from_slice(&[0x10, 0x00, 0x10, 0x00, b'P', b'N', 2, 0, b'a', b'b']);
+        assert!(checked(&part10(&good)).is_ok());
+        // Negative control: the explicit element after the delimiter lying about its length
+        // is found, so the walk did read it in explicit VR.
+        let n = good.len();
+        good[n - 4] = 200;
+        assert_eq!(
+            too_long(checked(&part10(&good))),
+            Some((0x0010, 0x0010, 200))
+        );
+    }
+
+    #[test]
+    fn fragments_of_encapsulated_pixel_data_are_bytes_not_elements() {
+        // A fragment whose bytes would read as an element declaring 4 GB.
+        let mut px = long((0x7FE0, 0x0010), b"OB", UNDEFINED);
+        px.extend_from_slice(&item(0));
+        px.extend_from_slice(&item(8));
+        px.extend_from_slice(&[0x10, 0x00, 0x10, 0x00, 0xFF, 0xFF, 0xFF, 0x7F]);
+        px.extend_from_slice(&[0xFE, 0xFF, 0xDD, 0xE0, 0, 0, 0, 0]);
+        assert!(checked(&part10(&px)).is_ok());
+        // A fragment declaring more than the file holds is still found.
+        let n = px.len();
+        px[n - 17] = 0x7F;
+        assert_eq!(
+            too_long(checked(&part10(&px))),
+            Some((0xFFFE, 0xE000, 0x7F00_0008))
+        );
+    }
+
+    #[test]
+    fn a_file_cut_inside_a_header_is_refused() {
+        let mut cut = long((0x0010, 0x0010), b"UT", 0);
+        cut.truncate(7);
+        assert!(matches!(
+            checked(&part10(&cut)),
+            Err(LengthError::CutHeader { .. })
+        ));
+    }
+}
