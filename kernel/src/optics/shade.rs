@@ -9,7 +9,7 @@
 //! normal is flipped to face the viewer. Point lights do not attenuate with distance.
 
 use core::fmt;
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 
 /// Most lights one view has.
 pub const MAX_LIGHTS: usize = 4;
@@ -164,6 +164,13 @@ pub fn face_viewer(n: Vec3, view_dir: Vec3) -> Vec3 {
 /// point of colour `base` with unit normal `n`, seen along `view_dir`: Lambert plus Phong,
 /// before shadowing. Zero when the light is behind the surface. With `highlights` (the fast
 /// tier) the highlight is read from that table instead of `powf`.
+///
+/// Computed in glam's `Vec3A`, whose fourth lane repeats the third: the same operations as
+/// `Vec3`'s, lane for lane, and the same order in the dot products, so the same bits. Inlined
+/// into a sample loop, `Vec3` arithmetic packed into vector registers leaves stale values in
+/// the unused lane, and a stale subnormal there costs a microcode assist on every multiply
+/// (docs/speed-log.md); a lane that repeats a real component cannot be stale.
+#[inline(always)]
 pub fn direct(
     s: &Shading,
     highlights: Option<&Highlights>,
@@ -173,21 +180,22 @@ pub fn direct(
     light_dir: Vec3,
     light_color: Vec3,
 ) -> Vec3 {
+    let (n, light_dir) = (Vec3A::from(n), Vec3A::from(light_dir));
     let n_dot_l = n.dot(light_dir);
     if !(n_dot_l > 0.0) {
         return Vec3::ZERO;
     }
     let reflected = n * (2.0 * n_dot_l) - light_dir;
-    let r_dot_v = reflected.dot(-view_dir);
-    let diffuse = base * (s.diffuse * n_dot_l);
+    let r_dot_v = reflected.dot(-Vec3A::from(view_dir));
+    let diffuse = Vec3A::from(base) * (s.diffuse * n_dot_l);
     let specular = match highlights {
         Some(table) if r_dot_v > 0.0 => table.at(r_dot_v),
-        None if r_dot_v > 0.0 && !highlight_vanishes(diffuse, s, r_dot_v) => {
+        None if r_dot_v > 0.0 && !highlight_vanishes(diffuse.into(), s, r_dot_v) => {
             s.specular * libm::powf(r_dot_v, s.shininess)
         }
         _ => 0.0,
     };
-    light_color * (diffuse + Vec3::splat(specular))
+    (Vec3A::from(light_color) * (diffuse + Vec3A::splat(specular))).into()
 }
 
 /// Intervals of the fast tier's highlight table over cosines in `[0, 1]`.
