@@ -1109,8 +1109,8 @@ impl<
             if n < self.misses_until {
                 // Certain misses (see below): the background, without setting up their rays,
                 // to the end of the run or until a batch of pixels has gone to the outbox (one
-                // message a poll, as for a ray). One pixel a poll cost a poll's machinery for
-                // each: a third of a ring of one's polls on SOD.
+                // message a poll, as for a ray): one pixel a poll would spend a poll's
+                // machinery on each, where there is nothing to trace.
                 let run = self.misses_until.min(row_end) - n;
                 for k in 0..run {
                     self.cursor += 1;

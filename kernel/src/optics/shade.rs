@@ -239,8 +239,8 @@ const POWER_FLOOR: f32 = f32::from_bits(0x0d80_0000);
 
 /// Whether the highlight `s.specular · powf(x, s.shininess)` (`x` the reflection's cosine,
 /// above 0) would leave every channel of `diffuse` unchanged when added to it: then `powf`
-/// is not called (it was a seventh of a composited frame on SOD, and half its calls there
-/// changed nothing), and the colour is the same in every bit. Shown from an upper bound,
+/// is not called (on a composited frame many of its calls change nothing:
+/// docs/speed-log.md), and the colour is the same in every bit. Shown from an upper bound,
 /// never from `powf`:
 /// - for `0 < x < 1` and an exponent of at least `n` (its whole part, at most
 ///   [`POWER_CAP`]), `x^shininess ≤ x^n`;

@@ -119,8 +119,8 @@ pub fn with_planes_ahead(
 /// the planes in order, and the regions they build are as even as whole planes allow. A part
 /// with planes ahead of it builds up to [`MAX_DISTANCE`] of them besides its own, and the one
 /// at the far end none, so parts of equal length would leave one builder waiting for
-/// another: on SOD's 116 planes of cells, two halves build 90 and 58 planes, these parts 74
-/// and 74. Parts at the near end may be empty where `n` is large for `planes`.
+/// another (two halves of a volume deeper than the distance build unequal numbers of
+/// planes). Parts at the near end may be empty where `n` is large for `planes`.
 pub fn part(i: usize, n: usize, planes: usize, octant: Octant) -> core::ops::Range<usize> {
     let n = n.max(1);
     // For rays moving up in Z, numbered from the far end: part `j` ends where part `j - 1`
@@ -271,9 +271,9 @@ fn ahead(
 /// ahead), its obstacles then 0; then, from the far end, each takes the least of its own and
 /// one more than the cell ahead of it, so the least over the cells `j` ahead of their value
 /// plus their distance from it, and at most [`MAX_DISTANCE`]: any cell further on is at
-/// least that far. That pass carries one value from cell to cell. Five doubling steps over
-/// the row in vector lanes (`j` within 1, 3, … 31 cells) took as long, for 1.4 times the
-/// instructions, and a scan within each chunk of lanes longer: its shifts went through memory.
+/// least that far. That pass carries one value from cell to cell, which doubling steps over
+/// the row in vector lanes, or a scan within chunks of lanes, did not beat
+/// (docs/speed-log.md).
 fn along(row: &mut [u8], down: bool, obstacles: impl FnOnce(&mut [u8])) {
     least_with_next(row, down);
     obstacles(row);

@@ -164,8 +164,8 @@ impl Frame {
         let slack = 1e-6;
         // Kept within [-1, n] first, where truncating to an integer is exact; a NaN (which no
         // frame `Frame::of` accepts can give) widens to the whole axis, as `max` and `min`
-        // return the other operand. Truncation, then a step where it went the wrong way:
-        // `libm`'s ceil and floor took a fifth of the build.
+        // return the other operand. Truncation, then a step where it went the wrong way,
+        // rather than `libm`'s ceil and floor, which are calls on the build's inner loop.
         let n_f = f64::from(n);
         let lo = (least - slack).max(-1.0).min(n_f);
         let hi = (most + slack).min(n_f).max(-1.0);

@@ -40,8 +40,8 @@ pub fn build_columns<T: Sample>(
     // `out`, and the line's nodes on one Y row side by side in storage. So the line's
     // least and greatest value at each Y node are gathered over its rows first, in
     // straight passes along the rows that the compiler vectorises, and then each block
-    // takes those of its own Y nodes. Gathering block by block instead, five values of a
-    // row at a time, took 2.7 times the instructions. The passes compare samples as
+    // takes those of its own Y nodes, rather than gathering block by block, a few values of
+    // a row at a time, which the compiler cannot vectorise. The passes compare samples as
     // stored, many to a vector register for bytes, and convert only each block's two
     // extremes: `to_f32` keeps the samples' order.
     let stored = slab.stored();

@@ -11,9 +11,9 @@
 //! `f32`, exact because [`Masks::of`] refuses masks of 2^23 cells or more.
 //!
 //! Why scan at all: on a noisy volume the empty cells between the cells a ray must read come
-//! a few at a time (SOD at iso 50: 7.5% of cells are not empty, 26% of blocks), and a jump
-//! over a box of them costs a turn of the marcher's loop and about twice what scanning the
-//! same four samples here does. Where a ray takes many samples per
+//! a few at a time, and a jump over a box of them costs a turn of the marcher's loop and
+//! more than scanning the same few samples here does (docs/speed-log.md). Where a ray takes
+//! many samples per
 //! cell, a box holds many more samples than a scan step, and jumping wins: [`pays`] tells
 //! the two apart.
 
@@ -87,8 +87,8 @@ impl<'a> Masks<'a> {
 
 /// `floor(v)` in every lane of `v` in `[0, 2^23)`: `v + 2^23` rounds it to the nearest whole
 /// number, exactly, and that is one too many where it rounded up. Equal to
-/// [`Vec4::floor`] there (tested), in a third of the instructions on a target without a
-/// rounding instruction.
+/// [`Vec4::floor`] there (tested), without the call or the emulation that `floor` becomes
+/// on a target without a rounding instruction.
 #[inline(always)]
 fn floor_small(v: Vec4) -> Vec4 {
     let nearest = (v + Vec4::splat(MAGIC)) - Vec4::splat(MAGIC);

@@ -121,9 +121,9 @@ impl Camera {
 
     /// World-space origin and unit direction of the ray through the centre of pixel
     /// `(px, py)` of a `width × height` image. Always inline (`#[inline]` alone was not
-    /// taken): returned from a call, the pair went through the stack, and the caller's
-    /// 16-byte load of a 12-byte vector waited for the stores to retire, a fifth of a primary
-    /// ray's set-up in `perf`.
+    /// taken): returned from a call, the pair goes through the stack, and the caller's
+    /// 16-byte load of a 12-byte vector waits for the stores to retire (a store-forwarding
+    /// stall on every primary ray's set-up).
     #[inline(always)]
     pub fn primary(&self, px: u32, py: u32, width: u32, height: u32) -> (Vec3, Vec3) {
         let (w, h) = (width.max(1) as f32, height.max(1) as f32);

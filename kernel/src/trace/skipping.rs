@@ -423,9 +423,9 @@ fn before_bound<T: Sample>(ray: &RayState, slab: &Slab<'_, T>, bound: f32, exits
 /// block the map calls empty (distance at least 1). That is what a sample loop would do
 /// next, turn by turn, with the same samples and verdicts ([`Verdict::of`] reads the same
 /// distance, and a ray that has skipped may skip again: [`skip_to`] leaves it with nothing
-/// pending, and [`View::may_skip`] asks no more). Most leaps on a noisy volume
-/// cross a single block (SOD at iso 50: 26% of blocks are not empty, so nearly every empty
-/// one has one ahead that is not), and a turn of the loop cost more than the leap itself.
+/// pending, and [`View::may_skip`] asks no more). On a noisy volume most empty blocks have
+/// one ahead that is not, so most leaps cross a single block, and a turn of the loop would
+/// cost more than the leap itself.
 #[inline]
 fn leap<T: Sample>(
     ray: &RayState,

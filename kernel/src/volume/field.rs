@@ -167,8 +167,7 @@ pub(crate) const MAGIC: f32 = (1u32 << 23) as f32;
 
 /// The first three lanes of `v` as integers, each lane a whole number in `[0, 2^23]` (as
 /// [`locate`] clamps them, `n ≤ MAX_DIM`): exact. `as` would check every lane for NaN and
-/// overflow, one lane at a time, which no lane here needs: that took a tenth of the sample
-/// loop.
+/// overflow, one lane at a time, which no lane here needs, on every sample.
 #[inline(always)]
 pub(crate) fn whole_lanes(v: Vec4) -> [u32; 3] {
     let [x, y, z, _] = whole_lanes4(v);
