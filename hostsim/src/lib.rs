@@ -13,7 +13,8 @@
 //! - running: [`render`] (one view on a machine), [`fabric`] (the simulator, threads, MPI),
 //!   [`rng`] (seeded schedules), [`timeline`] (virtual-time traces);
 //! - output: [`output`] (PNG and checksums), [`report`] (summary and JSON);
-//! - [`experiments`] (bench, paper, accuracy, explore) apart from the runtime, and [`cli`].
+//! - [`commands`] (each command's work: `render`), [`experiments`] (bench, paper, accuracy,
+//!   explore) apart from the runtime, and [`cli`] (parses and dispatches).
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
@@ -21,6 +22,7 @@ pub mod balance;
 pub mod budget;
 pub mod builtin;
 pub mod cli;
+pub mod commands;
 pub mod dataset;
 pub mod experiments;
 pub mod fabric;
