@@ -12,9 +12,8 @@
 use crate::counters::Counters;
 use crate::optics::transfer::{corrected_opacity, TransferFunction};
 use crate::trace::lighting::Unshadowed;
-use crate::trace::march::Stop;
 use crate::trace::skipping::{skip_to, Probe, Skipper};
-use crate::trace::state::RayState;
+use crate::trace::state::{RayState, Stop};
 use crate::trace::view::View;
 use crate::volume::field;
 use crate::volume::nodes;

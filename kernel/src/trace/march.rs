@@ -17,41 +17,12 @@ use crate::counters::Counters;
 use crate::optics::surface::{self, IsoSurface};
 use crate::trace::composite::composite;
 use crate::trace::skipping::{skip_to, Probe, Skipper};
-pub use crate::trace::state::{RayKind, RayState};
+pub use crate::trace::state::{Hit, RayKind, RayState, Stop};
 use crate::trace::view::{Mode, View};
 use crate::volume::field;
 use crate::volume::sample::Sample;
 use crate::volume::slab::Slab;
 use glam::Vec3;
-
-/// A surface crossing.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Hit {
-    /// Index of the surface in the view.
-    pub surface: u8,
-    /// Ray parameter of the crossing.
-    pub t: f32,
-    /// Index-space position.
-    pub point: Vec3,
-    /// For a cut face where the ray entered the volume: its normal (world).
-    pub cap_normal: Option<Vec3>,
-}
-
-/// Why marching stopped.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Stop {
-    /// Crossed a surface (primary and transparency rays).
-    Hit(Hit),
-    /// The next sample belongs to `plane`, which this slab does not own.
-    Leave {
-        /// The owner plane of the next sample.
-        plane: u32,
-    },
-    /// No samples left: the ray has left the volume.
-    Exit,
-    /// Too little light left for anything behind to show.
-    Terminated,
-}
 
 /// Advance `ray` through the samples `slab` owns.
 pub fn march<T: Sample>(

@@ -1,5 +1,5 @@
 //! The whole state of a ray in flight: what a forwarded-ray message carries, so that a ray
-//! continues on the next node exactly where it stopped.
+//! continues on the next node exactly where it stopped; and why a sample loop stopped it.
 //!
 //! Invariant: a ray's position is its lattice index `k`, never an accumulated float; every
 //! field a node needs to go on is here, so a ray's result does not depend on where it ran.
@@ -79,4 +79,33 @@ impl RayState {
             color: Vec3::ZERO,
         }
     }
+}
+
+/// A surface crossing.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Index of the surface in the view.
+    pub surface: u8,
+    /// Ray parameter of the crossing.
+    pub t: f32,
+    /// Index-space position.
+    pub point: Vec3,
+    /// For a cut face where the ray entered the volume: its normal (world).
+    pub cap_normal: Option<Vec3>,
+}
+
+/// Why marching stopped.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Stop {
+    /// Crossed a surface (primary and transparency rays).
+    Hit(Hit),
+    /// The next sample belongs to `plane`, which this slab does not own.
+    Leave {
+        /// The owner plane of the next sample.
+        plane: u32,
+    },
+    /// No samples left: the ray has left the volume.
+    Exit,
+    /// Too little light left for anything behind to show.
+    Terminated,
 }
