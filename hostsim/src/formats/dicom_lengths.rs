@@ -106,21 +106,13 @@ pub fn check(path: &Path, part10: bool) -> Result<(), LengthError> {
         len,
     };
     if !part10 {
-        return walk.elements(Syntax::Implicit, None);
+        return walk.elements(Syntax::Implicit, false).map(drop);
     }
     walk.skip(132)?;
     // The meta group is explicit VR little endian, and names the data set's syntax.
-    let mut uid = String::new();
-    walk.elements(
-        Syntax::Explicit { big_endian: false },
-        Some(&mut |tag, value| {
-            if tag == Tag(0x0002, 0x0010) {
-                uid = String::from_utf8_lossy(value).into_owned();
-            }
-        }),
-    )?;
+    let uid = walk.elements(Syntax::Explicit { big_endian: false }, true)?;
     match Syntax::of(&uid) {
-        Some(syntax) => walk.elements(syntax, None),
+        Some(syntax) => walk.elements(syntax, false).map(drop),
         None => Ok(()),
     }
 }
@@ -151,9 +143,6 @@ struct Walk<R> {
     len: u64,
 }
 
-/// Called with the tag and value of each meta group element (values of at most 64 bytes).
-type MetaVisitor<'a> = Option<&'a mut dyn FnMut(Tag, &[u8])>;
-
 impl<R: Read + Seek> Walk<R> {
     fn skip(&mut self, n: u64) -> Result<(), LengthError> {
         let step = i64::try_from(n).map_err(|_| std::io::Error::other("skip too far"))?;
@@ -173,12 +162,10 @@ impl<R: Read + Seek> Walk<R> {
     }
 
     /// Walk elements in `syntax` to the end of the file; with `meta`, only the meta group's
-    /// (group 0002), stopping before the first element of another group.
-    fn elements(
-        &mut self,
-        mut syntax: Syntax,
-        mut meta: MetaVisitor<'_>,
-    ) -> Result<(), LengthError> {
+    /// (group 0002), stopping before the first element of another group, and give the
+    /// transfer syntax UID it names (empty where it names none).
+    fn elements(&mut self, mut syntax: Syntax, meta: bool) -> Result<String, LengthError> {
+        let mut uid = String::new();
         // What each open element of undefined length holds, and the syntax to restore at
         // its delimiter.
         let mut open: Vec<Open> = Vec::new();
@@ -193,13 +180,13 @@ impl<R: Read + Seek> Walk<R> {
                 true => u32::from_be_bytes(b),
                 false => u32::from_le_bytes(b),
             };
-            if meta.is_some() {
+            if meta {
                 // Peek at the group: the meta group ends where another begins.
                 let group = self.bytes::<2>(offset)?;
                 self.reader.seek_relative(-2)?;
                 self.pos -= 2;
                 if u16_of(group) != 0x0002 {
-                    return Ok(());
+                    return Ok(uid);
                 }
             }
             let head = self.bytes::<8>(offset)?;
@@ -259,19 +246,21 @@ impl<R: Read + Seek> Walk<R> {
             }
             // A sequence's or an item's elements follow its header; a fragment is bytes.
             let container = (tag.group() == 0xFFFE && !in_fragments) || vr == Some(VR::SQ);
-            match (&mut meta, container) {
-                (_, true) => {}
-                (Some(visit), false) if declared <= 64 => {
+            // A UID is at most 64 bytes.
+            let transfer_syntax = meta && tag == Tag(0x0002, 0x0010) && declared <= 64;
+            match (container, transfer_syntax) {
+                (true, _) => {}
+                (false, true) => {
                     let mut value = [0u8; 64];
                     let value = &mut value[..declared as usize];
                     self.reader.read_exact(value)?;
                     self.pos += declared;
-                    visit(tag, value);
+                    uid = String::from_utf8_lossy(value).into_owned();
                 }
-                _ => self.skip(declared)?,
+                (false, false) => self.skip(declared)?,
             }
         }
-        Ok(())
+        Ok(uid)
     }
 }
 
