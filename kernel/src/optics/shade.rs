@@ -101,6 +101,15 @@ impl Light {
         }
     }
 
+    /// The direction [`Light::toward`] gives from every point, for a directional light;
+    /// `None` for a point light, whose direction depends on the point.
+    pub fn toward_everywhere(&self) -> Option<Vec3> {
+        match self.kind {
+            LightKind::Directional { direction } => Some(-direction),
+            LightKind::Point { .. } => None,
+        }
+    }
+
     /// Unit direction from world point `p` toward the light and the distance to it (infinite
     /// for a directional light); `None` when `p` is at the light.
     pub fn toward(&self, p: Vec3) -> Option<(Vec3, f32)> {

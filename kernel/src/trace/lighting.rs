@@ -9,7 +9,7 @@
 //! if it casts shadows and lights the point (`direct[l] ≠ 0`).
 
 use crate::counters::Counters;
-use crate::optics::shade::{self, Light, LightKind, MAX_LIGHTS};
+use crate::optics::shade::{self, Light, MAX_LIGHTS};
 use crate::trace::tree;
 use crate::trace::view::View;
 use crate::volume::field::{self, Site};
@@ -105,11 +105,7 @@ pub struct Unshadowed<'v> {
 impl<'v> Unshadowed<'v> {
     /// The unshadowed lighting of `view`'s points.
     pub fn new(view: &'v View) -> Unshadowed<'v> {
-        // What `Light::toward` gives a directional light at every point.
-        let fixed = |light: &Light| match light.kind {
-            LightKind::Directional { direction } => Some((-direction, light.color)),
-            LightKind::Point { .. } => None,
-        };
+        let fixed = |light: &Light| Some((light.toward_everywhere()?, light.color));
         Unshadowed {
             view,
             fixed: view.spec().lights.iter().map(fixed).collect(),
@@ -268,6 +264,8 @@ mod tests {
             lit,
             view(&grid, Some(Shading::default()), &lights),
             fast,
+            // Directional lights only: their directions found once, not at each point.
+            view(&grid, Some(Shading::default()), &[lights[0], lights[3]]),
         ];
         let mut next = crate::testing::xorshift(0x51ed_270b);
         let bits = |c: Vec3| c.to_array().map(f32::to_bits);
