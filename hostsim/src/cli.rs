@@ -65,6 +65,18 @@ pub enum Command {
         /// 2048x1536 (time per evaluated sample and per pixel).
         #[arg(long)]
         scale: bool,
+        /// Instead: instructions per frame, per lattice sample and per evaluated sample of each
+        /// SOD view at 350x250 on one node, counted by callgrind (needs valgrind): figures that
+        /// do not move with the machine's load.
+        #[arg(long, conflicts_with = "scale")]
+        instructions: bool,
+        /// The side that --instructions counts: render this SOD view --frames times and print
+        /// its counters.
+        #[arg(long, hide = true)]
+        count_frame: Option<String>,
+        /// With --count-frame: how many frames.
+        #[arg(long, hide = true, default_value_t = 1)]
+        frames: u32,
     },
     /// The paper's Tables 1-4 in simulated nCUBE 2 time, beside the paper's numbers, with
     /// speedup and efficiency plots and the image.
@@ -255,6 +267,23 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 "{notes}{table}wrote {}/accuracy.txt and accuracy.svg\n",
                 out.display()
             ))?;
+            Ok(())
+        }
+        Command::Bench {
+            count_frame: Some(view),
+            frames,
+            sod,
+            ..
+        } => Ok(stdout(&crate::experiments::instructions::count_frames(
+            &view, frames, &sod,
+        )?)?),
+        Command::Bench {
+            instructions: true,
+            sod,
+            ..
+        } => {
+            let counts = crate::experiments::instructions::run(&sod)?;
+            stdout(&crate::experiments::instructions::table(&counts))?;
             Ok(())
         }
         Command::Bench {

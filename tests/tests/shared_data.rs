@@ -172,6 +172,35 @@ fn the_experiments_take_sod_as_its_folder_or_its_file() {
     assert!(notes.is_empty(), "{notes}");
 }
 
+#[test]
+fn the_side_that_bench_instructions_counts_renders_each_sod_view_it_names() {
+    use voxcube::experiments::instructions::count_frames;
+    use voxcube::experiments::paper::SOD_FILE;
+    let Some(data) = data_or_skip() else { return };
+    let sod = data.join(SOD_FILE);
+    // The counts are differences of runs that differ in their frames alone: without a frame
+    // there is nothing to count; a frame of the surface view evaluates and skips samples.
+    assert_eq!(
+        count_frames("surfaces", 0, &sod).expect("loads"),
+        "samples 0 skipped 0\n"
+    );
+    let line = count_frames("surfaces", 1, &sod).expect("renders");
+    let counts: Vec<u64> = line
+        .split_whitespace()
+        .filter_map(|w| w.parse().ok())
+        .collect();
+    assert!(
+        line.starts_with("samples ") && counts.len() == 2 && counts.iter().all(|&n| n > 0),
+        "{line}"
+    );
+    let err = count_frames("no-such-view", 1, &sod).expect_err("an unknown view");
+    assert!(err.contains("\"no-such-view\""), "{err}");
+    let missing = voxcube::experiments::instructions::run(&data.join("absent.raw"))
+        .expect_err("no SOD there")
+        .to_string();
+    assert!(missing.contains("absent.raw: SOD not found"), "{missing}");
+}
+
 /// Table 1 under `profile`: the one node (the sequential tracer) and each node count in the
 /// cluster size that wins it, seconds.
 fn table_1(profile: &voxcube::profile::MachineProfile) -> Vec<(u32, f64)> {

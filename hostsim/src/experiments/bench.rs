@@ -104,6 +104,33 @@ fn views(size: Size) -> String {
     )
 }
 
+/// The benchmarked views at `size`, their placeholders filled but the iso value's.
+fn sized_views(size: Size) -> String {
+    views(size)
+        .replace("SPAN", &format!("{:.1}", size.span))
+        .replace("WIDTH", &size.width.to_string())
+        .replace("HEIGHT", &size.height.to_string())
+        .replace("DT", &format!("{}", 1.0 / f64::from(size.dt_inverse)))
+}
+
+/// The bench's scene of the default scene's molecule at `size`.
+fn molecule_scene(size: Size) -> String {
+    format!(
+        "[[datasets]]\nname = \"molecule\"\nbuiltin = \"molecule\"\n{}",
+        sized_views(size).replace("ISO", "40.0")
+    )
+}
+
+/// The bench's scene of SOD, read from `sod` (the raw file with its 12-byte header), at
+/// `size`.
+pub(crate) fn sod_scene(size: Size, sod: &Path) -> String {
+    let path = sod.display().to_string().replace('\\', "/");
+    format!(
+        "[[datasets]]\nname = \"sod\"\npath = \"{path}\"\nformat = \"raw\"\ndims = [97, 97, 116]\ntype = \"u8\"\nheader_bytes = 12\n{}",
+        sized_views(size).replace("ISO", "50.0")
+    )
+}
+
 /// An image size and step benchmarked.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Size {
@@ -485,21 +512,9 @@ pub fn run(
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get() as u32);
     let mut rows = Vec::new();
     for &size in sizes {
-        let views = views(size)
-            .replace("SPAN", &format!("{:.1}", size.span))
-            .replace("WIDTH", &size.width.to_string())
-            .replace("HEIGHT", &size.height.to_string())
-            .replace("DT", &format!("{}", 1.0 / f64::from(size.dt_inverse)));
-        let mut scenes = vec![format!(
-            "[[datasets]]\nname = \"molecule\"\nbuiltin = \"molecule\"\n{}",
-            views.replace("ISO", "40.0")
-        )];
+        let mut scenes = vec![molecule_scene(size)];
         if sod.is_file() {
-            let path = sod.display().to_string().replace('\\', "/");
-            scenes.push(format!(
-                "[[datasets]]\nname = \"sod\"\npath = \"{path}\"\nformat = \"raw\"\ndims = [97, 97, 116]\ntype = \"u8\"\nheader_bytes = 12\n{}",
-                views.replace("ISO", "50.0")
-            ));
+            scenes.push(sod_scene(size, sod));
         } else if size == sizes[0] {
             let _ = writeln!(
                 out,
@@ -711,7 +726,7 @@ const FAST_TARGET: f64 = 0.33;
 /// Which vector instructions this binary was compiled to use: the figures depend on it. A
 /// default build on x86-64 Linux targets x86-64-v2 (`.cargo/config.toml`: SSE4.1 and SSE4.2,
 /// no AVX), whatever more the machine it runs on has.
-fn build_line() -> String {
+pub(crate) fn build_line() -> String {
     let extensions: Vec<&str> = [
         ("sse4.1", cfg!(target_feature = "sse4.1")),
         ("avx", cfg!(target_feature = "avx")),

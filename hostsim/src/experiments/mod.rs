@@ -1,5 +1,5 @@
 //! The experiments: what the project measures about itself, apart from the host's runtime.
-//! `bench` (speed against this machine's trilinear ceiling), `paper` (the paper's tables in
+//! `bench` (speed, against VTK in the same run, and in instructions), `paper` (the paper's tables in
 //! simulated nCUBE 2 time), `accuracy` (what accuracy costs in time) and `explore`
 //! (schedules explored on the simulator for deadlocks and invariants).
 //!
@@ -10,6 +10,7 @@ pub mod accuracy;
 pub mod bench;
 pub mod explore;
 pub mod fit;
+pub mod instructions;
 pub mod paper;
 pub mod peer;
 pub mod runs;
