@@ -48,8 +48,8 @@ pub enum Command {
         scene: bool,
     },
     /// Benchmark: the default scene and SOD at 350x250 (dt 1/2) and 1024x768 (dt 1/5), surfaces
-    /// and compositing, on the shapes worth comparing here, beside this machine's trilinear
-    /// ceiling; medians of several runs, then the speed targets met or not.
+    /// and compositing, on the shapes worth comparing here, and VTK in the same run; medians
+    /// of several runs, then the speed targets met or not.
     Bench {
         /// Runs per configuration (the median is reported).
         #[arg(long, default_value_t = 5)]
