@@ -1083,6 +1083,51 @@ fn a_corrupt_gzip_nifti_is_refused_never_read_to_other_samples() {
     );
 }
 
+/// What a NIfTI header declares is checked against what its file holds before the samples are
+/// kept: a 400-byte file (plain or gzipped) declaring 30,000³ byte samples (27 TB) is refused
+/// as truncated, naming the bytes it needed and the bytes it had, not read into memory sized
+/// by the header; and a `vox_offset` that is no byte offset is refused naming the field.
+#[test]
+fn a_nifti_header_declaring_more_than_its_file_holds_is_refused_before_allocating() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut huge = nifti(2, 8, 1.0, 0.0, &[7u8; 48]);
+    for axis in 1..4 {
+        huge[40 + 2 * axis..42 + 2 * axis].copy_from_slice(&30_000i16.to_le_bytes());
+    }
+    let expected = 352 + 30_000u64.pow(3);
+    let plain = dir.path().join("huge.nii");
+    std::fs::write(&plain, &huge).expect("write");
+    let message = voxcube::formats::nifti::load(&plain, None)
+        .expect_err("a 400-byte file cannot hold 27 TB")
+        .to_string();
+    assert!(
+        message.contains("huge.nii")
+            && message.contains(&format!("truncated: expected {expected} bytes, found 400")),
+        "{message}"
+    );
+    let packed = dir.path().join("huge.nii.gz");
+    std::fs::write(&packed, gzip(&huge)).expect("write");
+    let message = voxcube::formats::nifti::load(&packed, None)
+        .expect_err("nor its gzipped copy")
+        .to_string();
+    assert!(
+        message.contains("huge.nii.gz")
+            && message.contains(&format!("truncated: expected {expected} bytes, found 400")),
+        "{message}"
+    );
+    let mut offset = nifti(4, 16, 1.0, 0.0, &le(&samples()));
+    offset[108..112].copy_from_slice(&352.5f32.to_le_bytes());
+    let odd = dir.path().join("odd.nii");
+    std::fs::write(&odd, &offset).expect("write");
+    let message = voxcube::formats::nifti::load(&odd, None)
+        .expect_err("half a byte")
+        .to_string();
+    assert!(
+        message.contains("odd.nii") && message.contains("vox_offset is 352.5"),
+        "{message}"
+    );
+}
+
 /// A zlib-compressed `.vti` of byte samples, in blocks of 32,768 bytes with VTK's header
 /// (`[blocks][block size][last block size][compressed sizes…]`, the last block size 0 when the
 /// last block is full, as VTK writes it), in base64, inline or appended.

@@ -1,7 +1,11 @@
 //! NIfTI-1 volumes (`.nii`, `.nii.gz`, and `.hdr` or `.hdr.gz` with its `.img` or `.img.gz`),
-//! read with the `nifti`
-//! crate: `dim`, `datatype`, `pixdim` (the spacing) and `scl_slope`/`scl_inter` (the value
-//! scaling) are honoured; `qform`/`sform` orientation is not applied (index space).
+//! their headers parsed by the `nifti` crate: `dim`, `datatype`, `vox_offset`, `pixdim` (the
+//! spacing) and `scl_slope`/`scl_inter` (the value scaling) are honoured; `qform`/`sform`
+//! orientation is not applied (index space).
+//!
+//! Invariants: each file is read once, gzip-decoded as it streams in; what the header
+//! declares is checked against what the file holds before the samples are kept, and a gzip
+//! stream's CRC-32 and length are checked before any sample is taken from it.
 //!
 //! A fourth dimension of length 1 is accepted (a single volume of a series); any other 4-D
 //! file, complex and RGB samples, and NIfTI-2 (a 540-byte header the crate does not read) are
@@ -9,7 +13,8 @@
 
 use super::{decode, rescale, Endian, FileType, LoadError, LoadErrorKind};
 use crate::dataset::Volume;
-use nifti::{NiftiObject, NiftiType, ReaderOptions};
+use nifti::{NiftiHeader, NiftiType};
+use std::io::{BufReader, Read};
 use std::path::{Path, PathBuf};
 use voxcube_kernel::Vec3;
 
@@ -35,34 +40,138 @@ fn file_type(t: NiftiType) -> Result<FileType, LoadErrorKind> {
     })
 }
 
-/// The first bytes say NIfTI-2, which the reader does not handle: say so rather than "invalid".
-fn is_nifti2(path: &Path) -> bool {
-    use std::io::Read;
-    let mut head = [0u8; 4];
-    let plain = std::fs::File::open(path).and_then(|mut f| f.read_exact(&mut head));
-    let read = if is_gzip(path) {
-        std::fs::File::open(path)
-            .and_then(|f| flate2::read::GzDecoder::new(f).read_exact(&mut head))
-    } else {
-        plain
-    };
-    read.is_ok() && (head == 540i32.to_le_bytes() || head == 540i32.to_be_bytes())
-}
+/// Bytes of a NIfTI-1 header: every NIfTI-1 file, or the `.hdr` of a pair, starts with one.
+const HEADER_BYTES: usize = 348;
+
+/// Where a single file's samples start when its `vox_offset` says less: after the header and
+/// the four bytes that say whether extensions follow.
+const FIRST_SAMPLE: u64 = 352;
 
 /// Whether `path` names a gzip-compressed file (`.nii.gz`).
 fn is_gzip(path: &Path) -> bool {
     path.to_string_lossy().to_ascii_lowercase().ends_with(".gz")
 }
 
-/// Decode the whole gzip stream of `path` into nothing, so that its CRC-32 and length (ISIZE)
-/// are checked before any sample is taken from it: the `nifti` crate stops reading at the
-/// last sample, before the trailer, and a flipped bit in the deflate data can decode to other
-/// samples without a deflate error. Streamed: memory stays bounded whatever the file says.
-fn verify_gzip(path: &Path) -> Result<(), LoadErrorKind> {
+/// Read `path` once, gzip-decoded where its name ends in `.gz`: its first `first` bytes, then
+/// as many more as `more` finds those bytes to call for, kept. What a gzip stream holds past
+/// them is decoded into nothing, so that its CRC-32 and length (ISIZE) are checked before any
+/// sample is taken (a flipped bit in the deflate data can decode to other samples without a
+/// deflate error); where `more` refuses the first bytes, a corrupt stream is reported as
+/// such rather than as the damage it did to them. Memory follows the bytes the file really
+/// holds, never only what they declare: a plain file shorter than declared is refused before
+/// anything is kept for it, and a compressed one grows its buffer as its data arrives.
+fn read_once<H>(
+    path: &Path,
+    first: usize,
+    more: impl FnOnce(&[u8]) -> Result<(u64, H), LoadErrorKind>,
+) -> Result<(Vec<u8>, H), LoadErrorKind> {
     let file = std::fs::File::open(path)?;
-    let mut stream = flate2::read::GzDecoder::new(std::io::BufReader::new(file));
-    std::io::copy(&mut stream, &mut std::io::sink()).map_err(super::corrupt_gzip)?;
-    Ok(())
+    let stored = file.metadata()?.len();
+    let gz = is_gzip(path);
+    let mut stream: Box<dyn Read> = match gz {
+        true => Box::new(flate2::read::GzDecoder::new(BufReader::new(file))),
+        false => Box::new(BufReader::new(file)),
+    };
+    let read_err = |e: std::io::Error| match gz {
+        true => super::corrupt_gzip(e),
+        false => LoadErrorKind::Io(e),
+    };
+    let mut bytes = Vec::new();
+    (&mut stream)
+        .take(first as u64)
+        .read_to_end(&mut bytes)
+        .map_err(read_err)?;
+    let drain = |stream: &mut Box<dyn Read>| match gz {
+        true => std::io::copy(stream, &mut std::io::sink())
+            .map(drop)
+            .map_err(super::corrupt_gzip),
+        false => Ok(()),
+    };
+    let (more, found) = match more(&bytes) {
+        Ok(m) => m,
+        Err(e) => {
+            drain(&mut stream)?;
+            return Err(e);
+        }
+    };
+    let expected = first as u64 + more;
+    if !gz && stored < expected {
+        return Err(LoadErrorKind::Truncated {
+            expected,
+            actual: stored,
+        });
+    }
+    (&mut stream)
+        .take(more)
+        .read_to_end(&mut bytes)
+        .map_err(read_err)?;
+    drain(&mut stream)?;
+    Ok((bytes, found))
+}
+
+/// What a header says about the samples: the parsed header, the grid and the sample type,
+/// each field checked with an error that names it.
+struct Declared {
+    header: NiftiHeader,
+    dims: [u32; 3],
+    ty: FileType,
+}
+
+impl Declared {
+    /// The header at the start of `head` (at most [`HEADER_BYTES`] of a file's first bytes).
+    fn of(head: &[u8]) -> Result<Declared, LoadErrorKind> {
+        if head.len() < HEADER_BYTES {
+            return Err(header_err(
+                "truncated: the file ends before the header's dims and datatype are filled",
+            ));
+        }
+        // NIfTI-2's first field is its 540-byte header's size, which the reader does not
+        // handle: say so rather than "invalid".
+        if head[..4] == 540i32.to_le_bytes() || head[..4] == 540i32.to_be_bytes() {
+            return Err(header_err(
+                "NIfTI-2 (540-byte header) is not supported; convert to NIfTI-1 (for example `nifti_tool -copy_image -convert2dtype` or nibabel's Nifti1Image)",
+            ));
+        }
+        let header = NiftiHeader::from_reader(head).map_err(|e| match e {
+            nifti::NiftiError::InvalidFormat => {
+                header_err("not a NIfTI-1 file: magic is not \"n+1\" or \"ni1\" (bytes 344-347)")
+            }
+            nifti::NiftiError::Io(io) => LoadErrorKind::Io(io),
+            other => header_err(other.to_string()),
+        })?;
+        let dim = header.dim().map_err(|e| header_err(format!("dim: {e}")))?;
+        let dims: [u32; 3] = match dim {
+            [x, y, z] | [x, y, z, 1] => [*x, *y, *z].map(u32::from),
+            other => {
+                return Err(header_err(format!(
+                    "dim is {other:?}; voxcube reads one 3-D scalar volume"
+                )))
+            }
+        };
+        let ty = header
+            .data_type()
+            .map_err(|e| header_err(format!("datatype: {e}")))
+            .and_then(file_type)?;
+        Ok(Declared { header, dims, ty })
+    }
+
+    /// Bytes of the samples.
+    fn sample_bytes(&self) -> u64 {
+        self.dims.iter().map(|&d| u64::from(d)).product::<u64>() * self.ty.bytes() as u64
+    }
+
+    /// Where the samples start: `vox_offset`, a whole number of bytes (at least
+    /// [`FIRST_SAMPLE`] in a single file).
+    fn offset(&self, single: bool) -> Result<u64, LoadErrorKind> {
+        let v = self.header.vox_offset;
+        if !(v.is_finite() && v >= 0.0 && v.fract() == 0.0 && v < 2f32.powi(40)) {
+            return Err(header_err(format!(
+                "vox_offset is {v}; expected the samples' byte offset, a whole number >= 0"
+            )));
+        }
+        let v = v as u64;
+        Ok(if single { v.max(FIRST_SAMPLE) } else { v })
+    }
 }
 
 /// The image file beside a header `path` (`.hdr` or `.hdr.gz`): `.img` or `.img.gz`,
@@ -100,53 +209,46 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
         );
         return Err(LoadError::new(image, missing));
     }
-    // Every gzip stream the samples come through is checked whole first.
-    for stream in std::iter::once(path).chain(image.as_deref()) {
-        if is_gzip(stream) {
-            verify_gzip(stream).map_err(|k| LoadError::new(stream, k))?;
+    // Each file is read once, its header first: what the header declares is checked against
+    // the file before the samples are kept.
+    let (bytes, declared, start) = match &image {
+        None => {
+            let (bytes, (declared, start)) = read_once(path, HEADER_BYTES, |head| {
+                let declared = Declared::of(head)?;
+                if &declared.header.magic == b"ni1\0" {
+                    return Err(header_err(
+                        "magic \"ni1\" says the samples are in a separate .img file: name its .hdr file",
+                    ));
+                }
+                let start = declared.offset(true)?;
+                let more = start - HEADER_BYTES as u64 + declared.sample_bytes();
+                Ok((more, (declared, start)))
+            })
+            .map_err(at)?;
+            (bytes, declared, start)
         }
-    }
-    if is_nifti2(path) {
-        return Err(at(header_err(
-            "NIfTI-2 (540-byte header) is not supported; convert to NIfTI-1 (for example `nifti_tool -copy_image -convert2dtype` or nibabel's Nifti1Image)",
-        )));
-    }
-    let read = match &image {
-        Some(image) => ReaderOptions::new().read_file_pair(path, image),
-        None => ReaderOptions::new().read_file(path),
+        Some(image) => {
+            let (head, declared) = read_once(path, HEADER_BYTES, |head| {
+                Declared::of(head).map(|d| (0, d))
+            })
+            .map_err(at)?;
+            drop(head);
+            let start = declared.offset(false).map_err(at)?;
+            let total = start + declared.sample_bytes();
+            let (bytes, ()) =
+                read_once(image, 0, |_| Ok((total, ()))).map_err(|k| LoadError::new(image, k))?;
+            (bytes, declared, start)
+        }
     };
-    let object = read.map_err(|e| {
-        at(match e {
-            nifti::NiftiError::Io(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
-                header_err(
-                    "truncated: the file ends before the header's dims and datatype are filled",
-                )
-            }
-            nifti::NiftiError::Io(io) => LoadErrorKind::Io(io),
-            nifti::NiftiError::InvalidFormat => {
-                header_err("not a NIfTI-1 file: magic is not \"n+1\" or \"ni1\" (bytes 344-347)")
-            }
-            nifti::NiftiError::IncompatibleLength(got, expected) => LoadErrorKind::Truncated {
-                expected: expected as u64,
-                actual: got as u64,
-            },
-            other => header_err(other.to_string()),
+    let (h, dims, ty) = (&declared.header, declared.dims, declared.ty);
+    let expected = start + declared.sample_bytes();
+    let raw = bytes
+        .get(start as usize..expected as usize)
+        .ok_or(LoadErrorKind::Truncated {
+            expected,
+            actual: bytes.len() as u64,
         })
-    })?;
-    let h = object.header();
-    let dim = h.dim().map_err(|e| at(header_err(format!("dim: {e}"))))?;
-    let dims: [u32; 3] = match dim {
-        [x, y, z] | [x, y, z, 1] => [*x, *y, *z].map(u32::from),
-        other => {
-            return Err(at(header_err(format!(
-                "dim is {other:?}; voxcube reads one 3-D scalar volume"
-            ))))
-        }
-    };
-    let ty = h
-        .data_type()
-        .map_err(|e| at(header_err(format!("datatype: {e}"))))
-        .and_then(|t| file_type(t).map_err(at))?;
+        .map_err(|k| LoadError::new(image.as_deref().unwrap_or(path), k))?;
     let spacing = match spacing {
         Some(s) => s,
         None => {
@@ -170,14 +272,6 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
     } else {
         (f64::from(h.scl_slope), f64::from(h.scl_inter))
     };
-    let raw = object.volume().raw_data();
-    let expected = dims.iter().map(|&d| u64::from(d)).product::<u64>() * ty.bytes() as u64;
-    if raw.len() as u64 != expected {
-        return Err(at(LoadErrorKind::Truncated {
-            expected,
-            actual: raw.len() as u64,
-        }));
-    }
     let volume = decode(raw, dims, spacing, ty, endian).map_err(at)?;
     rescale(volume, slope, inter).map_err(|k| at(header_err(format!("scl_slope/scl_inter: {k}"))))
 }
