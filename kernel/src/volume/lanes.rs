@@ -150,16 +150,19 @@ pub(crate) fn corners<U: Copy>(
     base: usize,
     [sx, sy, sz]: [usize; 3],
 ) -> Option<[U; 8]> {
-    let at = |offset: usize| data.get(base + offset).copied();
+    // One range check for the cell: the far corner's offset, summed without overflow, bounds
+    // every other corner's, which the compiler then sees need no check of their own.
+    let far = sx.checked_add(sy)?.checked_add(sz)?;
+    let cell = data.get(base..)?.get(..=far)?;
     Some([
-        at(0)?,
-        at(sx)?,
-        at(sy)?,
-        at(sx + sy)?,
-        at(sz)?,
-        at(sx + sz)?,
-        at(sy + sz)?,
-        at(sx + sy + sz)?,
+        cell[0],
+        cell[sx],
+        cell[sy],
+        cell[sx + sy],
+        cell[sz],
+        cell[sx + sz],
+        cell[sy + sz],
+        cell[far],
     ])
 }
 
