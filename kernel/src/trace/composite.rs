@@ -33,6 +33,9 @@ pub(crate) fn composite<T: Sample>(
     let spec = view.spec();
     let grid = slab.grid();
     let mut skipper = Skipper::new(view, slab, ray);
+    if let Some(last) = skipper.depth_run(slab, ray, true) {
+        skip_to(view, ray, last, counters);
+    }
     // Which samples stand for a whole Δt segment, asked once for the call, and only where the
     // fast tier's table reads it.
     let full_below = view.classified().map_or(0, |_| ray.lattice.full_below());

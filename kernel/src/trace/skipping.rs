@@ -36,7 +36,7 @@ pub(crate) struct Skipper<'s> {
     /// Else a run through empty cells scans the samples after it where that pays for this
     /// ray ([`scan::pays`]), or jumps over a box of empty cells.
     masks: Option<scan::Masks<'s>>,
-    /// A primary ray's depth bounds, until its first sample has read them.
+    /// A primary ray's depth bounds, until [`Skipper::depth_run`] has read them.
     depths: Option<Depths<'s>>,
     /// What the last sample's block says: consecutive samples mostly share a block, and its
     /// verdict (a leap distance or the test against the view) is not free.
@@ -82,6 +82,32 @@ impl<'s> Skipper<'s> {
         }
     }
 
+    /// Asked once, before a call's first sample: the last sample from `ray.k` on that lies
+    /// before the primary ray's depth bound (and in owned planes), which no sample before it
+    /// passes; `None` where there is no bound, `ray.k` is not before it, or the loop is about
+    /// to stop the ray (past its lattice, or outside the slab's owned planes). `may_skip` is
+    /// as for [`Skipper::empty_run`]. Apart from the per-sample question, so that the loop
+    /// carries no state that only its first sample reads.
+    #[inline]
+    pub(crate) fn depth_run<T: Sample>(
+        &mut self,
+        slab: &Slab<'_, T>,
+        ray: &RayState,
+        may_skip: bool,
+    ) -> Option<u32> {
+        let bound = self.depths.take()?.bound(ray.pixel);
+        if !may_skip || ray.k > ray.lattice.last {
+            return None;
+        }
+        // Depth bounds serve the cell model only.
+        let probe = Probe::of(ray, slab.grid(), Model::Cell, ray.k);
+        if !(probe.t < bound && slab.owns(probe.corner.plane())) {
+            return None;
+        }
+        let exits = self.exits.get_or_insert_with(|| Exits::new(ray));
+        Some(before_bound(ray, slab, bound, exits))
+    }
+
     /// The last sample of a run from `ray.k` (at `probe`, in an owned plane) in which no
     /// sample contributes to `view`; `None` where sample `ray.k` may. `may_skip` is whether
     /// the ray's state lets it skip at all ([`View::may_skip`]).
@@ -94,12 +120,6 @@ impl<'s> Skipper<'s> {
         probe: &Probe,
         may_skip: bool,
     ) -> Option<u32> {
-        if let Some(bound) = self.depths.take().map(|d| d.bound(ray.pixel)) {
-            if probe.t < bound && may_skip {
-                let exits = self.exits.get_or_insert_with(|| Exits::new(ray));
-                return Some(before_bound(ray, slab, bound, exits));
-            }
-        }
         let corner = &probe.corner;
         if let Some(leaps) = &self.cell_leaps {
             let distance = leaps.distance(corner.lo);
