@@ -28,6 +28,10 @@ pub struct Cli {
     /// What to do.
     #[command(subcommand)]
     pub command: Command,
+    /// The most samples a volume file's header may declare: checked before anything is
+    /// decompressed or kept for them (default 2^32, a 1,625³ volume).
+    #[arg(long, global = true, default_value_t = crate::formats::DEFAULT_MAX_SAMPLES)]
+    pub max_samples: u64,
 }
 
 /// Subcommands.
@@ -184,6 +188,7 @@ pub fn main() -> std::process::ExitCode {
 
 /// Run a parsed command.
 pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
+    crate::formats::set_max_samples(cli.max_samples);
     match cli.command {
         Command::Scene => {
             stdout(DEFAULT_SCENE)?;

@@ -87,7 +87,7 @@ fn zero_and_overflowing_dimensions() {
             "dims = [4294967295, 4294967295, 4294967295]\ntype = \"u16\"\nendian = \"little\"",
         ),
     );
-    assert_names(&m, &["v.raw", "overflows"]);
+    assert_names(&m, &["v.raw", "declare more than 2^64 samples"]);
     let m = error_of(
         dir.path(),
         &raw_scene("v.raw", "dims = [2, -1, 2]\ntype = \"u8\""),

@@ -540,7 +540,7 @@ fn a_density_map_whose_header_lies_is_refused_by_name() {
                 word(&mut b, 0, 1 << 30);
                 b
             },
-            "truncated: expected",
+            "dimensions 1073741824 × 20 × 16 declare 343597383680 samples",
         ),
         (
             {
@@ -1084,21 +1084,22 @@ fn a_corrupt_gzip_nifti_is_refused_never_read_to_other_samples() {
 }
 
 /// What a NIfTI header declares is checked against what its file holds before the samples are
-/// kept: a 400-byte file (plain or gzipped) declaring 30,000³ byte samples (27 TB) is refused
-/// as truncated, naming the bytes it needed and the bytes it had, not read into memory sized
-/// by the header; and a `vox_offset` that is no byte offset is refused naming the field.
+/// kept: a 400-byte file (plain or gzipped) declaring 1,000³ byte samples (1 GB, within the
+/// cap on samples) is refused as truncated, naming the bytes it needed and the bytes it had,
+/// not read into memory sized by the header; and a `vox_offset` that is no byte offset is
+/// refused naming the field.
 #[test]
 fn a_nifti_header_declaring_more_than_its_file_holds_is_refused_before_allocating() {
     let dir = tempfile::tempdir().expect("tempdir");
     let mut huge = nifti(2, 8, 1.0, 0.0, &[7u8; 48]);
     for axis in 1..4 {
-        huge[40 + 2 * axis..42 + 2 * axis].copy_from_slice(&30_000i16.to_le_bytes());
+        huge[40 + 2 * axis..42 + 2 * axis].copy_from_slice(&1_000i16.to_le_bytes());
     }
-    let expected = 352 + 30_000u64.pow(3);
+    let expected = 352 + 1_000u64.pow(3);
     let plain = dir.path().join("huge.nii");
     std::fs::write(&plain, &huge).expect("write");
     let message = voxcube::formats::nifti::load(&plain, None)
-        .expect_err("a 400-byte file cannot hold 27 TB")
+        .expect_err("a 400-byte file cannot hold 1 GB")
         .to_string();
     assert!(
         message.contains("huge.nii")
@@ -1126,6 +1127,128 @@ fn a_nifti_header_declaring_more_than_its_file_holds_is_refused_before_allocatin
         message.contains("odd.nii") && message.contains("vox_offset is 352.5"),
         "{message}"
     );
+}
+
+/// A compressed stream holding far more than its header declares is decoded no further than
+/// the header accounts for, the rest counted and checked but not kept: a gzip NRRD and a zlib
+/// MetaImage declaring 4×4×4 bytes whose streams hold 8 MiB are refused naming both lengths.
+#[test]
+fn a_compressed_stream_longer_than_its_header_declares_is_refused_not_kept() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let flood = vec![9u8; 8 << 20];
+    let nrrd = dir.path().join("flood.nrrd");
+    std::fs::write(
+        &nrrd,
+        [
+            &b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 4 4 4\nencoding: gzip\n\n"[..],
+            &gzip(&flood),
+        ]
+        .concat(),
+    )
+    .expect("write");
+    let message = voxcube::formats::nrrd::load(&nrrd, None)
+        .expect_err("8 MiB where 64 bytes are declared")
+        .to_string();
+    assert!(
+        message.contains("flood.nrrd")
+            && message.contains(&format!("expected 64 bytes, found {}", 8 << 20)),
+        "{message}"
+    );
+    let mhd = dir.path().join("flood.mhd");
+    let header = "ObjectType = Image\nNDims = 3\nDimSize = 4 4 4\nElementType = MET_UCHAR\nCompressedData = True\nElementDataFile = LOCAL\n";
+    std::fs::write(&mhd, [header.as_bytes(), &zlib(&flood)].concat()).expect("write");
+    let message = voxcube::formats::metaimage::load(&mhd, None)
+        .expect_err("the same in zlib")
+        .to_string();
+    assert!(
+        message.contains("flood.mhd")
+            && message.contains(&format!("expected 64 bytes, found {}", 8 << 20)),
+        "{message}"
+    );
+    // A gzip NRRD cannot put its samples at the end of a stream it has not decoded.
+    let skip = dir.path().join("skip.nrrd");
+    std::fs::write(
+        &skip,
+        [
+            &b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 4 4 4\nencoding: gzip\nbyte skip: -1\n\n"[..],
+            &gzip(&[1u8; 64]),
+        ]
+        .concat(),
+    )
+    .expect("write");
+    let message = voxcube::formats::nrrd::load(&skip, None)
+        .expect_err("byte skip -1 with gzip")
+        .to_string();
+    assert!(message.contains("byte skip -1"), "{message}");
+}
+
+/// A header may declare at most `--max-samples` samples (2^32 unless told): a 2,048³ volume
+/// declared by a few hundred bytes of gzipped NIfTI, and a DICOM image declaring 10^8 frames,
+/// are refused by the cap before anything is decompressed or decoded for them, naming the
+/// dimensions; the command line's flag lowers the cap, and a volume within it reads.
+#[test]
+fn a_header_declaring_more_samples_than_the_cap_is_refused_before_decompressing() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut huge = nifti(2, 8, 1.0, 0.0, &[0u8; 8]);
+    for axis in 1..4 {
+        huge[40 + 2 * axis..42 + 2 * axis].copy_from_slice(&2048i16.to_le_bytes());
+    }
+    let path = dir.path().join("huge.nii.gz");
+    std::fs::write(&path, gzip(&huge)).expect("write");
+    let message = voxcube::formats::nifti::load(&path, None)
+        .expect_err("2^33 samples")
+        .to_string();
+    assert!(
+        message.contains("huge.nii.gz")
+            && message.contains("dimensions 2048 × 2048 × 2048 declare 8589934592 samples")
+            && message.contains("--max-samples"),
+        "{message}"
+    );
+    // A DICOM image whose NumberOfFrames declares 10^8 frames of 24×20: refused before its
+    // pixel data is decoded.
+    let mut frames = dicom_slice(0, &vec![0u16; DIMS[0] * DIMS[1]], 0.0, "1.2.3");
+    frames.put(DataElement::new(
+        tags::NUMBER_OF_FRAMES,
+        VR::IS,
+        PrimitiveValue::from("100000000"),
+    ));
+    let folder = dir.path().join("frames");
+    std::fs::create_dir_all(&folder).expect("mkdir");
+    frames
+        .with_meta(FileMetaTableBuilder::new().transfer_syntax(uids::EXPLICIT_VR_LITTLE_ENDIAN))
+        .expect("meta")
+        .write_to_file(folder.join("IM0001"))
+        .expect("write dicom");
+    let message = voxcube::formats::dicom::load(&folder, None)
+        .expect_err("4.8e10 samples")
+        .to_string();
+    assert!(
+        message.contains("IM0001")
+            && message.contains("dimensions 24 × 20 × 100000000 declare 48000000000 samples"),
+        "{message}"
+    );
+    // The flag: the test volume has DIMS' samples, refused under a cap one below them.
+    let blob = dir.path().join("blob.nii");
+    std::fs::write(&blob, nifti(4, 16, 1.0, 0.0, &le(&samples()))).expect("write");
+    let n: usize = DIMS.iter().product();
+    let cap = (n - 1).to_string();
+    let (ok, _, err) = run(&[
+        "info".as_ref(),
+        blob.as_os_str(),
+        "--max-samples".as_ref(),
+        cap.as_ref(),
+    ]);
+    assert!(
+        !ok && err.contains("blob.nii") && err.contains(&format!("declare {n} samples")),
+        "{err}"
+    );
+    let (ok, _, err) = run(&[
+        "info".as_ref(),
+        blob.as_os_str(),
+        "--max-samples".as_ref(),
+        n.to_string().as_ref(),
+    ]);
+    assert!(ok, "{err}");
 }
 
 /// A zlib-compressed `.vti` of byte samples, in blocks of 32,768 bytes with VTK's header

@@ -54,6 +54,7 @@ pub fn parse(bytes: &[u8], spacing: Vec3) -> Result<Volume, LoadErrorKind> {
         }
         *dim = len as u32;
     }
+    super::declared_samples(&dims.map(u64::from))?;
     let l = &bytes[58..62];
     let map_length = match endian {
         Endian::Little => i32::from_le_bytes([l[0], l[1], l[2], l[3]]),

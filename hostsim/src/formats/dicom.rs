@@ -33,6 +33,8 @@ struct Slice {
     series: String,
     rows: u32,
     columns: u32,
+    /// NumberOfFrames, 1 where absent.
+    frames: u64,
     position: Option<[f64; 3]>,
     normal: Option<[f64; 3]>,
     instance: Option<i64>,
@@ -145,6 +147,22 @@ fn read_slice(path: &Path) -> Result<Slice, LoadError> {
             ))))
         }
     };
+    // What the pixel data will decode to is checked before it is decoded: a compressed
+    // image's few bytes can declare any size.
+    let frames = match int(&object, tags::NUMBER_OF_FRAMES).unwrap_or(1) {
+        f if f >= 1 => f as u64,
+        f => {
+            return Err(at(header_err(format!(
+                "NumberOfFrames (0028,0008) is {f}; expected at least 1"
+            ))))
+        }
+    };
+    super::declared_samples(&[u64::from(columns), u64::from(rows), frames]).map_err(at)?;
+    if let Some(bits) = int(&object, tags::BITS_ALLOCATED).filter(|&b| b > 16) {
+        return Err(at(header_err(format!(
+            "BitsAllocated (0028,0100) is {bits}; voxcube reads 8- and 16-bit images"
+        ))));
+    }
     let series = text(&object, tags::SERIES_INSTANCE_UID);
     let position =
         floats(&object, tags::IMAGE_POSITION_PATIENT).and_then(|v| <[f64; 3]>::try_from(v).ok());
@@ -166,6 +184,7 @@ fn read_slice(path: &Path) -> Result<Slice, LoadError> {
         series,
         rows,
         columns,
+        frames,
         position,
         normal,
         pixel_spacing,
@@ -317,6 +336,10 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
         ));
     }
     let gap = order(&mut slices, path)?;
+    // The whole stack, before any slice is decoded.
+    let depth: u64 = slices.iter().map(|s| s.frames).sum();
+    super::declared_samples(&[u64::from(columns), u64::from(rows), depth])
+        .map_err(|k| LoadError::new(path, k))?;
     // Decode every slice's stored values; rescaling is applied below, once, in f64.
     let raw = ConvertOptions::new().with_modality_lut(ModalityLutOption::None);
     let mut frames: Vec<(Vec<i32>, (f64, f64), bool)> = Vec::with_capacity(slices.len());

@@ -8,9 +8,8 @@
 //! is the file's last bytes), `ElementDataFile`. `Offset`, `TransformMatrix` and
 //! `AnatomicalOrientation` are not applied (index space). A short header needs no crate.
 
-use super::{check_size, decode, read, Endian, FileType, LoadError, LoadErrorKind};
+use super::{check_length, decode, read, Endian, FileType, LoadError, LoadErrorKind};
 use crate::dataset::Volume;
-use std::io::Read;
 use std::path::{Path, PathBuf};
 use voxcube_kernel::Vec3;
 
@@ -189,10 +188,7 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
         }
     };
     let data_err = |k| LoadError::new(&data_path, k);
-    let count = dims
-        .iter()
-        .try_fold(1u64, |a, &d| a.checked_mul(u64::from(d)))
-        .unwrap_or(u64::MAX);
+    let count = super::declared_samples(&dims.map(u64::from)).map_err(at)?;
     let need = count.saturating_mul(ty.bytes() as u64);
     let skip = match h.header_size {
         -1 if !h.compressed => (payload.len() as u64).saturating_sub(need),
@@ -203,22 +199,22 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
             ))))
         }
     };
-    let payload = if h.compressed {
+    // A zlib stream is decoded no further than the header accounts for: what follows is
+    // decoded into nothing, for its Adler-32, and counted.
+    let (payload, length) = if h.compressed {
         let start = (skip as usize).min(payload.len());
-        let mut out = Vec::new();
-        flate2::read::ZlibDecoder::new(&payload[start..])
-            .read_to_end(&mut out)
+        super::inflate_at_most(flate2::read::ZlibDecoder::new(&payload[start..]), need)
             .map_err(|e| {
                 data_err(LoadErrorKind::Corrupt(format!(
                     "CompressedData: the zlib stream does not decode or fails its Adler-32 check ({e})"
                 )))
-            })?;
-        out
+            })?
     } else {
-        payload
+        let length = payload.len() as u64;
+        (payload, length)
     };
     let skip = if h.compressed { 0 } else { skip };
-    check_size(&payload, skip, count, ty).map_err(data_err)?;
+    check_length(length, skip, count, ty).map_err(data_err)?;
     decode(&payload[skip as usize..], dims, spacing, ty, endian).map_err(data_err)
 }
 

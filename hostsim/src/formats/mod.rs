@@ -17,6 +17,7 @@ pub mod vtk;
 use crate::dataset::{to_plane_major, Volume, VolumeData};
 use std::fmt;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 use voxcube_kernel::volume::grid::{Grid, GridError};
 use voxcube_kernel::Vec3;
 
@@ -213,6 +214,16 @@ pub enum LoadErrorKind {
         /// Bytes present.
         actual: u64,
     },
+    /// The header declares more samples than a read may take.
+    #[error("dimensions {} declare {} samples, more than the {cap} a volume may have (--max-samples raises it)", dims.iter().map(u64::to_string).collect::<Vec<_>>().join(" × "), samples.map_or("more than 2^64".to_string(), |s| s.to_string()))]
+    TooLarge {
+        /// The dimensions declared.
+        dims: Vec<u64>,
+        /// Their product, `None` where it overflows.
+        samples: Option<u64>,
+        /// The cap.
+        cap: u64,
+    },
     /// More bytes than the header and dimensions account for.
     #[error("{extra} trailing bytes: expected {expected} bytes, found {actual} (wrong dims, type or header size?)")]
     Trailing {
@@ -277,6 +288,50 @@ impl LoadError {
     }
 }
 
+/// The most samples a volume's header may declare unless `--max-samples` says otherwise:
+/// 2^32, a 1,625³ volume (4 GiB of bytes, 16 GiB of floats). A reader checks what a header
+/// declares against it before it decompresses or keeps anything for the samples, so that a
+/// small compressed file cannot make it take memory out of proportion.
+pub const DEFAULT_MAX_SAMPLES: u64 = 1 << 32;
+
+static MAX_SAMPLES: AtomicU64 = AtomicU64::new(DEFAULT_MAX_SAMPLES);
+
+/// Set the most samples a header may declare for every read from now on (the command line's
+/// `--max-samples`, read once at start).
+pub fn set_max_samples(samples: u64) {
+    MAX_SAMPLES.store(samples, Ordering::Relaxed);
+}
+
+/// The samples `dims` declare, refused past the cap ([`set_max_samples`]) or past what `u64`
+/// holds.
+pub fn declared_samples(dims: &[u64]) -> Result<u64, LoadErrorKind> {
+    let cap = MAX_SAMPLES.load(Ordering::Relaxed);
+    match dims.iter().try_fold(1u64, |a, &d| a.checked_mul(d)) {
+        Some(samples) if samples <= cap => Ok(samples),
+        samples => Err(LoadErrorKind::TooLarge {
+            dims: dims.to_vec(),
+            samples,
+            cap,
+        }),
+    }
+}
+
+/// Decode `stream`, keeping at most its first `keep` bytes; the rest is decoded into nothing,
+/// so that the stream's own check (a gzip member's CRC-32 and ISIZE, zlib's Adler-32) runs at
+/// its end however long it is, without memory for it. Returns the kept bytes and the whole
+/// decoded length.
+pub(crate) fn inflate_at_most(
+    mut stream: impl std::io::Read,
+    keep: u64,
+) -> std::io::Result<(Vec<u8>, u64)> {
+    use std::io::Read;
+    let mut bytes = Vec::new();
+    (&mut stream).take(keep).read_to_end(&mut bytes)?;
+    let rest = std::io::copy(&mut stream, &mut std::io::sink())?;
+    let length = bytes.len() as u64 + rest;
+    Ok((bytes, length))
+}
+
 /// Read a whole file.
 pub fn read(path: &Path) -> Result<Vec<u8>, LoadError> {
     std::fs::read(path).map_err(|e| LoadError::new(path, e))
@@ -289,11 +344,21 @@ pub fn check_size(
     count: u64,
     ty: FileType,
 ) -> Result<(), LoadErrorKind> {
+    check_length(bytes.len() as u64, header, count, ty)
+}
+
+/// [`check_size`] of data `actual` bytes long (a decoded stream's whole length, of which a
+/// reader kept no more than it needs: [`inflate_at_most`]).
+pub fn check_length(
+    actual: u64,
+    header: u64,
+    count: u64,
+    ty: FileType,
+) -> Result<(), LoadErrorKind> {
     let expected = count
         .checked_mul(ty.bytes() as u64)
         .and_then(|b| b.checked_add(header))
         .ok_or(LoadErrorKind::Grid(GridError::TooManySamples))?;
-    let actual = bytes.len() as u64;
     if actual < expected {
         return Err(LoadErrorKind::Truncated { expected, actual });
     }

@@ -225,10 +225,7 @@ fn contents(path: &Path) -> Result<Vec<u8>, LoadErrorKind> {
 
 /// The samples a map with header `h` holds, NC × NR × NS.
 fn count(h: &Header) -> Result<u64, LoadErrorKind> {
-    h.counts
-        .iter()
-        .try_fold(1u64, |a, &n| a.checked_mul(u64::from(n)))
-        .ok_or_else(|| header_err("NC × NR × NS overflows"))
+    super::declared_samples(&h.counts.map(u64::from))
 }
 
 /// Load a CCP4/MRC map. `spacing` overrides the cell's.

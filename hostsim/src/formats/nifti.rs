@@ -148,6 +148,7 @@ impl Declared {
                 )))
             }
         };
+        super::declared_samples(&dims.map(u64::from))?;
         let ty = header
             .data_type()
             .map_err(|e| header_err(format!("datatype: {e}")))

@@ -6,9 +6,8 @@
 //! the format allows; a field voxcube cannot honour (another encoding, a list of data files)
 //! is an error that names it.
 
-use super::{check_size, decode, read, Endian, FileType, LoadError, LoadErrorKind};
+use super::{check_length, decode, read, Endian, FileType, LoadError, LoadErrorKind};
 use crate::dataset::Volume;
-use std::io::Read;
 use std::path::{Path, PathBuf};
 use voxcube_kernel::Vec3;
 
@@ -197,6 +196,7 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
         .sizes
         .ok_or_else(|| at(header_err("missing field \"sizes\"")))?;
     let dims: [u32; 3] = parse_three("sizes", &sizes).map_err(at)?;
+    let count = super::declared_samples(&dims.map(u64::from)).map_err(at)?;
     let gzip = h
         .gzip
         .ok_or_else(|| at(header_err("missing field \"encoding\"")))?;
@@ -236,24 +236,19 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
         };
         payload.drain(..=i);
     }
-    if gzip {
-        let mut out = Vec::new();
-        flate2::read::MultiGzDecoder::new(&payload[..])
-            .read_to_end(&mut out)
-            .map_err(|e| data_err(super::corrupt_gzip(e)))?;
-        payload = out;
-    }
-    let count = dims
-        .iter()
-        .try_fold(1u64, |a, &d| a.checked_mul(u64::from(d)))
-        .unwrap_or(u64::MAX);
     if let Some(axis) = dims.iter().position(|&d| d == 0) {
         return Err(data_err(
             voxcube_kernel::volume::grid::GridError::ZeroDimension { axis }.into(),
         ));
     }
+    let need = count.saturating_mul(ty.bytes() as u64);
     let skip = match h.byte_skip {
-        -1 => (payload.len() as u64).saturating_sub(count.saturating_mul(ty.bytes() as u64)),
+        -1 if gzip => {
+            return Err(at(header_err(
+                "byte skip -1 (the data at the file's end) is for raw encoding only; give the count of bytes to skip",
+            )))
+        }
+        -1 => (payload.len() as u64).saturating_sub(need),
         s if s >= 0 => s as u64,
         s => {
             return Err(data_err(header_err(format!(
@@ -261,7 +256,20 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
             ))))
         }
     };
-    check_size(&payload, skip, count, ty).map_err(data_err)?;
+    // A gzip stream is decoded no further than the header accounts for: what follows is
+    // decoded into nothing, for its CRC-32 and length, and counted.
+    let length = if gzip {
+        let (kept, length) = super::inflate_at_most(
+            flate2::read::MultiGzDecoder::new(&payload[..]),
+            skip.saturating_add(need),
+        )
+        .map_err(|e| data_err(super::corrupt_gzip(e)))?;
+        payload = kept;
+        length
+    } else {
+        payload.len() as u64
+    };
+    check_length(length, skip, count, ty).map_err(data_err)?;
     decode(&payload[skip as usize..], dims, spacing, ty, endian).map_err(data_err)
 }
 

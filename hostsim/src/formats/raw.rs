@@ -33,11 +33,7 @@ pub fn parse(bytes: &[u8], layout: &RawLayout) -> Result<Volume, LoadErrorKind> 
     if let Some(axis) = layout.dims.iter().position(|&d| d == 0) {
         return Err(GridError::ZeroDimension { axis }.into());
     }
-    let count = layout
-        .dims
-        .iter()
-        .try_fold(1u64, |acc, &d| acc.checked_mul(u64::from(d)));
-    let count = count.ok_or(LoadErrorKind::Grid(GridError::TooManySamples))?;
+    let count = super::declared_samples(&layout.dims.map(u64::from))?;
     check_size(bytes, layout.header_bytes, count, layout.ty)?;
     let start = layout.header_bytes as usize;
     decode(
@@ -83,7 +79,7 @@ mod tests {
         )
         .unwrap_err()
         .to_string();
-        assert!(e.contains("overflows"), "{e}");
+        assert!(e.contains("declare more than 2^64 samples"), "{e}");
     }
 
     #[test]

@@ -263,6 +263,9 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
         }
     };
     let dims = extent.into_dims();
+    // `vtkio` has decoded the arrays by now: the cap still keeps such a volume out of the
+    // renderer's memory.
+    super::declared_samples(&dims.map(u64::from)).map_err(at)?;
     let [piece]: [_; 1] = pieces.try_into().map_err(|p: Vec<_>| {
         at(header_err(format!(
             "{} pieces; voxcube reads image data of one piece",
