@@ -1185,7 +1185,8 @@ fn a_compressed_stream_longer_than_its_header_declares_is_refused_not_kept() {
 /// A header may declare at most `--max-samples` samples (2^32 unless told): a 2,048³ volume
 /// declared by a few hundred bytes of gzipped NIfTI, and a DICOM image declaring 10^8 frames,
 /// are refused by the cap before anything is decompressed or decoded for them, naming the
-/// dimensions; the command line's flag lowers the cap, and a volume within it reads.
+/// dimensions, as is a JPEG frame whose own header declares another size than its image; the
+/// command line's flag lowers the cap, and a volume within it reads.
 #[test]
 fn a_header_declaring_more_samples_than_the_cap_is_refused_before_decompressing() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -1225,6 +1226,37 @@ fn a_header_declaring_more_samples_than_the_cap_is_refused_before_decompressing(
     assert!(
         message.contains("IM0001")
             && message.contains("dimensions 24 × 20 × 100000000 declare 48000000000 samples"),
+        "{message}"
+    );
+    // A JPEG-compressed image whose stream's frame header declares 30,000 × 30,000 where the
+    // image says 24 × 20: refused before its decoder allocates for the stream's size.
+    let mut jpeg = vec![0xFF, 0xD8, 0xFF, 0xC0, 0x00, 0x0B, 0x08];
+    jpeg.extend(30_000u16.to_be_bytes());
+    jpeg.extend(30_000u16.to_be_bytes());
+    jpeg.extend([0x01, 0x01, 0x11, 0x00, 0xFF, 0xDA, 0x00, 0x02, 0xFF, 0xD9]);
+    let mut compressed = dicom_slice(0, &[0u16; 4], 0.0, "1.2.4");
+    compressed.put(DataElement::new(
+        tags::PIXEL_DATA,
+        VR::OB,
+        dicom_core::value::Value::PixelSequence(dicom_core::value::PixelFragmentSequence::new(
+            Vec::<u32>::new(),
+            vec![jpeg],
+        )),
+    ));
+    let folder = dir.path().join("jpeg");
+    std::fs::create_dir_all(&folder).expect("mkdir");
+    compressed
+        .with_meta(FileMetaTableBuilder::new().transfer_syntax("1.2.840.10008.1.2.4.50"))
+        .expect("meta")
+        .write_to_file(folder.join("IM0001"))
+        .expect("write dicom");
+    let message = voxcube::formats::dicom::load(&folder, None)
+        .expect_err("a 30,000² JPEG frame in a 24 × 20 image")
+        .to_string();
+    assert!(
+        message.contains("IM0001")
+            && message.contains("JPEG stream declares 30000 × 30000")
+            && message.contains("Columns × Rows are 24 × 20"),
         "{message}"
     );
     // The flag: the test volume has DIMS' samples, refused under a cap one below them.

@@ -11,7 +11,9 @@
 //! is an error, as are colour and palette-colour images, slices that are not parallel, uneven
 //! or repeated slices (and two slices whose instance numbers skip one), and differing slice
 //! sizes. Every element length a file declares is checked against the file before dicom-rs
-//! reads it ([`super::dicom_lengths`]), which would allocate what a header declares.
+//! reads it ([`super::dicom_lengths`]), which would allocate what a header declares; the
+//! samples an image declares against `--max-samples`, and a compressed frame's own size
+//! against the image's ([`super::dicom_frames`]), before its pixel data is decoded.
 
 use super::{LoadError, LoadErrorKind};
 use crate::dataset::{to_plane_major, Volume, VolumeData};
@@ -158,6 +160,15 @@ fn read_slice(path: &Path) -> Result<Slice, LoadError> {
         }
     };
     super::declared_samples(&[u64::from(columns), u64::from(rows), frames]).map_err(at)?;
+    // A compressed frame's own header sizes what its decoder allocates.
+    if let Some(fragments) = object
+        .element(tags::PIXEL_DATA)
+        .ok()
+        .and_then(|e| e.value().fragments())
+    {
+        super::dicom_frames::check(fragments.iter().map(Vec::as_slice), columns, rows)
+            .map_err(|e| at(header_err(e.to_string())))?;
+    }
     if let Some(bits) = int(&object, tags::BITS_ALLOCATED).filter(|&b| b > 16) {
         return Err(at(header_err(format!(
             "BitsAllocated (0028,0100) is {bits}; voxcube reads 8- and 16-bit images"

@@ -6,6 +6,7 @@
 
 pub mod den;
 pub mod dicom;
+pub mod dicom_frames;
 pub mod dicom_lengths;
 pub mod metaimage;
 pub mod mrc;
