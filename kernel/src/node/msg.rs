@@ -810,6 +810,67 @@ mod tests {
         roundtrip(planes());
     }
 
+    /// One message of every kind (and every outcome), as encoded.
+    fn every_kind() -> [Msg; 11] {
+        [
+            ray(),
+            hit(),
+            resolved(Outcome::ChainEnd { hits: 4 }),
+            resolved(Outcome::Shadow { visibility: 0.5 }),
+            resolved(Outcome::Color(Vec3::new(0.25, 0.5, 2.0))),
+            ACK,
+            Msg::Collect,
+            Msg::Token { cluster: 1 },
+            pixels(),
+            Msg::Stats(NodeStats {
+                node: 2,
+                counters: Counters {
+                    samples: 11,
+                    slab_misses: 13,
+                    ..Counters::default()
+                },
+                forwarded_next: 9,
+                sent: [1; KINDS],
+                peak_unacked: 3,
+                pixels_sent: 5,
+                ..NodeStats::default()
+            }),
+            planes(),
+        ]
+    }
+
+    /// The wire format itself: each message's bytes, hashed (FNV-1a, 64 bits), pinned as they
+    /// were written before the codec was split by message; a change to any field's order,
+    /// width or byte order fails here by kind.
+    #[test]
+    fn every_kind_encodes_to_the_pinned_bytes() {
+        let fnv = |bytes: &[u8]| {
+            bytes.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
+                (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+            })
+        };
+        let hashes = every_kind().map(|m| {
+            let mut buf = [0u8; MAX_MSG_LEN];
+            let n = m.encode(&mut buf);
+            (m.kind(), fnv(&buf[..n]))
+        });
+        assert_eq!(hashes, PINNED);
+    }
+
+    const PINNED: [(MsgKind, u64); 11] = [
+        (MsgKind::Ray, 0x65759077d5858f34),
+        (MsgKind::Hit, 0xeed4184d85593334),
+        (MsgKind::Resolved, 0x736a6c04a6c87b82),
+        (MsgKind::Resolved, 0x6336d3bebad03624),
+        (MsgKind::Resolved, 0xafd259f94690fb43),
+        (MsgKind::Ack, 0xd5eac3d70302a9fe),
+        (MsgKind::Collect, 0xaf63c54c8601c577),
+        (MsgKind::Token, 0xb6a3c018586c51e2),
+        (MsgKind::Pixels, 0x8aee05cc25d1ca32),
+        (MsgKind::Stats, 0x5610d0dac45be93b),
+        (MsgKind::Planes, 0x016d19aba1642930),
+    ];
+
     /// Every range check of decoding, each shown by one out-of-range byte in an otherwise
     /// valid message: with a check dropped, its case decodes and this test fails.
     #[test]
