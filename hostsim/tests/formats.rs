@@ -861,15 +861,20 @@ fn bad_dicom_series_name_the_file_and_the_field() {
         &error_of(dir.path(), "path = \"cut\""),
         &["IM0003", "truncated or malformed"],
     );
-    // A compression this build does not decode (JPEG-LS): the slice is named.
+    // A compression this build does not decode (JPEG-LS), its frame header whole and of the
+    // image's size, so that it reaches the decoder: the slice is named.
     let packed = dir.path().join("packed");
     std::fs::create_dir(&packed).expect("mkdir");
     let mut slice = dicom_slice(0, &vec![0u16; plane], 0.0, "1.2.5");
+    let mut jpeg_ls = vec![0xffu8, 0xd8, 0xff, 0xf7, 0x00, 0x0b, 0x08];
+    jpeg_ls.extend((DIMS[1] as u16).to_be_bytes());
+    jpeg_ls.extend((DIMS[0] as u16).to_be_bytes());
+    jpeg_ls.extend([0x01, 0x01, 0x11, 0x00]);
     slice.put(DataElement::new(
         tags::PIXEL_DATA,
         VR::OB,
         dicom_core::value::Value::from(dicom_core::value::PixelFragmentSequence::new_fragments(
-            vec![vec![0xffu8, 0xd8, 0xff, 0xf7, 0, 0]],
+            vec![jpeg_ls],
         )),
     ));
     slice
