@@ -213,10 +213,11 @@ fn callgrind_total(text: &str) -> Option<u64> {
 /// The table of `counts`, and the target of the fast tier's composited frame.
 pub fn table(counts: &[Count]) -> String {
     let mut out = format!(
-        "instructions, SOD {}x{} dt 1/{}, one node (modern profile, 1 thread), counted by callgrind:\n",
+        "instructions, SOD {}x{} dt 1/{}, one node ({} profile, 1 thread), counted by callgrind:\n",
         Size::PAPER.width,
         Size::PAPER.height,
-        Size::PAPER.dt_inverse
+        Size::PAPER.dt_inverse,
+        machine().profile.name
     );
     let _ = writeln!(
         out,
