@@ -256,7 +256,67 @@ pub fn describe(name: &str, volume: &Volume) -> Result<String, InfoError> {
         let _ = writeln!(out);
         size *= 2;
     }
+    out += &structures(volume, &isos)?;
     Ok(out)
+}
+
+/// The structures one node holding the whole volume builds beside its samples, for each
+/// view of the suggested scene: each one's bytes, and how long building them all took here
+/// (they are built together, on this machine's threads, for every frame of the view); and
+/// the fast tier's node field, built once per volume.
+fn structures(volume: &Volume, isos: &[f64]) -> Result<String, InfoError> {
+    match &volume.data {
+        VolumeData::U8(d) => structures_of(volume, d, isos),
+        VolumeData::U16(d) => structures_of(volume, d, isos),
+        VolumeData::F32(d) => structures_of(volume, d, isos),
+    }
+}
+
+fn structures_of<T: voxcube_kernel::volume::sample::Sample + Sync>(
+    volume: &Volume,
+    data: &[T],
+    isos: &[f64],
+) -> Result<String, InfoError> {
+    use crate::storage::{SkipMode, Skipping};
+    use std::time::Instant;
+    let bad = |e: String| InfoError::Load(format!("the suggested scene does not build: {e}"));
+    let slab = voxcube_kernel::volume::slab::Slab::whole(volume.grid, data)
+        .map_err(|e| bad(e.to_string()))?;
+    let threads = std::thread::available_parallelism().map_or(1, usize::from);
+    let mut out = format!(
+        "structures (one node holding the whole volume; built on {threads} threads here):\n"
+    );
+    for (name, view) in suggested_views(volume, isos)? {
+        let start = Instant::now();
+        let skipping = Skipping::build_on(&slab, &view, SkipMode::ALL, threads);
+        let took = start.elapsed();
+        let parts: Vec<String> = skipping
+            .bytes()
+            .iter()
+            .filter(|(_, b)| *b > 0)
+            .map(|(what, b)| format!("{what} {}", kib(*b)))
+            .collect();
+        let _ = writeln!(
+            out,
+            "  {name:<10} {}; built in {:.1} ms for every frame",
+            parts.join(", "),
+            took.as_secs_f64() * 1e3
+        );
+    }
+    let start = Instant::now();
+    let field = crate::nodes::NodeField::build(&slab, threads);
+    let took = start.elapsed();
+    let _ = writeln!(
+        out,
+        "  node field {} (the fast tier's value and differences per node); built in {:.1} ms once per volume",
+        mib(field.bytes()),
+        took.as_secs_f64() * 1e3
+    );
+    Ok(out)
+}
+
+fn kib(bytes: usize) -> String {
+    format!("{:.1} KiB", bytes as f64 / 1024.0)
 }
 
 /// The smallest power-of-two cluster whose largest node fits `profile`, if any.
@@ -269,6 +329,29 @@ fn smallest_fit(volume: &Volume, profile: &Profile, needs: ViewNeeds) -> Option<
             largest_node(&volume.grid, volume.data.kind().bytes(), s, needs, buffer)
                 .is_some_and(|m| m.total() <= profile.node_memory)
         })
+}
+
+/// The suggested scene's views, by name, built on the volume's grid.
+fn suggested_views(
+    volume: &Volume,
+    isos: &[f64],
+) -> Result<Vec<(String, voxcube_kernel::trace::view::View)>, InfoError> {
+    let text = scene_text("v", Path::new("unused"), volume, isos, 1);
+    // A built-in stands in for the file while the text is parsed; the views are then rebuilt
+    // on the real grid.
+    let scene = text.replace("path = ", "builtin = \"sphere\"\n# path = ");
+    let bad = |e: String| InfoError::Load(format!("the suggested scene does not build: {e}"));
+    let jobs = Scene::parse(&scene, "suggested", Path::new("."))
+        .and_then(Scene::load)
+        .map_err(|e| bad(e.to_string()))?;
+    jobs.into_iter()
+        .flat_map(|d| d.views)
+        .map(|v| {
+            voxcube_kernel::trace::view::View::new(v.view.spec().clone(), &volume.grid)
+                .map(|view| (v.name, view))
+                .map_err(|e| bad(e.to_string()))
+        })
+        .collect()
 }
 
 /// What the suggested scene's first view asks of a node's memory.

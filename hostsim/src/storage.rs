@@ -210,6 +210,18 @@ pub struct Skipping {
 }
 
 impl Skipping {
+    /// Bytes of each structure held, by name: min/max blocks, leap maps, cell masks, cell leap
+    /// maps and depth bounds.
+    pub fn bytes(&self) -> [(&'static str, usize); 5] {
+        [
+            ("min/max blocks", size_of_val(self.ranges.as_slice())),
+            ("leap maps", self.leaps.len()),
+            ("cell masks", size_of_val(self.cells.as_slice())),
+            ("cell leap maps", self.cell_leaps.len()),
+            ("depth bounds", size_of_val(self.depths.as_slice())),
+        ]
+    }
+
     /// The blocks of `slab` (`mode.skip`), their distances for each octant of ray directions
     /// the view takes (`mode.leap`) and cell masks (`mode.cells`, cell model only) for `view`.
     pub fn build<T: voxcube_kernel::volume::sample::Sample + Sync>(

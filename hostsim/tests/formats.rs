@@ -954,6 +954,23 @@ fn info_describes_a_volume_and_its_scene_renders_something_on_the_first_try() {
     ] {
         assert!(text.contains(part), "info omits {part:?}:\n{text}");
     }
+    // Each view's skipping structures with their bytes and build time, and the node field:
+    // 24 × 20 × 16 samples make 6 × 5 × 4 blocks of 4³ cells' ranges, 8 bytes each as f32
+    // (0.9 KiB), and a node field of 7,680 nodes × 16 bytes (0.12 MiB).
+    for view in ["surfaces", "composite"] {
+        let line = text
+            .lines()
+            .find(|l| l.trim_start().starts_with(view) && l.contains("built in"))
+            .unwrap_or_else(|| panic!("no structures line for {view}:\n{text}"));
+        assert!(
+            line.contains("min/max blocks 0.9 KiB") && line.contains("ms for every frame"),
+            "{line}"
+        );
+    }
+    assert!(
+        text.contains("node field 0.12 MiB") && text.contains("ms once per volume"),
+        "{text}"
+    );
     // The DICOM folder reads the same.
     let (ok, series, err) = run(&["info".as_ref(), dir.path().join("series").as_os_str()]);
     assert!(ok && series.contains("min -1000 max 900"), "{err}{series}");
