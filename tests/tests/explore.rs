@@ -110,6 +110,23 @@ fn mutant_no_headroom_is_caught() {
     );
 }
 
+/// The start rule is checked where it happens: the simulator's invariant after every step
+/// (`n_i` stays below `i_max`) is what catches rays started without the `r_imax` headroom,
+/// by name, in every configuration where the mutant shows at all.
+#[test]
+fn rays_started_without_headroom_break_the_start_rule_check() {
+    let job = scenes().expect("exploration scenes");
+    let found = explore(&job, &tight(&job), 3, &|cfg| {
+        cfg.mutants = Mutants {
+            no_headroom: true,
+            ..Mutants::default()
+        }
+    });
+    let first = found.first_failure.clone().expect("the mutant is caught");
+    assert!(first.contains("start rule broken"), "{first}");
+    assert_eq!(found.deadlocks, 0, "caught before any deadlock: {found}");
+}
+
 #[test]
 fn mutant_acks_needing_credit_is_caught() {
     caught(

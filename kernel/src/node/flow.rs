@@ -461,6 +461,52 @@ mod tests {
         );
     }
 
+    /// The start rule on cases worked by hand, each at its boundary: a ring of three, this
+    /// node in the middle (position 1), `i_max` 4.
+    #[test]
+    fn room_ahead_at_the_boundary_of_each_rule_worked_by_hand() {
+        let index = |c: Class| c.credit_index().unwrap_or(usize::MAX);
+        let with = |entries: &[(usize, Class, u16)]| {
+            let mut table = [[0u16; CREDITS]; 3];
+            for &(position, class, n) in entries {
+                table[position][index(class)] = n;
+            }
+            table
+        };
+        let up = |table: &[[u16; CREDITS]; 3], kind: RayKind, lights: u8| {
+            room_ahead(table, 1, kind, Class::of_ray(kind, 1.0), lights, 4)
+        };
+        let primary = RayKind::Primary;
+        // A ray going up needs one more of its class toward position 2: 2 + 1 < 4 starts,
+        // 3 + 1 does not.
+        assert!(up(&with(&[(2, Class::RayUp, 2)]), primary, 0));
+        assert!(!up(&with(&[(2, Class::RayUp, 3)]), primary, 0));
+        // Behind it, or in the other direction's class, nothing counts.
+        assert!(up(&with(&[(0, Class::RayUp, 4)]), primary, 0));
+        assert!(up(&with(&[(2, Class::RayDown, 4)]), primary, 0));
+        // With two shadow-casting lights its shadow rays may go either way, two of a class:
+        // 1 + 2 < 4 toward position 0 starts, 2 + 2 does not; without lights it does not count.
+        assert!(up(&with(&[(0, Class::ShadowDown, 1)]), primary, 2));
+        assert!(!up(&with(&[(0, Class::ShadowDown, 2)]), primary, 2));
+        assert!(up(&with(&[(0, Class::ShadowDown, 2)]), primary, 0));
+        assert!(!up(
+            &with(&[(2, Class::ShadowUp, 2)]),
+            RayKind::Transparency,
+            2
+        ));
+        // A shadow ray sends one message of its own class and casts none.
+        assert!(up(&with(&[(2, Class::ShadowUp, 2)]), RayKind::Shadow, 2));
+        assert!(!up(&with(&[(2, Class::ShadowUp, 3)]), RayKind::Shadow, 2));
+        assert!(up(&with(&[(0, Class::ShadowDown, 3)]), RayKind::Shadow, 2));
+        // At the top of the ring nothing is ahead: any table starts an up ray.
+        let full = [[4u16; CREDITS]; 3];
+        assert!(room_ahead(&full, 2, primary, Class::RayUp, 0, 4));
+        assert!(
+            !room_ahead(&full, 2, primary, Class::RayUp, 1, 4),
+            "shadows go down"
+        );
+    }
+
     #[test]
     fn credits_count_the_ring_only_and_name_their_classes() {
         assert!(Credits::<4>::new(5).is_none());

@@ -2,7 +2,7 @@
 //! invariants checked after every event and when the host ends.
 //!
 //! After every event: no buffer holds more than its capacity; every `n_i` stays within
-//! `[0, i_max]` (with flow control on); a token passes only from a node whose `n_i` are all 0;
+//! `[0, i_max)` (with flow control on: the start rule, [`after_step`]); a token passes only from a node whose `n_i` are all 0;
 //! messages are conserved (sent = delivered + in flight).
 //! The host itself refuses a pixel twice. When the host ends: no message is in flight, every
 //! `n_i` is 0 and no node counted a protocol error.
@@ -100,11 +100,15 @@ pub(super) fn after_event(net: &Network) -> Result<(), String> {
     Ok(())
 }
 
-/// After node `n`'s step, with flow control on: its `n_i` within `i_max`.
+/// After node `n`'s step, with flow control on: its `n_i` below `i_max`. This is the paper's
+/// start rule where it shows: a ray starts only with `n_i + r_imax < i_max` toward every node
+/// it may send to, and tracing it sends at most `r_imax` messages of a class to one node, so
+/// no `n_i` reaches `i_max`; a node that started a ray without that headroom can. A ring of
+/// one node sends no credited message and has no `i_max` (0).
 pub(super) fn after_step<T: Sample>(worker: &NodeWorker<'_, T>, i_max: u16) -> Result<(), String> {
-    match worker.max_unacked() > i_max {
+    match i_max > 0 && worker.max_unacked() >= i_max {
         true => Err(format!(
-            "node {} has {} unacknowledged messages to one node in one class, i_max is {i_max}",
+            "start rule broken: node {} has {} unacknowledged messages to one node in one class, i_max is {i_max} (a ray starts only with n_i + r_imax < i_max)",
             worker.node(),
             worker.max_unacked()
         )),
