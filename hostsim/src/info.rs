@@ -356,22 +356,10 @@ fn suggested_views(
 
 /// What the suggested scene's first view asks of a node's memory.
 fn first_view_needs(volume: &Volume, isos: &[f64]) -> Result<ViewNeeds, InfoError> {
-    let text = scene_text("v", Path::new("unused"), volume, isos, 1);
-    // A built-in stands in for the file while the text is parsed; the view is then rebuilt
-    // on the real grid.
-    let scene = text.replace("path = ", "builtin = \"sphere\"\n# path = ");
-    let bad = |e: String| InfoError::Load(format!("the suggested scene does not build: {e}"));
-    let jobs = Scene::parse(&scene, "suggested", Path::new("."))
-        .and_then(Scene::load)
-        .map_err(|e| bad(e.to_string()))?;
-    let spec = jobs
+    let (_, view) = suggested_views(volume, isos)?
         .into_iter()
         .next()
-        .and_then(|d| d.views.into_iter().next())
-        .map(|v| v.view.spec().clone())
-        .ok_or_else(|| bad("no view".into()))?;
-    let view = voxcube_kernel::trace::view::View::new(spec, &volume.grid)
-        .map_err(|e| bad(e.to_string()))?;
+        .ok_or_else(|| InfoError::Load("the suggested scene does not build: no view".into()))?;
     Ok(ViewNeeds::of(&view))
 }
 

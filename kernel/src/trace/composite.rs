@@ -168,9 +168,7 @@ fn samples<T: Sample, C: Classify, R: Reading>(
     let spec = view.spec();
     let grid = slab.grid();
     let mut skipper = Skipper::new(view, slab, ray);
-    if let Some(last) = skipper.depth_run(slab, ray, true) {
-        skip_to(view, ray, last, counters);
-    }
+    skipper.pass_depth_bound(view, slab, ray, true, counters);
     let light = Unshadowed::new(view);
     // The colour and transmittance stay in registers for the call.
     let (mut color, mut weight) = (ray.color, ray.weight);

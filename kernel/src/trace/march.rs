@@ -49,9 +49,7 @@ fn search<T: Sample>(
     let spec = view.spec();
     let grid = slab.grid();
     let mut skipper = Skipper::new(view, slab, ray);
-    if let Some(last) = skipper.depth_run(slab, ray, view.may_skip(ray)) {
-        skip_to(view, ray, last, counters);
-    }
+    skipper.pass_depth_bound(view, slab, ray, view.may_skip(ray), counters);
     loop {
         if ray.k > ray.lattice.last {
             return Stop::Exit;

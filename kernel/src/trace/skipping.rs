@@ -89,7 +89,7 @@ impl<'s> Skipper<'s> {
     /// as for [`Skipper::empty_run`]. Apart from the per-sample question, so that the loop
     /// carries no state that only its first sample reads.
     #[inline]
-    pub(crate) fn depth_run<T: Sample>(
+    fn depth_run<T: Sample>(
         &mut self,
         slab: &Slab<'_, T>,
         ray: &RayState,
@@ -106,6 +106,22 @@ impl<'s> Skipper<'s> {
         }
         let exits = self.exits.get_or_insert_with(|| Exits::new(ray));
         Some(before_bound(ray, slab, bound, exits))
+    }
+
+    /// Before a call's first sample: pass over the samples before the primary ray's depth
+    /// bound ([`Skipper::depth_run`]), if any.
+    #[inline]
+    pub(crate) fn pass_depth_bound<T: Sample>(
+        &mut self,
+        view: &View,
+        slab: &Slab<'_, T>,
+        ray: &mut RayState,
+        may_skip: bool,
+        counters: &mut Counters,
+    ) {
+        if let Some(last) = self.depth_run(slab, ray, may_skip) {
+            skip_to(view, ray, last, counters);
+        }
     }
 
     /// The last sample of a run from `ray.k` (at `probe`, in an owned plane) in which no
