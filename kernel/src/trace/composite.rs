@@ -13,16 +13,21 @@
 use crate::counters::Counters;
 use crate::optics::classify::Classified;
 use crate::optics::transfer::{corrected_opacity, TransferFunction};
+use crate::skip::cell_leaps::CellLeaps;
+use crate::trace::interior::Interior;
 use crate::trace::lattice::Lattice;
 use crate::trace::lighting::Unshadowed;
 use crate::trace::skipping::{skip_to, Probe, Skipper};
 use crate::trace::state::{RayState, Stop};
 use crate::trace::view::View;
+use crate::volume::cells::Cells;
 use crate::volume::field::{self, Site};
+use crate::volume::grid::Model;
+use crate::volume::lanes::Lanes as NodeLanes;
 use crate::volume::nodes;
 use crate::volume::sample::Sample;
 use crate::volume::slab::Slab;
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 
 /// Advance `ray` of composited `view` (transfer function `tf`) through the samples `slab`
 /// owns.
@@ -105,12 +110,30 @@ impl Classify for ByFunction<'_> {
 }
 
 /// How a sample is read: its value, and the gradient where the read gives it.
-trait Reading: Copy {
-    fn read<T: Sample>(
+trait Reading<T: Sample>: Copy {
+    /// What the storage the read uses holds per node.
+    type Node: Copy;
+
+    /// That storage as whole cells, for the runs through the slab's interior; `None` where
+    /// the slab holds none.
+    fn cells<'a>(slab: &Slab<'a, T>) -> Option<Cells<'a, Self::Node>>;
+
+    /// The sample at `site`.
+    fn read(
         self,
         view: &View,
         slab: &Slab<'_, T>,
         site: &Site,
+        counters: &mut Counters,
+    ) -> (f32, Option<Vec3>);
+
+    /// The sample at fractions `frac` of a cell-model site whose cell's nodes are `cell`, in
+    /// the interior: in every bit, and counted alike, what [`Reading::read`] gives there.
+    fn read_cell(
+        self,
+        slab: &Slab<'_, T>,
+        cell: [Self::Node; 8],
+        frac: Vec3,
         counters: &mut Counters,
     ) -> (f32, Option<Vec3>);
 }
@@ -119,9 +142,16 @@ trait Reading: Copy {
 #[derive(Clone, Copy)]
 struct Lanes;
 
-impl Reading for Lanes {
+impl<T: Sample> Reading<T> for Lanes {
+    type Node = T::Node;
+
     #[inline(always)]
-    fn read<T: Sample>(
+    fn cells<'a>(slab: &Slab<'a, T>) -> Option<Cells<'a, T::Node>> {
+        slab.nodes().map(|nodes| nodes.cells())
+    }
+
+    #[inline(always)]
+    fn read(
         self,
         _: &View,
         slab: &Slab<'_, T>,
@@ -133,15 +163,36 @@ impl Reading for Lanes {
         let (v, g) = nodes::lanes_at(slab, site, counters);
         (v, Some(g))
     }
+
+    #[inline(always)]
+    fn read_cell(
+        self,
+        slab: &Slab<'_, T>,
+        cell: [T::Node; 8],
+        frac: Vec3,
+        counters: &mut Counters,
+    ) -> (f32, Option<Vec3>) {
+        counters.interpolations += 1;
+        let (v, g) =
+            nodes::lerp_lanes(cell.map(NodeLanes::unpack), frac, slab.grid().inv_spacing());
+        (v, Some(g))
+    }
 }
 
 /// The slab's value; the shading computes a gradient where it needs one.
 #[derive(Clone, Copy)]
 struct Value;
 
-impl Reading for Value {
+impl<T: Sample> Reading<T> for Value {
+    type Node = T;
+
     #[inline(always)]
-    fn read<T: Sample>(
+    fn cells<'a>(slab: &Slab<'a, T>) -> Option<Cells<'a, T>> {
+        Some(slab.cells())
+    }
+
+    #[inline(always)]
+    fn read(
         self,
         view: &View,
         slab: &Slab<'_, T>,
@@ -153,11 +204,25 @@ impl Reading for Value {
             None,
         )
     }
+
+    #[inline(always)]
+    fn read_cell(
+        self,
+        _: &Slab<'_, T>,
+        cell: [T; 8],
+        frac: Vec3,
+        counters: &mut Counters,
+    ) -> (f32, Option<Vec3>) {
+        counters.interpolations += 1;
+        (field::lerp_cell(cell, frac), None)
+    }
 }
 
-/// The loop itself, for one way of reading and one of classifying.
+/// The loop itself, for one way of reading and one of classifying: each sample through the
+/// general step (where it lies, whose it is, what the skipping says of it), except in the
+/// slab's interior, where [`run`] takes them.
 #[inline(always)]
-fn samples<T: Sample, C: Classify, R: Reading>(
+fn samples<T: Sample, C: Classify, R: Reading<T>>(
     view: &View,
     slab: &Slab<'_, T>,
     classify: &C,
@@ -170,16 +235,71 @@ fn samples<T: Sample, C: Classify, R: Reading>(
     let mut skipper = Skipper::new(view, slab, ray);
     skipper.pass_depth_bound(view, slab, ray, true, counters);
     let light = Unshadowed::new(view);
+    // Where the interior's samples need no more of the skipping than their cell's leap
+    // distance, and the storage holds whole cells there.
+    let inner = match (spec.model, skipper.per_cell(), R::cells(slab)) {
+        (Model::Cell, Some(leaps), Some(cells)) => {
+            let owned = slab.owned();
+            let planes = cells.cell_planes();
+            Interior::new(
+                grid,
+                owned.start.max(planes.start)..owned.end.min(planes.end),
+            )
+            .map(|interior| (interior, cells, leaps))
+        }
+        _ => None,
+    };
+    // The interior's last sample, once a sample inside is found: its samples are one run.
+    let mut inside_to: Option<u32> = None;
     // The colour and transmittance stay in registers for the call.
     let (mut color, mut weight) = (ray.color, ray.weight);
     let stop = loop {
         if ray.k > ray.lattice.last {
             break Stop::Exit;
         }
+        if let (Some(end), Some((_, cells, leaps))) = (inside_to, &inner) {
+            if ray.k <= end {
+                let inside = Inside {
+                    cells,
+                    leaps: leaps.as_ref(),
+                    end,
+                };
+                match run(
+                    view,
+                    slab,
+                    classify,
+                    read,
+                    &inside,
+                    &light,
+                    ray,
+                    (&mut color, &mut weight),
+                    counters,
+                ) {
+                    Run::Done => continue,
+                    Run::Empty { cell, distance } => {
+                        if let Some(leaps) = leaps {
+                            let last = skipper.leap_cells(slab, ray, leaps, cell, distance);
+                            skip_to(view, ray, last, counters);
+                            continue;
+                        }
+                    }
+                    Run::Terminated => break Stop::Terminated,
+                    // The general step reads it.
+                    Run::Unread => {}
+                }
+            }
+        }
         let probe = Probe::of(ray, grid, spec.model, ray.k);
         let plane = probe.corner.plane();
         if !slab.owns(plane) {
             break Stop::Leave { plane };
+        }
+        if let (None, Some((interior, ..))) = (inside_to, &inner) {
+            if interior.holds(probe.p4) {
+                // The run through the interior takes this sample.
+                inside_to = Some(interior.last(ray, ray.k));
+                continue;
+            }
         }
         if let Some(last) = skipper.empty_run(view, slab, ray, &probe, true) {
             skip_to(view, ray, last, counters);
@@ -214,4 +334,99 @@ fn samples<T: Sample, C: Classify, R: Reading>(
     ray.color = color;
     ray.weight = weight;
     stop
+}
+
+/// A run through the interior: its storage's whole cells, the leap map that says which
+/// cells are empty (none where the slab carries no skipping), and its last sample.
+struct Inside<'c, 'a, U> {
+    cells: &'c Cells<'a, U>,
+    leaps: Option<&'c CellLeaps<'a>>,
+    end: u32,
+}
+
+/// Where a run through the interior stopped.
+enum Run {
+    /// Past its last sample.
+    Done,
+    /// At a sample in a cell the leap map calls empty: the cell's low corner (whole floats)
+    /// and its distance.
+    Empty { cell: Vec4, distance: u8 },
+    /// At a sample the storage cannot give whole (not in an interior the storage defines:
+    /// never, but the general step can read anything).
+    Unread,
+    /// Too little light left.
+    Terminated,
+}
+
+/// The samples from `ray.k` through `inside.end`, all in the interior: no clamp, no owner, no
+/// range check per corner, and of the skipping only the cell's leap distance. The same
+/// operations as the general step on each sample (its corner, fractions, read,
+/// classification, shading and compositing), so the same bits and the same counts.
+#[allow(
+    clippy::too_many_arguments,
+    reason = "inlined into one caller; the arguments are the loop's state"
+)]
+#[inline(always)]
+fn run<T: Sample, C: Classify, R: Reading<T>>(
+    view: &View,
+    slab: &Slab<'_, T>,
+    classify: &C,
+    read: R,
+    inside: &Inside<'_, '_, R::Node>,
+    light: &Unshadowed<'_>,
+    ray: &mut RayState,
+    (color, weight): (&mut Vec3, &mut f32),
+    counters: &mut Counters,
+) -> Run {
+    let (lattice, r, cutoff) = (ray.lattice, ray.ray, view.spec().cutoff);
+    let mut k = ray.k;
+    let mut last_read = None;
+    let end = loop {
+        if k > inside.end {
+            break Run::Done;
+        }
+        let q = r.at4(lattice.t(k));
+        let (cell, lo) = field::interior_corner(q);
+        if let Some(leaps) = inside.leaps {
+            let distance = leaps.distance(lo);
+            if distance != 0 {
+                break Run::Empty { cell, distance };
+            }
+        }
+        let Some(nodes) = inside.cells.at(lo) else {
+            break Run::Unread;
+        };
+        let frac = (q - cell).truncate();
+        counters.samples += 1;
+        let (v, gradient) = read.read_cell(slab, nodes, frac, counters);
+        let (alpha, base) = classify.classify(view, &lattice, k, v);
+        last_read = Some(v);
+        k += 1;
+        if alpha > 0.0 {
+            let site = Site {
+                lo,
+                hi: lo.map(|c| c + 1),
+                frac,
+            };
+            let lit = light.color(
+                slab,
+                base,
+                (q.truncate(), &site, gradient),
+                r.dir_world,
+                counters,
+            );
+            *color += lit * (*weight * alpha);
+            *weight *= 1.0 - alpha;
+            if !(*weight > cutoff) {
+                counters.early_terminations += 1;
+                break Run::Terminated;
+            }
+        }
+    };
+    ray.k = k;
+    if let Some(v) = last_read {
+        ray.prev = v;
+        ray.primed = true;
+    }
+    end
 }

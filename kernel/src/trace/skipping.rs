@@ -124,6 +124,36 @@ impl<'s> Skipper<'s> {
         }
     }
 
+    /// What a run through the slab's interior ([`crate::trace::interior`]) asks of the
+    /// skipping at each sample, where that is one question of the sample's cell: its distance
+    /// in the cell leap map (`Some(Some(map))`), or nothing (`Some(None)`: the slab carries no
+    /// skipping structures). `None` where [`Skipper::empty_run`] asks more of a sample (block
+    /// verdicts, cell masks).
+    #[inline]
+    pub(crate) fn per_cell(&self) -> Option<Option<CellLeaps<'s>>> {
+        match (&self.blocks, self.cell_leaps) {
+            (None, _) => Some(None),
+            (Some(_), Some(leaps)) => Some(Some(leaps)),
+            (Some(_), None) => None,
+        }
+    }
+
+    /// The last sample of the cell leaps from `ray.k`, a cell-model sample in an owned plane,
+    /// in the cell whose low corner is `cell` (whole floats), at `distance` (at least 1) in
+    /// `leaps`, the map [`Skipper::per_cell`] gave: what [`Skipper::empty_run`] answers there.
+    #[inline]
+    pub(crate) fn leap_cells<T: Sample>(
+        &mut self,
+        slab: &Slab<'_, T>,
+        ray: &RayState,
+        leaps: &CellLeaps<'_>,
+        cell: Vec4,
+        distance: u8,
+    ) -> u32 {
+        let exits = self.exits.get_or_insert_with(|| Exits::new(ray));
+        cell_leap(ray, slab, leaps, cell, distance, exits)
+    }
+
     /// The last sample of a run from `ray.k` (at `probe`, in an owned plane) in which no
     /// sample contributes to `view`; `None` where sample `ray.k` may. `may_skip` is whether
     /// the ray's state lets it skip at all ([`View::may_skip`]).

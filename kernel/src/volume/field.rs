@@ -228,25 +228,55 @@ pub fn trilinear<T: Sample>(slab: &Slab<'_, T>, p: Vec3, counters: &mut Counters
 fn interpolate<T: Sample>(slab: &Slab<'_, T>, site: &Site, counters: &mut Counters) -> f32 {
     counters.interpolations += 1;
     let ([x0, y0, z0], [x1, y1, z1]) = (site.lo, site.hi);
+    let (low, high) = match slab.cell((x0, x1), (y0, y1), (z0, z1)) {
+        Some(cell) => x_lanes(cell),
+        None => cell_missing(slab, (x0, x1), (y0, y1), (z0, z1), counters),
+    };
+    lerp_x_lanes(low, high, site.frac)
+}
+
+/// The trilinear interpolation of a cell's eight nodes (corner bits `z y x` from 000 to 111)
+/// at fractions `frac`: in every bit the value [`trilinear`] finds for a point there.
+#[inline(always)]
+pub(crate) fn lerp_cell<T: Sample>(cell: [T; 8], frac: Vec3) -> f32 {
+    let (low, high) = x_lanes(cell);
+    lerp_x_lanes(low, high, frac)
+}
+
+/// A cell's low-x and high-x nodes as the four lerps along X take them. The lanes are built
+/// from the loaded values directly: going through an array on the stack costs a
+/// store-forwarding stall.
+#[inline(always)]
+fn x_lanes<T: Sample>(cell: [T; 8]) -> (Vec4, Vec4) {
+    let [c000, c100, c010, c110, c001, c101, c011, c111] = cell;
+    (
+        Vec4::new(c000.to_f32(), c010.to_f32(), c001.to_f32(), c011.to_f32()),
+        Vec4::new(c100.to_f32(), c110.to_f32(), c101.to_f32(), c111.to_f32()),
+    )
+}
+
+/// The four lerps along X, one per lane, then Y and Z. Each lane rounds exactly as the
+/// scalar `lerp` (glam never fuses), and all four lanes hold data: left to itself the compiler
+/// packs two lanes and leaves stale values in the others, which can be subnormal and stall
+/// every multiply that follows.
+#[inline(always)]
+fn lerp_x_lanes(low: Vec4, high: Vec4, frac: Vec3) -> f32 {
     let Vec3 {
         x: fx,
         y: fy,
         z: fz,
-    } = site.frac;
-    // The four lerps along x, one per lane: each lane rounds exactly as the scalar `lerp`
-    // (glam never fuses), and all four lanes hold data. Left to itself the compiler packs two
-    // lanes and leaves stale values in the others, which can be subnormal and stall every
-    // multiply that follows. The lanes are built from the loaded
-    // values directly: going through an array on the stack costs a store-forwarding stall.
-    let (low, high) = match slab.cell((x0, x1), (y0, y1), (z0, z1)) {
-        Some([c000, c100, c010, c110, c001, c101, c011, c111]) => (
-            Vec4::new(c000.to_f32(), c010.to_f32(), c001.to_f32(), c011.to_f32()),
-            Vec4::new(c100.to_f32(), c110.to_f32(), c101.to_f32(), c111.to_f32()),
-        ),
-        None => cell_missing(slab, (x0, x1), (y0, y1), (z0, z1), counters),
-    };
+    } = frac;
     let [c00, c10, c01, c11] = (low + Vec4::splat(fx) * (high - low)).to_array();
     lerp(lerp(c00, c10, fy), lerp(c01, c11, fy), fz)
+}
+
+/// The cell-model corner of a point `q` in the grid's interior (every axis strictly between
+/// 0 and the last node, where [`corner4`]'s clamp changes nothing): `trunc(q)` as whole
+/// floats and as integers, in every bit the corner [`corner4`] and [`cell4`] find there.
+#[inline(always)]
+pub(crate) fn interior_corner(q: Vec4) -> (Vec4, [u32; 3]) {
+    let cell = q.trunc();
+    (cell, whole_lanes(cell))
 }
 
 /// The trilinear value at four points at once, the four rays of a packet in the four SIMD

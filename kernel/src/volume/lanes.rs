@@ -5,6 +5,7 @@
 //! Invariant: [`Lanes::unpack`] gives back in every bit the lanes [`Lanes::pack`] took, for
 //! every node of the sample kind that stores them so; a field is read only inside its planes.
 
+use crate::volume::cells::Cells;
 use crate::volume::grid::Grid;
 use core::fmt;
 use core::ops::Range;
@@ -119,6 +120,12 @@ impl<'a, N: Lanes> Nodes<'a, N> {
     /// The planes it holds.
     pub fn planes(&self) -> Range<u32> {
         self.first..self.end
+    }
+
+    /// Its planes as whole cells: what a run through a slab's interior reads.
+    #[inline]
+    pub fn cells(&self) -> Cells<'a, N> {
+        Cells::new(self.data, self.planes(), self.ny as u32, self.nz as u32)
     }
 
     /// The lanes of the eight nodes of the cell from node `lo` to node `hi` (equal or

@@ -4,6 +4,7 @@
 //! Invariant: every read a node makes lies in its stored planes; the ghost planes are wide
 //! enough for the interpolation and gradient stencils, so no node asks another for voxels.
 
+pub mod cells;
 pub mod field;
 pub mod grid;
 pub mod lanes;

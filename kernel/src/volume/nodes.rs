@@ -136,9 +136,15 @@ pub fn lanes_at<T: Sample>(
         Some(corners) => corners,
         None => on_the_fly(slab, site, counters),
     };
-    let frac = site.frac.to_array().map(Vec4::splat);
-    let [v, dx, dy, dz] = field::lerp_corners(corners, frac).to_array();
-    (v, Vec3::new(dx, dy, dz) * 0.5 * slab.grid().inv_spacing())
+    lerp_lanes(corners, site.frac, slab.grid().inv_spacing())
+}
+
+/// A cell's eight nodes' lanes interpolated at fractions `frac`: the value, and the gradient
+/// (the differences halved, per world unit along each axis).
+#[inline(always)]
+pub(crate) fn lerp_lanes(corners: [Vec4; 8], frac: Vec3, inv_spacing: Vec3) -> (f32, Vec3) {
+    let [v, dx, dy, dz] = field::lerp_corners(corners, frac.to_array().map(Vec4::splat)).to_array();
+    (v, Vec3::new(dx, dy, dz) * 0.5 * inv_spacing)
 }
 
 /// The lanes of a cell's eight nodes from the slab itself, where no field is held: from the

@@ -8,6 +8,7 @@
 //! tests assert the count stays zero, which proves `g` wide enough.
 
 use crate::skip::blocks::Blocks;
+use crate::volume::cells::Cells;
 use crate::volume::grid::Grid;
 use crate::volume::lanes::{corners, Nodes};
 use crate::volume::sample::Sample;
@@ -245,6 +246,13 @@ impl<'a, T: Sample> Slab<'a, T> {
             (z.1 - z.0) as usize * ny,
         ];
         corners(self.data, base, steps)
+    }
+
+    /// The stored planes as whole cells: what a run through the slab's interior reads.
+    #[inline]
+    pub fn cells(&self) -> Cells<'a, T> {
+        let [_, ny, nz] = self.grid.dims();
+        Cells::new(self.data, self.stored(), ny, nz)
     }
 
     /// The sample at grid node `(x, y, z)`, or `None` outside the stored planes or the grid.
