@@ -82,6 +82,50 @@ impl<'a> CellLeaps<'a> {
     }
 }
 
+/// A cell leap map known to hold every cell of a box: read there without the per-axis tests
+/// of [`CellLeaps::distance`], which a loop through the box would repeat on every sample.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HeldLeaps<'a> {
+    leaps: CellLeaps<'a>,
+}
+
+impl<'a> HeldLeaps<'a> {
+    /// The map it reads.
+    pub fn leaps(&self) -> &CellLeaps<'a> {
+        &self.leaps
+    }
+
+    /// [`CellLeaps::distance`] of a cell of the box it was found for
+    /// ([`CellLeaps::holding`]). A cell outside the box reads some cell's distance or 0, never
+    /// a panic: the box is the caller's to keep.
+    #[inline(always)]
+    pub fn distance(&self, [x, y, z]: [u32; 3]) -> u8 {
+        let m = &self.leaps;
+        let i = (z as usize * m.height as usize + y as usize) * m.width as usize
+            + x.wrapping_sub(m.x0) as usize;
+        m.map.get(i).copied().unwrap_or(0)
+    }
+}
+
+impl<'a> CellLeaps<'a> {
+    /// The map as [`HeldLeaps`] for the cells whose low corner has X in `x`, Y below `y_end`
+    /// and Z below `z_end`, where it holds them all; `None` where it does not.
+    pub fn holding(
+        &self,
+        x: core::ops::Range<u32>,
+        y_end: u32,
+        z_end: u32,
+    ) -> Option<HeldLeaps<'a>> {
+        let row = self.width as usize * self.height as usize;
+        let depth = self.map.len().checked_div(row)?;
+        let held = x.start >= self.x0
+            && x.end.saturating_sub(self.x0) <= self.width
+            && y_end <= self.height
+            && z_end as usize <= depth;
+        held.then_some(HeldLeaps { leaps: *self })
+    }
+}
+
 /// Fill `out` (a byte per cell of `blocks`' columns, [`PER_BLOCK`] per block) with each
 /// cell's chessboard distance, for rays of `octant`, to the nearest cell ahead that the
 /// blocks' cell masks say may show. Blocks without masks show everywhere: every distance is 0.
@@ -468,5 +512,44 @@ mod tests {
         ahead(&mut d, dims, Octant::from_index(1), |row, _, _| row[0] = 0);
         assert_eq!(&d[..4], &[0, 1, 2, 3]);
         assert_eq!(d[40], 32);
+    }
+}
+
+#[cfg(test)]
+mod held_tests {
+    use super::*;
+    use crate::skip::blocks::Range;
+    use crate::volume::grid::Grid;
+    use glam::Vec3;
+
+    #[test]
+    fn a_held_map_reads_the_distances_of_its_box_and_a_box_past_the_map_is_not_held() {
+        // Planes 3..14 stored: four block columns of two by three blocks.
+        const BLOCKS: usize = 4 * 2 * 3;
+        let grid = Grid::new([14, 9, 10], Vec3::ONE).unwrap();
+        let blocks = Blocks::new(&grid, 3..14, &[Range::UNKNOWN; BLOCKS]).unwrap();
+        let bytes: [u8; BLOCKS * PER_BLOCK] = core::array::from_fn(|i| (i % 7) as u8);
+        let map = CellLeaps::new(&blocks, &bytes).unwrap();
+        let x0 = blocks.first_column() * BLOCK;
+        let (cols, ny, nz) = blocks.shape();
+        let (x1, y_end, z_end) = (x0 + cols * BLOCK, ny * BLOCK, nz * BLOCK);
+        let held = map.holding(x0..x1, y_end, z_end).unwrap();
+        let mut nonzero = 0;
+        for x in x0..x1 {
+            for y in 0..y_end {
+                for z in 0..z_end {
+                    let d = held.distance([x, y, z]);
+                    assert_eq!(d, map.distance([x, y, z]), "{x} {y} {z}");
+                    nonzero += usize::from(d != 0);
+                }
+            }
+        }
+        assert!(nonzero > 0);
+        assert!(map.holding(x0 + 1..x1 + 1, y_end, z_end).is_none());
+        assert!(map.holding(x0..x1 + 1, y_end, z_end).is_none());
+        assert!(map.holding(x0..x1, y_end + 1, z_end).is_none());
+        assert!(map.holding(x0..x1, y_end, z_end + 1).is_none());
+        // Outside the box, never a panic.
+        let _ = held.distance([u32::MAX; 3]);
     }
 }

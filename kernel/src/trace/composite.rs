@@ -13,14 +13,14 @@
 use crate::counters::Counters;
 use crate::optics::classify::Classified;
 use crate::optics::transfer::{corrected_opacity, TransferFunction};
-use crate::skip::cell_leaps::CellLeaps;
+use crate::skip::cell_leaps::HeldLeaps;
 use crate::trace::interior::Interior;
 use crate::trace::lattice::Lattice;
 use crate::trace::lighting::Unshadowed;
 use crate::trace::skipping::{skip_to, Probe, Skipper};
 use crate::trace::state::{RayState, Stop};
 use crate::trace::view::View;
-use crate::volume::cells::Cells;
+use crate::volume::cells::{Cells, HeldCells};
 use crate::volume::field::{self, Site};
 use crate::volume::grid::Model;
 use crate::volume::lanes::Lanes as NodeLanes;
@@ -236,7 +236,8 @@ fn samples<T: Sample, C: Classify, R: Reading<T>>(
     skipper.pass_depth_bound(view, slab, ray, true, counters);
     let light = Unshadowed::new(view);
     // Where the interior's samples need no more of the skipping than their cell's leap
-    // distance, and the storage holds whole cells there.
+    // distance (from a map that holds every cell inside), and the storage holds whole cells
+    // there.
     let inner = match (spec.model, skipper.per_cell(), R::cells(slab)) {
         (Model::Cell, Some(leaps), Some(cells)) => {
             let owned = slab.owned();
@@ -245,7 +246,14 @@ fn samples<T: Sample, C: Classify, R: Reading<T>>(
                 grid,
                 owned.start.max(planes.start)..owned.end.min(planes.end),
             )
-            .map(|interior| (interior, cells, leaps))
+            .and_then(|interior| {
+                let (x, y_end, z_end) = interior.cells();
+                let held = match leaps {
+                    Some(leaps) => Some(leaps.holding(x.clone(), y_end, z_end)?),
+                    None => None,
+                };
+                Some((interior, cells.holding(x, y_end, z_end)?, held))
+            })
         }
         _ => None,
     };
@@ -259,26 +267,30 @@ fn samples<T: Sample, C: Classify, R: Reading<T>>(
         }
         if let (Some(end), Some((_, cells, leaps))) = (inside_to, &inner) {
             if ray.k <= end {
-                let inside = Inside {
-                    cells,
-                    leaps: leaps.as_ref(),
-                    end,
+                let lit = (&light, &mut color, &mut weight);
+                let ran = match leaps {
+                    Some(leaps) => {
+                        let inside = Inside {
+                            cells,
+                            test: leaps,
+                            end,
+                        };
+                        run(view, slab, classify, read, &inside, ray, lit, counters)
+                    }
+                    None => {
+                        let inside = Inside {
+                            cells,
+                            test: &EveryCell,
+                            end,
+                        };
+                        run(view, slab, classify, read, &inside, ray, lit, counters)
+                    }
                 };
-                match run(
-                    view,
-                    slab,
-                    classify,
-                    read,
-                    &inside,
-                    &light,
-                    ray,
-                    (&mut color, &mut weight),
-                    counters,
-                ) {
+                match ran {
                     Run::Done => continue,
                     Run::Empty { cell, distance } => {
                         if let Some(leaps) = leaps {
-                            let last = skipper.leap_cells(slab, ray, leaps, cell, distance);
+                            let last = skipper.leap_cells(slab, ray, leaps.leaps(), cell, distance);
                             skip_to(view, ray, last, counters);
                             continue;
                         }
@@ -336,12 +348,35 @@ fn samples<T: Sample, C: Classify, R: Reading<T>>(
     stop
 }
 
-/// A run through the interior: its storage's whole cells, the leap map that says which
-/// cells are empty (none where the slab carries no skipping), and its last sample.
-struct Inside<'c, 'a, U> {
-    cells: &'c Cells<'a, U>,
-    leaps: Option<&'c CellLeaps<'a>>,
+/// A run through the interior: its storage's whole cells, what says which cells are empty,
+/// and its last sample.
+struct Inside<'c, 'a, U, E> {
+    cells: &'c HeldCells<'a, U>,
+    test: &'c E,
     end: u32,
+}
+
+/// What a run through the interior asks of a sample's cell before reading it: its distance
+/// in a cell leap map, 0 where the cell may show.
+trait CellTest {
+    fn distance(&self, lo: [u32; 3]) -> u8;
+}
+
+/// The slab carries no skipping structures: every cell may show.
+struct EveryCell;
+
+impl CellTest for EveryCell {
+    #[inline(always)]
+    fn distance(&self, _: [u32; 3]) -> u8 {
+        0
+    }
+}
+
+impl CellTest for HeldLeaps<'_> {
+    #[inline(always)]
+    fn distance(&self, lo: [u32; 3]) -> u8 {
+        HeldLeaps::distance(self, lo)
+    }
 }
 
 /// Where a run through the interior stopped.
@@ -367,15 +402,14 @@ enum Run {
     reason = "inlined into one caller; the arguments are the loop's state"
 )]
 #[inline(always)]
-fn run<T: Sample, C: Classify, R: Reading<T>>(
+fn run<T: Sample, C: Classify, R: Reading<T>, E: CellTest>(
     view: &View,
     slab: &Slab<'_, T>,
     classify: &C,
     read: R,
-    inside: &Inside<'_, '_, R::Node>,
-    light: &Unshadowed<'_>,
+    inside: &Inside<'_, '_, R::Node, E>,
     ray: &mut RayState,
-    (color, weight): (&mut Vec3, &mut f32),
+    (light, color, weight): (&Unshadowed<'_>, &mut Vec3, &mut f32),
     counters: &mut Counters,
 ) -> Run {
     let (lattice, r, cutoff) = (ray.lattice, ray.ray, view.spec().cutoff);
@@ -387,11 +421,9 @@ fn run<T: Sample, C: Classify, R: Reading<T>>(
         }
         let q = r.at4(lattice.t(k));
         let (cell, lo) = field::interior_corner(q);
-        if let Some(leaps) = inside.leaps {
-            let distance = leaps.distance(lo);
-            if distance != 0 {
-                break Run::Empty { cell, distance };
-            }
+        let distance = inside.test.distance(lo);
+        if distance != 0 {
+            break Run::Empty { cell, distance };
         }
         let Some(nodes) = inside.cells.at(lo) else {
             break Run::Unread;

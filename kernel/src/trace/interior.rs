@@ -42,6 +42,14 @@ impl Interior {
         })
     }
 
+    /// The cells inside: their low corners' X planes, and the Y and Z past the last.
+    pub(crate) fn cells(&self) -> (Range<u32>, u32, u32) {
+        // Whole numbers below 2^24, exactly.
+        let [x0, ..] = self.floor.to_array().map(|c| c as u32);
+        let [x1, y1, z1, _] = self.ceiling.to_array().map(|c| c as u32);
+        (x0..x1, y1, z1)
+    }
+
     /// Whether the index-space point in the first three lanes of `q` is inside (never for a
     /// NaN lane).
     #[inline(always)]

@@ -2,10 +2,11 @@
 //! interior runs of a composited ray read them: a cell's eight items at one offset and three
 //! strides fixed for the storage, under one range check.
 //!
-//! Invariant: for a cell whose low corner `lo` has `lo + 1` inside the grid on every axis and
-//! both X planes in the storage, [`Cells::at`] gives exactly the items
-//! [`crate::volume::slab::Slab::cell`] (or [`crate::volume::lanes::Nodes::cell`]) gives for
-//! the cell from `lo` to `lo + 1` (tested); any other `lo` gives `None`, never a panic.
+//! Invariant: a box of cells is held ([`Cells::holding`]) only where each of its cells has
+//! `lo + 1` inside the grid on every axis and both X planes in the storage; there
+//! [`HeldCells::at`] gives exactly the items [`crate::volume::slab::Slab::cell`] (or
+//! [`crate::volume::lanes::Nodes::cell`]) gives for the cell from `lo` to `lo + 1` (tested).
+//! Nothing it is asked panics.
 
 use crate::volume::lanes::corners;
 use core::ops::Range;
@@ -19,9 +20,9 @@ pub struct Cells<'a, U> {
     /// Items from one row (Z) to the next, and from one plane (X) to the next.
     row: usize,
     plane: usize,
-    /// The greatest low corner along Y and Z of a whole cell.
-    last_y: u32,
-    last_z: u32,
+    /// Whole cells along Y and Z: one fewer than the nodes.
+    rows_of_cells: u32,
+    layers_of_cells: u32,
 }
 
 impl<'a, U: Copy> Cells<'a, U> {
@@ -41,8 +42,8 @@ impl<'a, U: Copy> Cells<'a, U> {
             end,
             row,
             plane: row * nz as usize,
-            last_y: ny.saturating_sub(2),
-            last_z: nz.saturating_sub(2),
+            rows_of_cells: ny.saturating_sub(1),
+            layers_of_cells: nz.saturating_sub(1),
         }
     }
 
@@ -51,18 +52,38 @@ impl<'a, U: Copy> Cells<'a, U> {
         self.first..self.end.saturating_sub(1).max(self.first)
     }
 
-    /// The eight items of the cell whose low corner is `lo`, ordered by corner bits `z y x`
-    /// from 000 to 111; `None` unless the whole cell is stored.
+    /// The cells as [`HeldCells`] for the cells whose low corner has X in `x`, Y below
+    /// `y_end` and Z below `z_end`, where every one of them is stored whole; `None` where
+    /// some is not.
+    pub fn holding(&self, x: Range<u32>, y_end: u32, z_end: u32) -> Option<HeldCells<'a, U>> {
+        let held = x.start >= self.first
+            && x.end <= self.cell_planes().end
+            && y_end <= self.rows_of_cells
+            && z_end <= self.layers_of_cells
+            && self.end > self.first;
+        held.then_some(HeldCells { cells: *self })
+    }
+}
+
+/// Storage known to hold every cell of a box whole: a cell read there with none of the
+/// per-axis tests a loop through the box would repeat on every sample.
+#[derive(Clone, Copy, Debug)]
+pub struct HeldCells<'a, U> {
+    cells: Cells<'a, U>,
+}
+
+impl<U: Copy> HeldCells<'_, U> {
+    /// The eight items of the cell of the box ([`Cells::holding`]) whose low corner is `lo`,
+    /// ordered by corner bits `z y x` from 000 to 111. A cell outside the box gives some
+    /// cell's items or `None`, never a panic: the box is the caller's to keep.
     #[inline(always)]
     pub fn at(&self, [x, y, z]: [u32; 3]) -> Option<[U; 8]> {
-        // A cell past the grid's last along Y or Z would read the next row's; past the last
-        // stored plane, the slice check refuses its far corner.
-        if y > self.last_y || z > self.last_z || x >= self.end {
-            return None;
-        }
-        let x = x.checked_sub(self.first)?;
-        let base = x as usize * self.plane + z as usize * self.row + y as usize;
-        corners(self.data, base, [self.plane, 1, self.row])
+        let c = &self.cells;
+        let base = (x.wrapping_sub(c.first) as usize)
+            .wrapping_mul(c.plane)
+            .wrapping_add((z as usize).wrapping_mul(c.row))
+            .wrapping_add(y as usize);
+        corners(c.data, base, [c.plane, 1, c.row])
     }
 }
 
@@ -74,7 +95,7 @@ mod tests {
     use glam::Vec3;
 
     #[test]
-    fn a_whole_cell_reads_what_the_slab_and_the_node_field_read_and_no_other_does() {
+    fn a_held_cell_reads_what_the_slab_and_the_node_field_read() {
         let grid = Grid::new([7, 5, 4], Vec3::ONE).unwrap();
         let data: [u8; 5 * 20] = core::array::from_fn(|i| (i * 37 % 251) as u8);
         // Planes 2..5 owned, 1..6 stored.
@@ -84,26 +105,48 @@ mod tests {
         let (cells, node_cells) = (slab.cells(), nodes.cells());
         assert_eq!(cells.cell_planes(), 1..5);
         assert_eq!(node_cells.cell_planes(), 2..4);
-        let mut whole = 0;
-        for x in 0..9 {
-            for y in 0..7 {
-                for z in 0..6 {
-                    let up = |c: u32| (c, c + 1);
-                    let fits = y + 1 < 5 && z + 1 < 4;
-                    let expected = slab.cell(up(x), up(y), up(z)).filter(|_| fits);
-                    assert_eq!(cells.at([x, y, z]), expected, "{x} {y} {z}");
-                    whole += usize::from(expected.is_some());
-                    let expected = nodes
-                        .cell([x, y, z], [x + 1, y + 1, z + 1])
-                        .filter(|_| fits);
-                    let read = node_cells.at([x, y, z]).map(|c| c.map(Lanes::unpack));
-                    assert_eq!(read, expected, "nodes {x} {y} {z}");
+        let held = cells.holding(1..5, 4, 3).unwrap();
+        let held_nodes = node_cells.holding(2..4, 4, 3).unwrap();
+        let up = |c: u32| (c, c + 1);
+        let mut read = 0;
+        for x in 1..5 {
+            for y in 0..4 {
+                for z in 0..3 {
+                    let expected = slab.cell(up(x), up(y), up(z));
+                    assert!(expected.is_some());
+                    assert_eq!(held.at([x, y, z]), expected, "{x} {y} {z}");
+                    read += 1;
+                    if (2..4).contains(&x) {
+                        let expected = nodes.cell([x, y, z], [x + 1, y + 1, z + 1]);
+                        let lanes = held_nodes.at([x, y, z]).map(|c| c.map(Lanes::unpack));
+                        assert!(expected.is_some());
+                        assert_eq!(lanes, expected, "nodes {x} {y} {z}");
+                    }
                 }
             }
         }
-        assert_eq!(whole, 4 * 4 * 3);
-        // Far past the grid, never a panic.
-        assert_eq!(cells.at([u32::MAX, u32::MAX, u32::MAX]), None);
-        assert_eq!(cells.at([u32::MAX, 0, 0]), None);
+        assert_eq!(read, 4 * 4 * 3);
+        // Far outside the box, never a panic.
+        for lo in [[u32::MAX; 3], [u32::MAX, 0, 0], [0, u32::MAX, 0], [6, 4, 3]] {
+            let _ = held.at(lo);
+        }
+    }
+
+    #[test]
+    fn a_box_with_a_cell_not_stored_whole_is_not_held() {
+        let grid = Grid::new([7, 5, 4], Vec3::ONE).unwrap();
+        let data = [0u8; 5 * 20];
+        let cells = Slab::new(grid, 2..5, 1, &data).unwrap().cells();
+        assert!(cells.holding(1..5, 4, 3).is_some());
+        // One plane further, one row or one layer more: a corner past the storage or the grid.
+        assert!(cells.holding(0..5, 4, 3).is_none());
+        assert!(cells.holding(1..6, 4, 3).is_none());
+        assert!(cells.holding(1..5, 5, 3).is_none());
+        assert!(cells.holding(1..5, 4, 4).is_none());
+        // A grid one node thin holds no cell.
+        let thin = Grid::new([7, 1, 4], Vec3::ONE).unwrap();
+        let data = [0u8; 5 * 4];
+        let cells = Slab::new(thin, 2..5, 1, &data).unwrap().cells();
+        assert!(cells.holding(1..5, 0, 3).is_none());
     }
 }
