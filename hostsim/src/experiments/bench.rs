@@ -237,6 +237,16 @@ pub fn machines(cores: u32, size: Size) -> Vec<(String, Machine)> {
             format!("threads, {cores} clusters of 1"),
             Machine::new(Fabric::Threads, cores, cores, 1),
         ),
+        // The same on nodes with this host's memory (the modern profile), as VTK has: room
+        // for the fast tier's node field beside the slab, which an nCUBE 2 node lacks.
+        (
+            format!("threads, {cores} clusters of 1, modern nodes"),
+            Machine {
+                profile: crate::budget::Profile::builtin("modern")
+                    .unwrap_or_else(crate::budget::Profile::ncube2),
+                ..Machine::new(Fabric::Threads, cores, cores, 1)
+            },
+        ),
     ];
     if size == Size::PAPER {
         // What leaping over empty blocks, skipping single empty cells, leaping from cell to
@@ -371,13 +381,13 @@ pub fn run(
 /// The table, then the targets.
 pub fn table(rows: &[Row], runs: usize) -> String {
     let mut out = format!(
-        "{:<9} {:<17} {:<14} {:<28} {:>9} {:>11} {:>8}\n",
+        "{:<9} {:<17} {:<14} {:<39} {:>9} {:>11} {:>8}\n",
         "dataset", "size", "view", "machine", "ms/frame", "samples/s", "skipped"
     );
     for r in rows {
         let _ = writeln!(
             out,
-            "{:<9} {:<17} {:<14} {:<28} {:>9.1} {:>9.1} M {:>7.1}%",
+            "{:<9} {:<17} {:<14} {:<39} {:>9.1} {:>9.1} M {:>7.1}%",
             r.dataset,
             r.size.label(),
             r.view,
@@ -418,14 +428,19 @@ pub fn versus_vtk(rows: &[Row], vtk: Option<super::peer::VtkTimes>) -> String {
             t.as_secs_f64() * 1e3
         ))
     );
+    // The faster of the image-partitioned rows on every core (nCUBE 2 nodes, or nodes with
+    // this host's memory).
     let mut ratio = |view: &str, size: Size| {
-        let r = rows.iter().find(|r| {
-            r.dataset == "sod"
-                && r.size == size
-                && r.view == view
-                && r.config.starts_with("threads, ")
-                && r.config.contains("clusters of 1")
-        })?;
+        let r = rows
+            .iter()
+            .filter(|r| {
+                r.dataset == "sod"
+                    && r.size == size
+                    && r.view == view
+                    && r.config.starts_with("threads, ")
+                    && r.config.contains("clusters of 1")
+            })
+            .min_by_key(|r| r.median)?;
         let peer = match (view, size == Size::PAPER) {
             ("surfaces", true) => vtk.surface,
             (_, true) => vtk.composite,
@@ -688,6 +703,14 @@ mod tests {
                 Size::PAPER,
                 FAST_VIEW,
                 "threads, 2 clusters of 1",
+                180,
+            ),
+            // The faster of the two image-partitioned rows is the one judged.
+            row(
+                "sod",
+                Size::PAPER,
+                FAST_VIEW,
+                "threads, 2 clusters of 1, modern nodes",
                 150,
             ),
             row(
@@ -725,7 +748,9 @@ mod tests {
             "{text}"
         );
         assert!(
-            text.contains("composite-fast     150.0 ms = 1.00x"),
+            text.contains(
+                "composite-fast     150.0 ms = 1.00x VTK's time (threads, 2 clusters of 1, modern nodes)"
+            ),
             "{text}"
         );
         assert!(
