@@ -95,10 +95,10 @@ impl SkipMode {
 }
 
 /// Whether a node skipping as `mode` says holds a node field for `view`: where the view reads
-/// one ([`View::node_gradients`]) and `mode` holds it. The one rule the budget and the builds
+/// one ([`View::reads_node_field`]) and `mode` holds it. The one rule the budget and the builds
 /// both follow.
 pub fn holds_node_field(view: &View, mode: SkipMode) -> bool {
-    mode.nodes && view.node_gradients()
+    mode.nodes && view.reads_node_field()
 }
 
 /// Bytes per grid node of the node field a node skipping as `mode` says holds for `view` over

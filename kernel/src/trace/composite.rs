@@ -41,11 +41,18 @@ pub(crate) fn composite<T: Sample>(
     // Where the node field is held and the view shades by it, each sample reads its value and
     // gradient in one interpolation of the field's lanes.
     let lanes = view.node_gradients() && slab.nodes().is_some();
-    match (view.classified(), lanes) {
-        (Some(table), true) => samples(view, slab, &Tabled::of(table, ray), Lanes, ray, counters),
-        (Some(table), false) => samples(view, slab, &Tabled::of(table, ray), Value, ray, counters),
-        (None, true) => samples(view, slab, &ByFunction(tf), Lanes, ray, counters),
-        (None, false) => samples(view, slab, &ByFunction(tf), Value, ray, counters),
+    // The exact tier reads them so wherever that is its own gradient.
+    let central = view.exact_node_gradients() && slab.nodes().is_some();
+    match (view.classified(), lanes, central) {
+        (Some(table), true, _) => {
+            samples(view, slab, &Tabled::of(table, ray), Lanes, ray, counters)
+        }
+        (Some(table), false, _) => {
+            samples(view, slab, &Tabled::of(table, ray), Value, ray, counters)
+        }
+        (None, _, true) => samples(view, slab, &ByFunction(tf), GridLanes, ray, counters),
+        (None, true, false) => samples(view, slab, &ByFunction(tf), Lanes, ray, counters),
+        (None, false, false) => samples(view, slab, &ByFunction(tf), Value, ray, counters),
     }
 }
 
@@ -215,6 +222,44 @@ impl<T: Sample> Reading<T> for Value {
     ) -> (f32, Option<Vec3>) {
         counters.interpolations += 1;
         (field::lerp_cell(cell, frac), None)
+    }
+}
+
+/// The exact tier's reading where the node field is held: in the interior, whose points all
+/// lie in the grid ([`nodes::in_grid`]), the field's lanes, value and gradient in one
+/// interpolation, as [`Lanes`]; the general step reads the value alone and lets the shading
+/// choose by the same rule: the same bits either way.
+#[derive(Clone, Copy)]
+struct GridLanes;
+
+impl<T: Sample> Reading<T> for GridLanes {
+    type Node = T::Node;
+
+    #[inline(always)]
+    fn cells<'a>(slab: &Slab<'a, T>) -> Option<Cells<'a, T::Node>> {
+        <Lanes as Reading<T>>::cells(slab)
+    }
+
+    #[inline(always)]
+    fn read(
+        self,
+        view: &View,
+        slab: &Slab<'_, T>,
+        site: &Site,
+        counters: &mut Counters,
+    ) -> (f32, Option<Vec3>) {
+        Value.read(view, slab, site, counters)
+    }
+
+    #[inline(always)]
+    fn read_cell(
+        self,
+        slab: &Slab<'_, T>,
+        cell: [T::Node; 8],
+        frac: Vec3,
+        counters: &mut Counters,
+    ) -> (f32, Option<Vec3>) {
+        Lanes.read_cell(slab, cell, frac, counters)
     }
 }
 

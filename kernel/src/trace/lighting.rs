@@ -181,9 +181,9 @@ fn normal<T: Sample>(
         Some(n) => shade::face_viewer(n, view_dir),
         None => {
             let g = match known {
-                // Read with the sample's value, counted here as the read it stands for.
+                // Read with the sample's value, counted here as the reads it stands for.
                 Some(g) => {
-                    counters.interpolations += 1;
+                    counters.interpolations += view.interpolations_per_gradient();
                     counters.gradients += 1;
                     g
                 }
@@ -191,6 +191,22 @@ fn normal<T: Sample>(
                     let site = site.copied();
                     let site = site.unwrap_or_else(|| field::locate(slab.grid(), spec.model, p));
                     nodes::value_and_gradient(slab, &site, counters).1
+                }
+                None if view.exact_node_gradients() => {
+                    let site = site.copied();
+                    let site = site.unwrap_or_else(|| field::locate(slab.grid(), spec.model, p));
+                    match nodes::in_grid(slab.grid(), p) {
+                        // Counted as the six reads it stands for, as the paper's tracer
+                        // made them: the counts price the definition, not its evaluation.
+                        true => {
+                            counters.interpolations += view.interpolations_per_gradient();
+                            counters.gradients += 1;
+                            nodes::lanes_at(slab, &site, counters).1
+                        }
+                        false => {
+                            field::gradient(slab, spec.model, p, spec.gradient_distance, counters)
+                        }
+                    }
                 }
                 None => field::gradient(slab, spec.model, p, spec.gradient_distance, counters),
             };

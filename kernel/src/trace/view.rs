@@ -227,6 +227,9 @@ pub struct View {
     /// Whether shading reads gradients from the node field (fast tier, shaded, cell model,
     /// differences one cell apart).
     node_gradients: bool,
+    /// Whether the exact tier's shading reads a gradient from the nodes' differences where
+    /// that is its own definition re-associated ([`View::exact_node_gradients`]).
+    exact_node_gradients: bool,
     /// A test-only fault: the fast tier skips by the transfer function's own emptiness
     /// instead of its table's.
     #[cfg(feature = "mutants")]
@@ -318,14 +321,15 @@ impl View {
             (Some(s), Accuracy::Fast) if s.specular > 0.0 => Some(Highlights::new(s)),
             _ => None,
         };
-        let node_gradients = spec.accuracy == Accuracy::Fast
-            && spec.shading.is_some()
-            && spec.model == Model::Cell
-            && spec.gradient_distance == 1.0;
+        let by_nodes =
+            spec.shading.is_some() && spec.model == Model::Cell && spec.gradient_distance == 1.0;
+        let node_gradients = by_nodes && spec.accuracy == Accuracy::Fast;
+        let exact_node_gradients = by_nodes && spec.accuracy == Accuracy::Exact;
         Ok(View {
             classified,
             highlights,
             node_gradients,
+            exact_node_gradients,
             dt_world: spec.dt * cell_edge,
             cell_edge,
             inv_spacing: grid.inv_spacing(),
@@ -397,6 +401,33 @@ impl View {
     #[inline]
     pub fn node_gradients(&self) -> bool {
         self.node_gradients
+    }
+
+    /// Whether the exact tier's shading reads the gradient of a point in the grid from the
+    /// nodes' central differences, interpolated ([`crate::volume::nodes::in_grid`]): there
+    /// the central difference of the trilinear field at one cell is, in exact arithmetic,
+    /// the interpolation of the nodes' differences, so the definition stands and only the
+    /// order of the roundings changes. A point outside the grid takes the six reads.
+    pub fn exact_node_gradients(&self) -> bool {
+        self.exact_node_gradients
+    }
+
+    /// The trilinear interpolations a gradient is counted as: one in the fast tier, whose
+    /// definition is the interpolation of the nodes' differences; six in the exact tier,
+    /// whose definition is the difference of six interpolations, however it is evaluated
+    /// (the counters, and the paper's simulated times, price what a tier defines).
+    #[inline]
+    pub fn interpolations_per_gradient(&self) -> u64 {
+        if self.node_gradients {
+            1
+        } else {
+            6
+        }
+    }
+
+    /// Whether shading reads the node field anywhere: a node holds it when it has room.
+    pub fn reads_node_field(&self) -> bool {
+        self.node_gradients || self.exact_node_gradients
     }
 
     /// The pre-classified transfer function, when the view composites in the fast tier.

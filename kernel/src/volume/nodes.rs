@@ -33,6 +33,20 @@ pub fn node<T: Sample>(slab: &Slab<'_, T>, [x, y, z]: [u32; 3], counters: &mut C
     Vec4::new(v, dx, dy, dz)
 }
 
+/// Whether index-space point `p` lies in `grid` (every coordinate in `[0, n − 1]`; never for
+/// NaN): there the central difference of the trilinear field at one cell is, in exact
+/// arithmetic, the interpolation of the nodes' differences at `p`'s fractions, axis by axis.
+/// Away from the faces each `f(p ± e)` interpolates the neighbouring cell at the same
+/// fractions; where `p ± e` leaves the grid its read is clamped onto the face node, which is
+/// the node a face's one-sided difference reads. Outside the grid the point itself is
+/// clamped and the two differ.
+#[inline]
+pub fn in_grid(grid: &Grid, p: Vec3) -> bool {
+    let (last_node, _) = grid.last_indices();
+    let p = p.extend(0.0);
+    (p.cmpge(Vec4::ZERO) & p.cmple(last_node)).bitmask() & 0b111 == 0b111
+}
+
 /// The planes whose nodes the field of a slab owning `owned` holds: those of its own samples'
 /// cells (the cell model's high corners lie one plane past the owned ones), and the plane
 /// before them, where a surface found between a predecessor's sample and the slab's first
@@ -220,6 +234,53 @@ mod tests {
 
     fn bits(v: Vec4) -> [u32; 4] {
         v.to_array().map(f32::to_bits)
+    }
+
+    /// The exact tier's rule ([`in_grid`]): at a point in the grid, the nodes' differences
+    /// interpolated are the central difference of the trilinear field up to rounding, near
+    /// the faces too; at a point outside, a different quantity, far beyond rounding (the
+    /// rule's negative control).
+    #[test]
+    fn in_the_grid_the_nodes_differences_are_the_exact_gradient_up_to_rounding() {
+        let (data, grid) = crate::testing::hashed_field();
+        let slab = Slab::whole(grid, &data).unwrap();
+        // The field's values reach 2^25 · 10⁻³: a few units in the last place of that, per
+        // world unit (spacing down to ½).
+        let tolerance = 64.0 * f32::EPSILON * 33_554.0 * 2.0;
+        let dims = grid.dims();
+        let mut next = crate::testing::xorshift(0x9e3d_c311);
+        let (mut inside, mut outside, mut far_apart) = (0, 0, 0);
+        for n in 0..40_000 {
+            // Half the points in the grid, a tenth of those on a face; half up to a cell out.
+            let mut p = Vec3::ZERO;
+            for a in 0..3 {
+                let last = (dims[a] - 1) as f32;
+                let unit = (next() >> 8) as f32 / (1 << 24) as f32;
+                p[a] = match (n % 2, next() % 10) {
+                    (0, 0) => [0.0, last][(next() % 2) as usize],
+                    (0, _) => unit * last,
+                    _ => unit * (last + 2.0) - 1.0,
+                };
+            }
+            let mut c = Counters::default();
+            let site = locate(&grid, Model::Cell, p);
+            let exact = field::gradient(&slab, Model::Cell, p, 1.0, &mut c);
+            let (_, lanes) = value_and_gradient(&slab, &site, &mut c);
+            let apart = (lanes - exact).abs().max_element();
+            if in_grid(&grid, p) {
+                inside += 1;
+                assert!(apart <= tolerance, "{p}: {lanes} against {exact}");
+            } else {
+                outside += 1;
+                far_apart += usize::from(apart > 1_000.0 * tolerance);
+            }
+        }
+        assert!(inside > 20_000 && outside > 5_000, "{inside} {outside}");
+        assert!(far_apart > outside / 2, "{far_apart} of {outside}");
+        assert!(in_grid(&grid, Vec3::ZERO) && in_grid(&grid, Vec3::new(8.0, 6.0, 7.0)));
+        assert!(!in_grid(&grid, Vec3::new(-0.001, 1.0, 1.0)));
+        assert!(!in_grid(&grid, Vec3::new(1.0, 6.001, 1.0)));
+        assert!(!in_grid(&grid, Vec3::new(1.0, 1.0, f32::NAN)));
     }
 
     /// A byte field with no structure: every node a different hash.
