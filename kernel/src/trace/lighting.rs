@@ -187,26 +187,18 @@ fn normal<T: Sample>(
                     counters.gradients += 1;
                     g
                 }
-                None if view.node_gradients() => {
+                // The nodes' differences, where the tier's gradient is read from them: the
+                // fast tier everywhere, the exact tier at points in the grid (there the same
+                // number as its six reads, [`View::exact_node_gradients`]). Counted as the
+                // reads the tier's definition makes.
+                None if view.node_gradients()
+                    || (view.exact_node_gradients() && nodes::in_grid(slab.grid(), p)) =>
+                {
                     let site = site.copied();
                     let site = site.unwrap_or_else(|| field::locate(slab.grid(), spec.model, p));
-                    nodes::value_and_gradient(slab, &site, counters).1
-                }
-                None if view.exact_node_gradients() => {
-                    let site = site.copied();
-                    let site = site.unwrap_or_else(|| field::locate(slab.grid(), spec.model, p));
-                    match nodes::in_grid(slab.grid(), p) {
-                        // Counted as the six reads it stands for, as the paper's tracer
-                        // made them: the counts price the definition, not its evaluation.
-                        true => {
-                            counters.interpolations += view.interpolations_per_gradient();
-                            counters.gradients += 1;
-                            nodes::lanes_at(slab, &site, counters).1
-                        }
-                        false => {
-                            field::gradient(slab, spec.model, p, spec.gradient_distance, counters)
-                        }
-                    }
+                    counters.interpolations += view.interpolations_per_gradient();
+                    counters.gradients += 1;
+                    nodes::lanes_at(slab, &site, counters).1
                 }
                 None => field::gradient(slab, spec.model, p, spec.gradient_distance, counters),
             };

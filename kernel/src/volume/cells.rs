@@ -8,7 +8,6 @@
 //! [`crate::volume::lanes::Nodes::cell`]) gives for the cell from `lo` to `lo + 1` (tested).
 //! Nothing it is asked panics.
 
-use crate::volume::lanes::corners;
 use core::ops::Range;
 
 /// Plane-major storage of some of a grid's X planes, rows along Z, nodes along Y.
@@ -85,6 +84,31 @@ impl<U: Copy> HeldCells<'_, U> {
             .wrapping_add(y as usize);
         corners(c.data, base, [c.plane, 1, c.row])
     }
+}
+
+/// The eight items of a cell in plane-major storage `data`, its low corner at `base` and its
+/// high corner `steps` items further along X, Y and Z (each zero or one node's stride),
+/// ordered by corner bits `z y x` from 000 to 111; `None` where any lies past `data`.
+#[inline(always)]
+pub(crate) fn corners<U: Copy>(
+    data: &[U],
+    base: usize,
+    [sx, sy, sz]: [usize; 3],
+) -> Option<[U; 8]> {
+    // One range check for the cell: the far corner's offset, summed without overflow, bounds
+    // every other corner's, which the compiler then sees need no check of their own.
+    let far = sx.checked_add(sy)?.checked_add(sz)?;
+    let cell = data.get(base..)?.get(..=far)?;
+    Some([
+        cell[0],
+        cell[sx],
+        cell[sy],
+        cell[sx + sy],
+        cell[sz],
+        cell[sx + sz],
+        cell[sy + sz],
+        cell[far],
+    ])
 }
 
 #[cfg(test)]

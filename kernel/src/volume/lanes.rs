@@ -5,7 +5,7 @@
 //! Invariant: [`Lanes::unpack`] gives back in every bit the lanes [`Lanes::pack`] took, for
 //! every node of the sample kind that stores them so; a field is read only inside its planes.
 
-use crate::volume::cells::Cells;
+use crate::volume::cells::{corners, Cells};
 use crate::volume::grid::Grid;
 use core::fmt;
 use core::ops::Range;
@@ -146,31 +146,6 @@ impl<'a, N: Lanes> Nodes<'a, N> {
         ];
         corners(self.data, base, steps).map(|c| c.map(N::unpack))
     }
-}
-
-/// The eight items of a cell in plane-major storage `data`, its low corner at `base` and its
-/// high corner `steps` items further along X, Y and Z (each zero or one node's stride),
-/// ordered by corner bits `z y x` from 000 to 111; `None` where any lies past `data`.
-#[inline(always)]
-pub(crate) fn corners<U: Copy>(
-    data: &[U],
-    base: usize,
-    [sx, sy, sz]: [usize; 3],
-) -> Option<[U; 8]> {
-    // One range check for the cell: the far corner's offset, summed without overflow, bounds
-    // every other corner's, which the compiler then sees need no check of their own.
-    let far = sx.checked_add(sy)?.checked_add(sz)?;
-    let cell = data.get(base..)?.get(..=far)?;
-    Some([
-        cell[0],
-        cell[sx],
-        cell[sy],
-        cell[sx + sy],
-        cell[sz],
-        cell[sx + sz],
-        cell[sy + sz],
-        cell[far],
-    ])
 }
 
 #[cfg(test)]

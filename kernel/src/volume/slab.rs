@@ -8,9 +8,9 @@
 //! tests assert the count stays zero, which proves `g` wide enough.
 
 use crate::skip::blocks::Blocks;
-use crate::volume::cells::Cells;
+use crate::volume::cells::{corners, Cells};
 use crate::volume::grid::Grid;
-use crate::volume::lanes::{corners, Nodes};
+use crate::volume::lanes::Nodes;
 use crate::volume::sample::Sample;
 use core::fmt;
 use core::ops::Range;
