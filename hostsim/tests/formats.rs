@@ -334,6 +334,13 @@ fn write_all(dir: &Path) -> Vec<(&'static str, String)> {
         "ElementByteOrderMSB = True",
     );
     w("msb.mha", &[msb.as_bytes(), &be(&v)].concat());
+    // The samples' bytes as zlib blocks, inline and appended (the fuzz pass's checked `.vti`).
+    // Blocks of 2,048 bytes: several to a file, the last one partly filled.
+    let bytes: Vec<u8> = v.iter().map(|&x| (x / 8).clamp(0, 255) as u8).collect();
+    w("zipped.vti", &vti_zlib(DIMS, &bytes, 2048, false));
+    w("appended.vti", &vti_zlib(DIMS, &bytes, 2048, true));
+    w("binary.vti", &vti_binary(DIMS, &bytes, false));
+    w("binary-appended.vti", &vti_binary(DIMS, &bytes, true));
     w("blob.vtk", &vtk_legacy(&v));
     // Density maps: i16 in file order; f32 with columns along Z, rows along X, sections
     // along Y, big-endian, behind an extended header; f16, gzipped.
@@ -1305,13 +1312,11 @@ fn a_header_declaring_more_samples_than_the_cap_is_refused_before_decompressing(
     assert!(ok, "{err}");
 }
 
-/// A zlib-compressed `.vti` of byte samples, in blocks of 32,768 bytes with VTK's header
+/// A zlib-compressed `.vti` of byte samples, in blocks of `block` bytes (VTK's default is
+/// 32,768) with VTK's header
 /// (`[blocks][block size][last block size][compressed sizes…]`, the last block size 0 when the
 /// last block is full, as VTK writes it), in base64, inline or appended.
-fn vti_zlib(dims: [usize; 3], data: &[u8], appended: bool) -> Vec<u8> {
-    use base64::Engine;
-    let b64 = base64::engine::general_purpose::STANDARD;
-    let block = 32_768;
+fn vti_zlib(dims: [usize; 3], data: &[u8], block: usize, appended: bool) -> Vec<u8> {
     let blocks: Vec<Vec<u8>> = data.chunks(block).map(zlib).collect();
     let mut header = vec![
         blocks.len() as u32,
@@ -1319,8 +1324,15 @@ fn vti_zlib(dims: [usize; 3], data: &[u8], appended: bool) -> Vec<u8> {
         (data.len() % block) as u32,
     ];
     header.extend(blocks.iter().map(|b| b.len() as u32));
+    vti_blocks(dims, &header, &blocks.concat(), appended)
+}
+
+/// A `.vti` of one zlib-compressed `UInt8` array: its block `header` and its `packed` blocks,
+/// as given.
+fn vti_blocks(dims: [usize; 3], header: &[u32], packed: &[u8], appended: bool) -> Vec<u8> {
+    use base64::Engine;
+    let b64 = base64::engine::general_purpose::STANDARD;
     let header: Vec<u8> = header.iter().flat_map(|n| n.to_le_bytes()).collect();
-    let packed = blocks.concat();
     let e = format!("0 {} 0 {} 0 {}", dims[0] - 1, dims[1] - 1, dims[2] - 1);
     let open = format!(
         "<?xml version=\"1.0\"?>\n<VTKFile type=\"ImageData\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt32\" compressor=\"vtkZLibDataCompressor\">\n<ImageData WholeExtent=\"{e}\" Origin=\"0 0 0\" Spacing=\"1 1 1\">\n<Piece Extent=\"{e}\">\n<PointData Scalars=\"v\">\n"
@@ -1329,15 +1341,94 @@ fn vti_zlib(dims: [usize; 3], data: &[u8], appended: bool) -> Vec<u8> {
     if appended {
         out.extend(b"<DataArray type=\"UInt8\" Name=\"v\" format=\"appended\" offset=\"0\"/>\n</PointData>\n</Piece>\n</ImageData>\n<AppendedData encoding=\"base64\">\n_");
         out.extend(b64.encode(&header).as_bytes());
-        out.extend(b64.encode(&packed).as_bytes());
+        out.extend(b64.encode(packed).as_bytes());
         out.extend(b"\n</AppendedData>\n</VTKFile>\n");
     } else {
         out.extend(b"<DataArray type=\"UInt8\" Name=\"v\" format=\"binary\">\n  ");
         out.extend(b64.encode(&header).as_bytes());
-        out.extend(b64.encode(&packed).as_bytes());
+        out.extend(b64.encode(packed).as_bytes());
         out.extend(b"\n</DataArray>\n</PointData>\n</Piece>\n</ImageData>\n</VTKFile>\n");
     }
     out
+}
+
+/// A `.vti` whose zlib blocks lie about their sizes, or whose stream is damaged where it
+/// still decodes, is refused before `vtkio` allocates or decodes anything, naming the array:
+/// a changed byte of a stored (uncompressed) deflate block reads as other samples unless
+/// the block's Adler-32 is checked; a block size of 2^31 would have `vtkio` allocate 4 GiB
+/// for 512 samples; no blocks at all would have it count `blocks − 1`; an extent past the
+/// cap is refused before any array is looked at.
+#[test]
+fn a_vti_whose_blocks_lie_or_are_damaged_is_refused_before_decoding() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("lies.vti");
+    let dims = [8, 8, 8];
+    let data: Vec<u8> = (0..512).map(|i| (i * 7 % 251) as u8).collect();
+    let stored = {
+        let mut e = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::none());
+        e.write_all(&data).expect("zlib");
+        e.finish().expect("zlib")
+    };
+    let n = stored.len() as u32;
+    let read = |bytes: &[u8]| {
+        std::fs::write(&path, bytes).expect("write");
+        voxcube::formats::vtk::load(&path, None)
+    };
+    let nrrd = dir.path().join("same.nrrd");
+    let header = "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 8 8 8\nencoding: raw\n\n";
+    std::fs::write(&nrrd, [header.as_bytes(), &data].concat()).expect("write");
+    let reference = voxcube::formats::nrrd::load(&nrrd, None).expect("the raw samples");
+    for appended in [false, true] {
+        // The intact file reads its samples: the cases below differ from it only as said.
+        let intact =
+            read(&vti_blocks(dims, &[1, 512, 0, n], &stored, appended)).expect("the intact file");
+        assert!(intact.data == reference.data, "appended {appended}");
+        // One sample's byte changed inside the stored block: the stream still inflates.
+        let mut damaged = stored.clone();
+        let at = damaged.len() - 4 - 100;
+        damaged[at] ^= 0x20;
+        let cases: [(Vec<u8>, &str); 3] = [
+            (
+                vti_blocks(dims, &[1, 512, 0, n], &damaged, appended),
+                "corrupt compressed data: data array \"v\": block 0",
+            ),
+            (
+                vti_blocks(dims, &[2, 1 << 31, 512, n, n], &[&stored[..], &stored].concat(), appended),
+                "data array \"v\": its blocks hold 2147484160 bytes; its extent, type and components make 512",
+            ),
+            (
+                vti_blocks(dims, &[0, 512, 0], &stored, appended),
+                "data array \"v\": its header declares 0 blocks",
+            ),
+        ];
+        for (bytes, expected) in cases {
+            let e = read(&bytes).expect_err(expected).to_string();
+            assert!(e.contains("lies.vti") && e.contains(expected), "{e}");
+        }
+    }
+    // An extent past the cap, refused by its samples before its array is decoded.
+    let huge = String::from_utf8(vti_blocks(dims, &[1, 512, 0, n], &stored, false))
+        .expect("text")
+        .replace("0 7 0 7 0 7", "0 99999 0 99999 0 99999");
+    let e = read(huge.as_bytes()).expect_err("too large").to_string();
+    assert!(e.contains("100000 × 100000 × 100000"), "{e}");
+}
+
+/// An uncompressed `.vti` of byte samples in base64, `[bytes][data]` encoded together, inline
+/// or appended.
+fn vti_binary(dims: [usize; 3], data: &[u8], appended: bool) -> Vec<u8> {
+    use base64::Engine;
+    let b64 = base64::engine::general_purpose::STANDARD;
+    let text = b64.encode([&(data.len() as u32).to_le_bytes()[..], data].concat());
+    let e = format!("0 {} 0 {} 0 {}", dims[0] - 1, dims[1] - 1, dims[2] - 1);
+    let open = format!(
+        "<?xml version=\"1.0\"?>\n<VTKFile type=\"ImageData\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt32\">\n<ImageData WholeExtent=\"{e}\" Origin=\"0 0 0\" Spacing=\"1 1 1\">\n<Piece Extent=\"{e}\">\n<PointData Scalars=\"v\">\n"
+    );
+    let body = match appended {
+        true => format!("<DataArray type=\"UInt8\" Name=\"v\" format=\"appended\" offset=\"0\"/>\n</PointData>\n</Piece>\n</ImageData>\n<AppendedData encoding=\"base64\">\n_{text}\n</AppendedData>\n</VTKFile>\n"),
+        false => format!("<DataArray type=\"UInt8\" Name=\"v\" format=\"binary\">\n  {text}\n</DataArray>\n</PointData>\n</Piece>\n</ImageData>\n</VTKFile>\n"),
+    };
+    [open, body].concat().into_bytes()
 }
 
 /// A compressed `.vti` whose samples fill its last block exactly (64×64×8 bytes: one full
@@ -1356,7 +1447,7 @@ fn a_compressed_vti_whose_last_block_is_full_reads_its_samples() {
         let reference = voxcube::formats::nrrd::load(&nrrd, None).expect("the raw samples");
         for appended in [false, true] {
             let path = dir.path().join("blocks.vti");
-            std::fs::write(&path, vti_zlib(dims, &data, appended)).expect("write");
+            std::fs::write(&path, vti_zlib(dims, &data, 32_768, appended)).expect("write");
             let volume = voxcube::formats::vtk::load(&path, None)
                 .unwrap_or_else(|e| panic!("{nz} planes, appended {appended}: {e}"));
             assert!(
@@ -1368,7 +1459,7 @@ fn a_compressed_vti_whose_last_block_is_full_reads_its_samples() {
 }
 
 /// A fuzz pass over every reader: each test file, damaged at random (bytes changed, the file
-/// cut short, bytes inserted), is read to a volume or refused with an error naming the file,
+/// cut short, bytes inserted, a byte changed to a base64 character), is read to a volume or refused with an error naming the file,
 /// and never panics; where the format checks a checksum over the samples (gzip, zlib), a
 /// volume read is the original one. `VOXCUBE_FUZZ=N` runs N damaged copies of each file (the
 /// default, 150, is what CI runs); the seed is printed with any failure.
@@ -1388,6 +1479,10 @@ fn damaged_files_of_every_format_are_read_right_or_refused() {
         ("zipped.mha", true),
         ("blob.vtk", false),
         ("blob.vti", false),
+        ("zipped.vti", true),
+        ("appended.vti", true),
+        ("binary.vti", false),
+        ("binary-appended.vti", false),
         ("blob.map", false),
         ("half.ccp4.gz", true),
         ("slice.dcm", false),
@@ -1424,11 +1519,19 @@ fn damaged_files_of_every_format_are_read_right_or_refused() {
             match seed % 4 {
                 0 => bad.truncate(at),
                 1 => bad.insert(at, (seed >> 40) as u8),
-                _ => {
+                2 => {
                     for k in 0..1 + (seed >> 60) as usize {
                         let i = (at + k * 997) % bad.len();
                         bad[i] ^= 1 + (seed >> (16 + k)) as u8 % 255;
                     }
+                }
+                // A text file's byte changed to another character of base64's alphabet, so
+                // that the damage reaches what a text reader decodes (an XML file's base64
+                // blocks and their headers) rather than stopping at a byte that is no UTF-8.
+                _ => {
+                    const TEXT: &[u8] =
+                        b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+                    bad[at] = TEXT[(seed >> 40) as usize % TEXT.len()];
                 }
             }
             std::fs::write(&target, &bad).expect("write");
@@ -1447,6 +1550,9 @@ fn damaged_files_of_every_format_are_read_right_or_refused() {
                     read += 1;
                 }
                 Ok(Err(e)) => {
+                    if copy < 3 {
+                        eprintln!("{name}: {e}");
+                    }
                     assert!(e.to_string().contains(name), "{name}: {e}");
                     refused += 1;
                 }

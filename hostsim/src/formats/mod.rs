@@ -13,6 +13,7 @@ pub mod mrc;
 pub mod nifti;
 pub mod nrrd;
 pub mod raw;
+mod vti_arrays;
 pub mod vtk;
 
 use crate::dataset::{to_plane_major, Volume, VolumeData};

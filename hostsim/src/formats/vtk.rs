@@ -117,118 +117,6 @@ fn without_blank_header_lines(bytes: &[u8]) -> std::borrow::Cow<'_, [u8]> {
     std::borrow::Cow::Owned(out)
 }
 
-/// A compressed XML file's bytes with every data array's block header saying the size of its
-/// last block. VTK writes 0 there when the last block is full (the data a multiple of the
-/// block size, 32,768 bytes by default) and its reader takes 0 to mean a full block; `vtkio`
-/// takes the 0 literally, loses the last block, and finds no array. The header
-/// `[blocks][block size][last block size]…` opens each array's data in base64, inline or
-/// appended; only that one field changes, in place, the same length.
-fn full_last_blocks(bytes: &[u8]) -> std::borrow::Cow<'_, [u8]> {
-    use base64::Engine;
-    let b64 = base64::engine::general_purpose::STANDARD;
-    let find = |from: usize, what: &[u8]| {
-        bytes
-            .get(from..)
-            .and_then(|rest| rest.windows(what.len()).position(|w| w == what))
-            .map(|i| from + i)
-    };
-    // The attribute `name="…"` of the tag that starts at `at`.
-    let attribute = |at: usize, name: &str| -> Option<String> {
-        let end = find(at, b">")?;
-        let tag = std::str::from_utf8(&bytes[at..end]).ok()?;
-        let key = format!(" {name}=\"");
-        let start = tag.find(&key)? + key.len();
-        Some(tag[start..].split('"').next()?.to_string())
-    };
-    let Some(file) = find(0, b"<VTKFile") else {
-        return std::borrow::Cow::Borrowed(bytes);
-    };
-    if attribute(file, "compressor").is_none() {
-        return std::borrow::Cow::Borrowed(bytes);
-    }
-    let width = match attribute(file, "header_type").as_deref() {
-        Some("UInt64") => 8,
-        _ => 4,
-    };
-    let big = attribute(file, "byte_order").as_deref() == Some("BigEndian");
-    // A header's first three numbers, patched where the last block is said to be empty.
-    let mend = |header: &mut [u8]| {
-        let number = |i: usize, h: &[u8]| {
-            let word = &h[i * width..(i + 1) * width];
-            let mut full = [0u8; 8];
-            match big {
-                true => full[8 - width..].copy_from_slice(word),
-                false => full[..width].copy_from_slice(word),
-            }
-            if big {
-                u64::from_be_bytes(full)
-            } else {
-                u64::from_le_bytes(full)
-            }
-        };
-        if number(0, header) > 0 && number(2, header) == 0 {
-            let size = number(1, header);
-            let bytes = if big {
-                size.to_be_bytes()
-            } else {
-                size.to_le_bytes()
-            };
-            let word = if big {
-                &bytes[8 - width..]
-            } else {
-                &bytes[..width]
-            };
-            header[2 * width..3 * width].copy_from_slice(word);
-        }
-    };
-    let mut out = bytes.to_vec();
-    // In base64, the header's first 3·width bytes are exactly its first 4·width characters.
-    let mend_text = |out: &mut [u8], at: usize| {
-        let Some(text) = out.get(at..at + 4 * width) else {
-            return;
-        };
-        let Ok(mut header) = b64.decode(text) else {
-            return;
-        };
-        mend(&mut header);
-        let text = b64.encode(&header);
-        out[at..at + 4 * width].copy_from_slice(text.as_bytes());
-    };
-    // Appended data in base64 (`vtkio` reads no raw appended data: it says so itself).
-    let appended = find(0, b"<AppendedData")
-        .filter(|&at| attribute(at, "encoding").as_deref() == Some("base64"))
-        .and_then(|at| Some(find(at, b"_")? + 1));
-    let mut at = file;
-    while let Some(array) = find(at + 1, b"<DataArray") {
-        at = array;
-        match attribute(array, "format").as_deref() {
-            Some("binary") => {
-                let Some(start) = find(array, b">") else {
-                    break;
-                };
-                let first = bytes[start + 1..]
-                    .iter()
-                    .position(|b| !b.is_ascii_whitespace())
-                    .map(|i| start + 1 + i);
-                if let Some(first) = first {
-                    mend_text(&mut out, first);
-                }
-            }
-            Some("appended") => {
-                let offset = attribute(array, "offset").and_then(|o| o.parse::<usize>().ok());
-                if let (Some(base), Some(offset)) = (appended, offset) {
-                    mend_text(&mut out, base + offset);
-                }
-            }
-            _ => {}
-        }
-    }
-    match out == bytes {
-        true => std::borrow::Cow::Borrowed(bytes),
-        false => std::borrow::Cow::Owned(out),
-    }
-}
-
 /// Load a VTK image-data volume. `spacing` overrides the file's.
 pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
     let at = |k| LoadError::new(path, k);
@@ -238,7 +126,7 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
         let bytes = without_blank_header_lines(&bytes);
         Vtk::parse_legacy_be(&bytes[..]).map_err(|e| at(diagnose_legacy(&bytes, &e)))?
     } else {
-        let bytes = full_last_blocks(&bytes);
+        let bytes = super::vti_arrays::checked(&bytes).map_err(at)?;
         Vtk::parse_xml(&bytes[..])
             .map_err(|e| at(header_err(format!("not a readable VTK XML file ({e})"))))?
     };
@@ -263,8 +151,8 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
         }
     };
     let dims = extent.into_dims();
-    // `vtkio` has decoded the arrays by now: the cap still keeps such a volume out of the
-    // renderer's memory.
+    // An XML file's extents were checked before its arrays were decoded; a legacy file's is
+    // checked here, after `vtkio` has read it.
     super::declared_samples(&dims.map(u64::from)).map_err(at)?;
     let [piece]: [_; 1] = pieces.try_into().map_err(|p: Vec<_>| {
         at(header_err(format!(
@@ -309,47 +197,7 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
 
 #[cfg(test)]
 mod tests {
-    use super::{full_last_blocks, without_blank_header_lines};
-    use base64::Engine;
-
-    #[test]
-    fn an_empty_last_block_is_read_as_full_for_every_header_width_and_byte_order() {
-        let b64 = base64::engine::general_purpose::STANDARD;
-        for (width, big) in [(4usize, false), (4, true), (8, false), (8, true)] {
-            let word = |n: u64| -> Vec<u8> {
-                match big {
-                    true => n.to_be_bytes()[8 - width..].to_vec(),
-                    false => n.to_le_bytes()[..width].to_vec(),
-                }
-            };
-            let header: Vec<u8> = [2, 32_768, 0, 100, 90].into_iter().flat_map(word).collect();
-            let file = format!(
-                "<VTKFile type=\"ImageData\" byte_order=\"{}\" header_type=\"UInt{}\" compressor=\"vtkZLibDataCompressor\">\n<DataArray type=\"UInt8\" format=\"binary\">\n  {}AAAA\n</DataArray>",
-                if big { "BigEndian" } else { "LittleEndian" },
-                width * 8,
-                b64.encode(&header)
-            );
-            let mended = full_last_blocks(file.as_bytes());
-            let text = std::str::from_utf8(&mended).unwrap();
-            let start = text.find("  ").unwrap() + 2;
-            let header = b64.decode(&text[start..start + 4 * width]).unwrap();
-            let expected: Vec<u8> = [2, 32_768, 32_768].into_iter().flat_map(word).collect();
-            assert_eq!(header, expected, "UInt{} big {big}", width * 8);
-            // Nothing else moved.
-            assert_eq!(mended.len(), file.len());
-        }
-        // A last block that is not full, and an uncompressed file, are left as they are.
-        let file = "<VTKFile compressor=\"vtkZLibDataCompressor\">\n<DataArray format=\"binary\">AQAAAAAAAQAHAAAA</DataArray>";
-        assert!(matches!(
-            full_last_blocks(file.as_bytes()),
-            std::borrow::Cow::Borrowed(_)
-        ));
-        let file = "<VTKFile>\n<DataArray format=\"binary\">AQAAAAAAAQAAAAAA</DataArray>";
-        assert!(matches!(
-            full_last_blocks(file.as_bytes()),
-            std::borrow::Cow::Borrowed(_)
-        ));
-    }
+    use super::without_blank_header_lines;
 
     #[test]
     fn blank_header_lines_go_and_the_title_and_the_samples_stay() {
