@@ -269,6 +269,54 @@ fn dicom_series(dir: &Path, v: &[i16], series: &str) {
     std::fs::write(dir.join("README.txt"), "not a slice").expect("write");
 }
 
+/// The series compressed with RLE Lossless, as scanners and archives write it: each slice's
+/// pixel data one fragment of two PackBits segments (the samples' high bytes, then their low
+/// bytes), in literal runs.
+fn dicom_rle_series(dir: &Path, v: &[i16]) {
+    std::fs::create_dir_all(dir).expect("mkdir");
+    let plane = DIMS[0] * DIMS[1];
+    let packbits = |bytes: Vec<u8>| -> Vec<u8> {
+        let mut out = Vec::new();
+        for run in bytes.chunks(128) {
+            out.push(run.len() as u8 - 1);
+            out.extend_from_slice(run);
+        }
+        out
+    };
+    for z in 0..DIMS[2] {
+        let stored: Vec<u16> = v[z * plane..(z + 1) * plane]
+            .iter()
+            .map(|&x| (i32::from(x) + 1024) as u16)
+            .collect();
+        let high = packbits(stored.iter().map(|s| (s >> 8) as u8).collect());
+        let low = packbits(stored.iter().map(|&s| s as u8).collect());
+        let mut header = [0u32; 16];
+        header[0] = 2;
+        header[1] = 64;
+        header[2] = 64 + high.len() as u32;
+        let mut fragment: Vec<u8> = header.iter().flat_map(|n| n.to_le_bytes()).collect();
+        fragment.extend(high);
+        fragment.extend(low);
+        if fragment.len() % 2 == 1 {
+            fragment.push(0);
+        }
+        let mut slice = dicom_slice(z, &stored, -1024.0, "1.2.826.0.1.3680043.2.1125.10");
+        slice.put(DataElement::new(
+            tags::PIXEL_DATA,
+            VR::OB,
+            dicom_core::value::Value::PixelSequence(dicom_core::value::PixelFragmentSequence::new(
+                Vec::<u32>::new(),
+                vec![fragment],
+            )),
+        ));
+        slice
+            .with_meta(FileMetaTableBuilder::new().transfer_syntax(uids::RLE_LOSSLESS))
+            .expect("meta")
+            .write_to_file(dir.join(format!("IM{:04}", z + 1)))
+            .expect("write dicom");
+    }
+}
+
 /// The series as old files write it: each slice a bare data set in implicit VR little endian,
 /// without the Part 10 preamble, `DICM` or a file meta group.
 fn dicom_bare_series(dir: &Path, v: &[i16]) {
@@ -361,6 +409,7 @@ fn write_all(dir: &Path) -> Vec<(&'static str, String)> {
     w("blob.vti", vti(&v).as_bytes());
     dicom_series(&dir.join("series"), &v, "1.2.826.0.1.3680043.2.1125.9");
     dicom_bare_series(&dir.join("bare"), &v);
+    dicom_rle_series(&dir.join("rle"), &v);
     let raw = format!(
         "path = \"blob.raw\"\ndims = [{}, {}, {}]\ntype = \"i16\"\nendian = \"little\"\nspacing = [{}, {}, {}]",
         DIMS[0], DIMS[1], DIMS[2], SPACING[0], SPACING[1], SPACING[2]
@@ -386,6 +435,7 @@ fn write_all(dir: &Path) -> Vec<(&'static str, String)> {
             "dicom-without-preamble",
             "path = \"bare\"\nformat = \"dicom\"".into(),
         ),
+        ("dicom-rle", "path = \"rle\"".into()),
     ]
 }
 
@@ -1487,9 +1537,14 @@ fn damaged_files_of_every_format_are_read_right_or_refused() {
         ("half.ccp4.gz", true),
         ("slice.dcm", false),
         ("bare.dcm", false),
+        ("rle.dcm", false),
     ];
     // One slice of each DICOM series, as a file of its own.
-    for (series, name) in [("series", "slice.dcm"), ("bare", "bare.dcm")] {
+    for (series, name) in [
+        ("series", "slice.dcm"),
+        ("bare", "bare.dcm"),
+        ("rle", "rle.dcm"),
+    ] {
         let slice = std::fs::read_dir(dir.path().join(series))
             .expect("the series")
             .filter_map(|e| e.ok().map(|e| e.path()))

@@ -168,6 +168,17 @@ fn read_slice(path: &Path) -> Result<Slice, LoadError> {
     {
         super::dicom_frames::check(fragments.iter().map(Vec::as_slice), columns, rows)
             .map_err(|e| at(header_err(e.to_string())))?;
+        let syntax = object.meta().transfer_syntax().trim_end_matches('\0');
+        if syntax == dicom_dictionary_std::uids::RLE_LOSSLESS {
+            // A segment per byte of the one sample a pixel holds.
+            let bytes = match int(&object, tags::BITS_ALLOCATED) {
+                Some(8) => 1,
+                _ => 2,
+            };
+            let fragments = fragments.iter().map(Vec::as_slice);
+            super::dicom_frames::check_rle(fragments, columns, rows, bytes)
+                .map_err(|e| at(header_err(e.to_string())))?;
+        }
     }
     if let Some(bits) = int(&object, tags::BITS_ALLOCATED).filter(|&b| b > 16) {
         return Err(at(header_err(format!(

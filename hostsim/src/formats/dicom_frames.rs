@@ -2,10 +2,16 @@
 //! a JPEG or JPEG 2000 decoder allocates for the width and height in its stream's header,
 //! which a few bytes can set to anything, whatever the image's `Rows` and `Columns` say.
 //!
+//! An RLE Lossless frame is read here too: dicom-rs indexes its decoded segments by the
+//! image's size without checking that they hold it, and reads its header without checking
+//! its length.
+//!
 //! Invariant: a fragment that starts a JPEG (SOI, `FF D8`) or JPEG 2000 codestream (SOC and
 //! SIZ, `FF 4F FF 51`) is passed only when its header is whole and declares the image's
-//! Columns × Rows; other fragments (continuations, RLE, deflate) are not this module's: their
-//! decoders size their output from the image's attributes, which the reader has capped.
+//! Columns × Rows; an RLE frame only when its header is whole and each segment the image's
+//! samples need lies in the fragment and unpacks to at least Columns × Rows bytes. Other
+//! fragments (continuations, deflate) are not this module's: their decoders size their
+//! output from the image's attributes, which the reader has capped.
 
 use std::fmt;
 
@@ -30,6 +36,13 @@ pub enum FrameError {
         /// Its codec.
         codec: &'static str,
     },
+    /// An RLE frame whose header or segments cannot give the image.
+    Rle {
+        /// The fragment, counted from 0.
+        fragment: usize,
+        /// What is wrong with it.
+        why: String,
+    },
 }
 
 impl fmt::Display for FrameError {
@@ -49,6 +62,9 @@ impl fmt::Display for FrameError {
                 f,
                 "pixel data fragment {fragment}: its {codec} stream ends or breaks off before its frame header"
             ),
+            FrameError::Rle { fragment, ref why } => {
+                write!(f, "pixel data fragment {fragment}: RLE frame {why}")
+            }
         }
     }
 }
@@ -82,6 +98,81 @@ pub fn check<'a>(
         }
     }
     Ok(())
+}
+
+/// Check every fragment of RLE Lossless pixel data (one a frame) against the image's
+/// `columns` × `rows`: its 64-byte header declares at least `segments` segments (one per byte
+/// of a sample), and each of the first `segments` lies in the fragment (from its offset to the
+/// next, the last to the fragment's end) and unpacks whole, as PackBits, to at least a byte
+/// per pixel.
+pub fn check_rle<'a>(
+    fragments: impl IntoIterator<Item = &'a [u8]>,
+    columns: u32,
+    rows: u32,
+    segments: usize,
+) -> Result<(), FrameError> {
+    let pixels = u64::from(columns) * u64::from(rows);
+    for (fragment, bytes) in fragments.into_iter().enumerate() {
+        let refuse = |why: String| Err(FrameError::Rle { fragment, why });
+        let word = |i: usize| {
+            let w = bytes.get(4 * i..4 * i + 4)?;
+            Some(u32::from_le_bytes([w[0], w[1], w[2], w[3]]) as usize)
+        };
+        let (Some(declared), true) = (word(0), bytes.len() >= 64) else {
+            return refuse(format!(
+                "of {} bytes, short of its 64-byte header",
+                bytes.len()
+            ));
+        };
+        if !(segments..=15).contains(&declared) {
+            return refuse(format!(
+                "declares {declared} segments; the image's samples need {segments} (at most 15)"
+            ));
+        }
+        for segment in 0..segments {
+            let start = word(1 + segment).unwrap_or(0);
+            let end = match segment + 1 < declared {
+                true => word(2 + segment).unwrap_or(0),
+                false => bytes.len(),
+            };
+            let Some(packed) = bytes.get(start..end).filter(|_| start >= 64) else {
+                return refuse(format!(
+                    "segment {segment} at bytes {start}..{end}: outside the fragment's {} bytes after its header",
+                    bytes.len()
+                ));
+            };
+            match unpacked_len(packed) {
+                Some(n) if n >= pixels => {}
+                Some(n) => return refuse(format!(
+                    "segment {segment} unpacks to {n} bytes; Columns × Rows are {columns} × {rows}"
+                )),
+                None => return refuse(format!("segment {segment} breaks off in a run")),
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The bytes a PackBits segment unpacks to, `None` where a run breaks off at its end: a
+/// header `h` of 0 to 127 copies the `h + 1` bytes after it, −127 to −1 repeats the byte after
+/// it `1 − h` times, −128 does nothing.
+fn unpacked_len(packed: &[u8]) -> Option<u64> {
+    let (mut i, mut n) = (0, 0u64);
+    while let Some(&h) = packed.get(i) {
+        match h as i8 {
+            h @ 0.. => {
+                let run = h as usize + 1;
+                packed.get(i + 1..i + 1 + run)?;
+                (i, n) = (i + 1 + run, n + run as u64);
+            }
+            -128 => i += 1,
+            h => {
+                packed.get(i + 1)?;
+                (i, n) = (i + 2, n + (1 - i64::from(h)) as u64);
+            }
+        }
+    }
+    Some(n)
 }
 
 /// The width and height of a JPEG stream's frame header (any SOF, JPEG-LS's SOF55 too),
@@ -220,5 +311,60 @@ mod tests {
         );
         assert!(check([&j2k(24, 21, 0, 0)[..]], 24, 20).is_err());
         assert_eq!(check([&j2k(24, 20, 0, 0)[..]], 24, 20), Ok(()));
+    }
+
+    /// An RLE frame of `segments` segments, each `packed`, behind the 64-byte header.
+    fn rle(segments: &[Vec<u8>]) -> Vec<u8> {
+        let mut header = [0u32; 16];
+        header[0] = segments.len() as u32;
+        let mut at = 64;
+        for (i, s) in segments.iter().enumerate() {
+            header[1 + i] = at;
+            at += s.len() as u32;
+        }
+        let mut b: Vec<u8> = header.iter().flat_map(|n| n.to_le_bytes()).collect();
+        b.extend(segments.concat());
+        b
+    }
+
+    #[test]
+    fn an_rle_frame_passes_only_where_each_segment_unpacks_to_the_image() {
+        // 6 × 4 pixels: 24 bytes a segment, as a literal run of 20 and a repeat of 4.
+        let whole = [vec![19], vec![7; 20], vec![0xFD, 9]].concat();
+        assert_eq!(unpacked_len(&whole), Some(24));
+        let ok = rle(&[whole.clone(), whole.clone()]);
+        assert_eq!(check_rle([&ok[..]], 6, 4, 2), Ok(()));
+        // A no-op header between runs changes nothing.
+        let noop = [vec![0x80], whole.clone()].concat();
+        assert_eq!(
+            check_rle([&rle(&[whole.clone(), noop])[..]], 6, 4, 2),
+            Ok(())
+        );
+        let refused = |frame: &[u8], segments| match check_rle([frame], 6, 4, segments) {
+            Err(FrameError::Rle { fragment: 0, why }) => why,
+            other => panic!("{other:?}"),
+        };
+        // One pixel short: dicom-rs would index past the segment.
+        let short = [vec![19], vec![7; 20], vec![0xFE, 9]].concat();
+        let why = refused(&rle(&[whole.clone(), short]), 2);
+        assert!(why.contains("segment 1 unpacks to 23 bytes"), "{why}");
+        // A literal run past the segment's end, a repeat without its byte.
+        for broken in [vec![19, 7, 7], vec![0xFD]] {
+            let why = refused(&rle(&[whole.clone(), broken]), 2);
+            assert!(why.contains("segment 1 breaks off"), "{why}");
+        }
+        // Fewer segments than the samples' bytes, a header cut short, an offset past the end.
+        let why = refused(&rle(std::slice::from_ref(&whole)), 2);
+        assert!(why.contains("declares 1 segments"), "{why}");
+        let why = refused(&ok[..40], 2);
+        assert!(why.contains("short of its 64-byte header"), "{why}");
+        let mut past = ok.clone();
+        past[8..12].copy_from_slice(&4000u32.to_le_bytes());
+        let why = refused(&past, 2);
+        // Segment 1's offset ends segment 0.
+        assert!(
+            why.contains("segment 0 at bytes 64..4000: outside"),
+            "{why}"
+        );
     }
 }
