@@ -1362,6 +1362,64 @@ fn a_header_declaring_more_samples_than_the_cap_is_refused_before_decompressing(
     assert!(ok, "{err}");
 }
 
+/// A header declaring 1000³ samples over a body of a few bytes is refused by every reader
+/// whose header is text, naming the file and what the header declares against what the file
+/// holds, before anything is kept for the samples (NIfTI, MRC, DICOM and the compressed
+/// streams have tests of their own above).
+#[test]
+fn headers_declaring_more_samples_than_their_files_hold_are_refused_by_every_reader() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let body = "0123456789";
+    let vti_ascii = "<?xml version=\"1.0\"?>\n<VTKFile type=\"ImageData\" version=\"1.0\" byte_order=\"LittleEndian\">\n<ImageData WholeExtent=\"0 999 0 999 0 999\" Origin=\"0 0 0\" Spacing=\"1 1 1\">\n<Piece Extent=\"0 999 0 999 0 999\">\n<PointData Scalars=\"v\">\n<DataArray type=\"Int16\" Name=\"v\" format=\"ascii\">\n1 2 3\n</DataArray>\n</PointData>\n</Piece>\n</ImageData>\n</VTKFile>\n";
+    let vti_binary = String::from_utf8(vti_binary([4, 4, 4], &[7; 64], false))
+        .expect("text")
+        .replace("0 3 0 3 0 3", "0 999 0 999 0 999");
+    let vti_zipped = String::from_utf8(vti_zlib([4, 4, 4], &[7; 64], 32, true))
+        .expect("text")
+        .replace("0 3 0 3 0 3", "0 999 0 999 0 999");
+    let files: [(&str, String, &str); 6] = [
+        (
+            "lies.nrrd",
+            format!("NRRD0004\ntype: short\ndimension: 3\nsizes: 1000 1000 1000\nencoding: raw\nendian: little\n\n{body}"),
+            "truncated: expected 2000000000 bytes, found 10",
+        ),
+        (
+            "lies.mha",
+            format!("ObjectType = Image\nNDims = 3\nDimSize = 1000 1000 1000\nElementType = MET_SHORT\nElementDataFile = LOCAL\n{body}"),
+            "truncated: expected 2000000000 bytes, found 10",
+        ),
+        (
+            "lies.vtk",
+            format!("# vtk DataFile Version 3.0\nx\nBINARY\nDATASET STRUCTURED_POINTS\nDIMENSIONS 1000 1000 1000\nSPACING 1 1 1\nORIGIN 0 0 0\nPOINT_DATA 1000000000\nSCALARS v short 1\nLOOKUP_TABLE default\n{body}"),
+            "truncated: expected 2000000000 bytes, found 10",
+        ),
+        (
+            "lies.vti",
+            vti_ascii.to_string(),
+            "data array \"v\": 3 values; its extent and components make 1000000000",
+        ),
+        (
+            "binary-lies.vti",
+            vti_binary,
+            "data array \"v\": its header declares 64 bytes, 64 follow it; its extent, type and components make 1000000000",
+        ),
+        (
+            "zipped-lies.vti",
+            vti_zipped,
+            "data array \"v\": its blocks hold 64 bytes; its extent, type and components make 1000000000",
+        ),
+    ];
+    for (name, text, expected) in files {
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).expect("write");
+        let format = voxcube::formats::Format::from_extension(&path).expect("a format");
+        let e = voxcube::formats::load(&path, format, None)
+            .expect_err(name)
+            .to_string();
+        assert!(e.contains(name) && e.contains(expected), "{name}: {e}");
+    }
+}
+
 /// A zlib-compressed `.vti` of byte samples, in blocks of `block` bytes (VTK's default is
 /// 32,768) with VTK's header
 /// (`[blocks][block size][last block size][compressed sizes…]`, the last block size 0 when the

@@ -143,9 +143,11 @@ pub fn check_rle<'a>(
             };
             match unpacked_len(packed) {
                 Some(n) if n >= pixels => {}
-                Some(n) => return refuse(format!(
+                Some(n) => {
+                    return refuse(format!(
                     "segment {segment} unpacks to {n} bytes; Columns × Rows are {columns} × {rows}"
-                )),
+                ))
+                }
                 None => return refuse(format!("segment {segment} breaks off in a run")),
             }
         }

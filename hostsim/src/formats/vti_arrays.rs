@@ -169,13 +169,37 @@ pub(super) fn checked(bytes: &[u8]) -> Result<Cow<'_, [u8]>, LoadErrorKind> {
                     })?;
                 (base + offset, len - offset)
             }
-            _ => continue,
+            _ => {
+                // ASCII: as many numbers as the extent and components make (`vtkio` drops an
+                // array that has not, and the volume would be said to have none).
+                let Some(open) = text.find(array, b">") else {
+                    break;
+                };
+                // An array cut off is the XML parser's to report.
+                if text.find(open, b"</DataArray").is_none() {
+                    break;
+                }
+                let (start, len) = text.trimmed(open + 1, b"</DataArray");
+                let values = bytes[start..start + len]
+                    .split(u8::is_ascii_whitespace)
+                    .filter(|v| !v.is_empty())
+                    .count();
+                let named = |e| named(e, &text, array, index);
+                let (elements, _) = counts.elements(&text, array).map_err(named)?;
+                if values as u64 != elements {
+                    return Err(named(header_err(format!(
+                        "{values} values; its extent and components make {elements}"
+                    ))));
+                }
+                continue;
+            }
         };
         let array_text = &bytes[start..start + len];
-        let expected = counts.bytes(&text, array).map_err(|e| match e {
-            LoadErrorKind::Header(e) => header_err(format!("{}: {e}", name(&text, array, index))),
-            other => other,
-        })?;
+        let (elements, size) = counts
+            .elements(&text, array)
+            .map_err(|e| named(e, &text, array, index))?;
+        // Checked by `elements` to fit.
+        let expected = elements as usize * size;
         let in_error = |e: ArrayError| match e {
             ArrayError::Corrupt(e) => {
                 LoadErrorKind::Corrupt(format!("{}: {e}", name(&text, array, index)))
@@ -196,6 +220,14 @@ pub(super) fn checked(bytes: &[u8]) -> Result<Cow<'_, [u8]>, LoadErrorKind> {
         }
     }
     Ok(out.map_or(Cow::Borrowed(bytes), Cow::Owned))
+}
+
+/// A header error `e` said of the array whose tag starts at `array`.
+fn named(e: LoadErrorKind, text: &Text<'_>, array: usize, index: usize) -> LoadErrorKind {
+    match e {
+        LoadErrorKind::Header(e) => header_err(format!("{}: {e}", name(text, array, index))),
+        other => other,
+    }
 }
 
 /// An array named for a message: its `Name`, or its place among the file's arrays.
@@ -231,9 +263,9 @@ impl Counts {
         })
     }
 
-    /// The bytes the array whose tag starts at `array` holds: its tuples × components × its
-    /// type's size.
-    fn bytes(&self, text: &Text<'_>, array: usize) -> Result<usize, LoadErrorKind> {
+    /// The values the array whose tag starts at `array` holds (its tuples × components), and
+    /// its type's size in bytes.
+    fn elements(&self, text: &Text<'_>, array: usize) -> Result<(u64, usize), LoadErrorKind> {
         let size = match text.attribute(array, "type") {
             Some("Int8" | "UInt8") => 1,
             Some("Int16" | "UInt16") => 2,
@@ -269,10 +301,14 @@ impl Counts {
             true => dims.iter().map(|d| d - 1).product(),
             false => dims.iter().product(),
         };
-        tuples
-            .checked_mul(components * size)
-            .and_then(|b| usize::try_from(b).ok())
-            .ok_or_else(|| header_err("more bytes than memory can address"))
+        let elements = tuples
+            .checked_mul(components)
+            .filter(|e| {
+                e.checked_mul(size)
+                    .is_some_and(|b| usize::try_from(b).is_ok())
+            })
+            .ok_or_else(|| header_err("more bytes than memory can address"))?;
+        Ok((elements, size as usize))
     }
 }
 
