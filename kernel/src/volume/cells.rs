@@ -60,7 +60,17 @@ impl<'a, U: Copy> Cells<'a, U> {
             && y_end <= self.rows_of_cells
             && z_end <= self.layers_of_cells
             && self.end > self.first;
-        held.then_some(HeldCells { cells: *self })
+        // Strides of 32 bits: their sums cannot overflow, so the compiler sees every corner's
+        // offset bounded by the far corner's and checks that one alone.
+        let (row, plane) = (
+            u32::try_from(self.row).ok()?,
+            u32::try_from(self.plane).ok()?,
+        );
+        held.then_some(HeldCells {
+            cells: *self,
+            row,
+            plane,
+        })
     }
 }
 
@@ -69,6 +79,9 @@ impl<'a, U: Copy> Cells<'a, U> {
 #[derive(Clone, Copy, Debug)]
 pub struct HeldCells<'a, U> {
     cells: Cells<'a, U>,
+    /// The storage's strides, known to fit 32 bits.
+    row: u32,
+    plane: u32,
 }
 
 impl<U: Copy> HeldCells<'_, U> {
@@ -78,11 +91,23 @@ impl<U: Copy> HeldCells<'_, U> {
     #[inline(always)]
     pub fn at(&self, [x, y, z]: [u32; 3]) -> Option<[U; 8]> {
         let c = &self.cells;
+        let (row, plane) = (self.row as usize, self.plane as usize);
         let base = (x.wrapping_sub(c.first) as usize)
-            .wrapping_mul(c.plane)
-            .wrapping_add((z as usize).wrapping_mul(c.row))
+            .wrapping_mul(plane)
+            .wrapping_add((z as usize).wrapping_mul(row))
             .wrapping_add(y as usize);
-        corners(c.data, base, [c.plane, 1, c.row])
+        let far = plane + row + 1;
+        let cell = c.data.get(base..)?.get(..=far)?;
+        Some([
+            cell[0],
+            cell[plane],
+            cell[1],
+            cell[plane + 1],
+            cell[row],
+            cell[plane + row],
+            cell[row + 1],
+            cell[far],
+        ])
     }
 }
 
