@@ -4,7 +4,8 @@
 //!
 //! Invariants: only headers are read (tag, VR, length), never a value, so the walk takes
 //! constant memory whatever the file declares; it steps into every sequence and item (their
-//! elements are checked too) and switches to implicit VR inside a sequence of unknown VR
+//! elements are checked too), takes every element of undefined length but pixel data for a
+//! sequence of data sets whatever its VR, as dicom-rs reads it, and switches to implicit VR inside a sequence of unknown VR
 //! (`UN` of undefined length, PS3.5 §6.2.2), restoring the syntax at its delimiter. A data
 //! set in a deflated transfer syntax is not walked: its lengths are those of the inflated
 //! stream, which dicom-rs does not read here anyway.
@@ -215,14 +216,13 @@ impl<R: Read + Seek> Walk<R> {
                 }
                 // An item's start or end, or a fragment of encapsulated pixel data.
                 (Tag(0xFFFE, _), _) => {}
-                // Undefined length: a sequence, whose items follow (in implicit VR where its VR
-                // is unknown), or encapsulated pixel data, whose fragments follow.
+                // Undefined length: encapsulated pixel data, whose fragments follow; any other
+                // element a sequence, whose items follow (in implicit VR where its VR is
+                // unknown), whatever its VR, as dicom-rs reads them.
                 (_, UNDEFINED) => {
-                    let sequence =
-                        matches!(vr, Some(VR::SQ | VR::UN)) || syntax == Syntax::Implicit;
-                    open.push(match sequence {
-                        true => Open::Sequence(syntax),
-                        false => Open::Fragments(syntax),
+                    open.push(match tag == Tag(0x7FE0, 0x0010) {
+                        true => Open::Fragments(syntax),
+                        false => Open::Sequence(syntax),
                     });
                     if vr == Some(VR::UN) {
                         syntax = Syntax::Implicit;
@@ -401,6 +401,24 @@ mod tests {
             too_long(checked(&part10(&px))),
             Some((0xFFFE, 0xE000, 0x7F00_0008))
         );
+    }
+
+    #[test]
+    fn any_other_element_of_undefined_length_is_a_sequence_of_data_sets() {
+        // An OB of undefined length that is not pixel data: dicom-rs reads its items as data
+        // sets, whose elements (here one declaring 4 GB) it allocates for. The coverage-guided
+        // fuzzer found a Part 10 slice whose pixel data tag, damaged, did so with 825 MB.
+        let mut ob = long((0x7FE0, 0x00BD), b"OB", UNDEFINED);
+        ob.extend_from_slice(&item(12));
+        ob.extend_from_slice(&long((0x0010, 0x0010), b"UT", 0xFFFF_FF00));
+        ob.extend_from_slice(&[0xFE, 0xFF, 0xDD, 0xE0, 0, 0, 0, 0]);
+        assert_eq!(
+            too_long(checked(&part10(&ob))),
+            Some((0x0010, 0x0010, 0xFFFF_FF00))
+        );
+        // The same bytes under the pixel data tag are a fragment: bytes, not elements.
+        ob[..4].copy_from_slice(&[0xE0, 0x7F, 0x10, 0x00]);
+        assert!(checked(&part10(&ob)).is_ok());
     }
 
     #[test]
