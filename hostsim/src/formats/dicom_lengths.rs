@@ -88,6 +88,25 @@ pub enum LengthError {
         /// The bytes after its header.
         left: u64,
     },
+    /// A header declares a length that is no whole number of its VR's values: dicom-rs
+    /// reads the whole values and counts the rest read, so what follows is read out of step.
+    #[error(
+        "element ({group:04X},{element:04X}) at byte {offset} declares {declared} bytes of {vr}, no whole number of its {size}-byte values"
+    )]
+    Misfit {
+        /// The element's tag.
+        group: u16,
+        /// The element's tag.
+        element: u16,
+        /// Where its header starts.
+        offset: u64,
+        /// Its VR.
+        vr: VR,
+        /// The length it declares.
+        declared: u32,
+        /// The bytes of one value.
+        size: u32,
+    },
     /// The file ends inside a header.
     #[error("the file ends inside an element header at byte {offset}")]
     CutHeader {
@@ -205,6 +224,18 @@ impl<R: Read + Seek> Walk<R> {
                     }
                 }
             };
+            if let Some(size) = vr.and_then(value_size) {
+                if length != UNDEFINED && length % size != 0 {
+                    return Err(LengthError::Misfit {
+                        group: tag.group(),
+                        element: tag.element(),
+                        offset,
+                        vr: vr.unwrap_or(VR::UN),
+                        declared: length,
+                        size,
+                    });
+                }
+            }
             let in_fragments = matches!(open.last(), Some(Open::Fragments(_)));
             match (tag, length) {
                 // A sequence's end: its syntax back.
@@ -264,6 +295,16 @@ impl<R: Read + Seek> Walk<R> {
     }
 }
 
+/// The bytes of one value of `vr`, where dicom-rs reads its values as numbers of that size.
+fn value_size(vr: VR) -> Option<u32> {
+    match vr {
+        VR::US | VR::OW | VR::SS => Some(2),
+        VR::AT | VR::FL | VR::OF | VR::SL | VR::UL | VR::OL => Some(4),
+        VR::FD | VR::OD | VR::SV | VR::UV | VR::OV => Some(8),
+        _ => None,
+    }
+}
+
 /// The VR the standard dictionary gives `tag` (its sequences matter: their elements are
 /// walked); `None` for a private or unknown tag, whose value is bytes to dicom-rs.
 fn implicit_vr(tag: Tag) -> Option<VR> {
@@ -299,6 +340,16 @@ mod tests {
         h.extend_from_slice(&tag.1.to_le_bytes());
         h.extend_from_slice(vr);
         h.extend_from_slice(&[0, 0]);
+        h.extend_from_slice(&length.to_le_bytes());
+        h
+    }
+
+    /// An explicit VR element header with a 2-byte length.
+    fn short(tag: (u16, u16), vr: &[u8; 2], length: u16) -> Vec<u8> {
+        let mut h = Vec::new();
+        h.extend_from_slice(&tag.0.to_le_bytes());
+        h.extend_from_slice(&tag.1.to_le_bytes());
+        h.extend_from_slice(vr);
         h.extend_from_slice(&length.to_le_bytes());
         h
     }
@@ -419,6 +470,28 @@ mod tests {
         // The same bytes under the pixel data tag are a fragment: bytes, not elements.
         ob[..4].copy_from_slice(&[0xE0, 0x7F, 0x10, 0x00]);
         assert!(checked(&part10(&ob)).is_ok());
+    }
+
+    #[test]
+    fn a_length_that_is_no_whole_number_of_values_is_refused() {
+        // An SL of 2 bytes: dicom-rs reads no value and reads on two bytes early, where a
+        // value's text can read as a length (the coverage-guided fuzzer found one read as
+        // 540 MB). Four bytes are one value.
+        let mut sl = short((0x0028, 0x0102), b"SL", 2);
+        sl.extend_from_slice(&[0, 0]);
+        assert!(matches!(
+            checked(&part10(&sl)),
+            Err(LengthError::Misfit {
+                group: 0x0028,
+                element: 0x0102,
+                declared: 2,
+                size: 4,
+                ..
+            })
+        ));
+        let mut sl = short((0x0028, 0x0102), b"SL", 4);
+        sl.extend_from_slice(&[0, 0, 0, 0]);
+        assert!(checked(&part10(&sl)).is_ok());
     }
 
     #[test]
