@@ -13,7 +13,7 @@
 use crate::counters::Counters;
 use crate::optics::classify::Classified;
 use crate::optics::transfer::{corrected_opacity, TransferFunction};
-use crate::skip::cell_leaps::HeldLeaps;
+use crate::skip::cell_leaps::{CellLeaps, HeldLeaps};
 use crate::trace::interior::Interior;
 use crate::trace::lattice::Lattice;
 use crate::trace::lighting::Unshadowed;
@@ -27,7 +27,7 @@ use crate::volume::lanes::Lanes as NodeLanes;
 use crate::volume::nodes;
 use crate::volume::sample::Sample;
 use crate::volume::slab::Slab;
-use glam::{Vec3, Vec4};
+use glam::Vec3;
 
 /// Advance `ray` of composited `view` (transfer function `tf`) through the samples `slab`
 /// owns.
@@ -320,7 +320,17 @@ fn samples<T: Sample, C: Classify, R: Reading<T>>(
                             test: leaps,
                             end,
                         };
-                        run(view, slab, classify, read, &inside, ray, lit, counters)
+                        run(
+                            view,
+                            slab,
+                            classify,
+                            read,
+                            &inside,
+                            ray,
+                            lit,
+                            &mut skipper,
+                            counters,
+                        )
                     }
                     None => {
                         let inside = Inside {
@@ -328,18 +338,21 @@ fn samples<T: Sample, C: Classify, R: Reading<T>>(
                             test: &EveryCell,
                             end,
                         };
-                        run(view, slab, classify, read, &inside, ray, lit, counters)
+                        run(
+                            view,
+                            slab,
+                            classify,
+                            read,
+                            &inside,
+                            ray,
+                            lit,
+                            &mut skipper,
+                            counters,
+                        )
                     }
                 };
                 match ran {
                     Run::Done => continue,
-                    Run::Empty { cell, distance } => {
-                        if let Some(leaps) = leaps {
-                            let last = skipper.leap_cells(slab, ray, leaps.leaps(), cell, distance);
-                            skip_to(view, ray, last, counters);
-                            continue;
-                        }
-                    }
                     Run::Terminated => break Stop::Terminated,
                     // The general step reads it.
                     Run::Unread => {}
@@ -402,9 +415,10 @@ struct Inside<'c, 'a, U, E> {
 }
 
 /// What a run through the interior asks of a sample's cell before reading it: its distance
-/// in a cell leap map, 0 where the cell may show.
+/// in a cell leap map, 0 where the cell may show; and the map, to leap by.
 trait CellTest {
     fn distance(&self, lo: [u32; 3]) -> u8;
+    fn leaps(&self) -> Option<&CellLeaps<'_>>;
 }
 
 /// The slab carries no skipping structures: every cell may show.
@@ -415,6 +429,10 @@ impl CellTest for EveryCell {
     fn distance(&self, _: [u32; 3]) -> u8 {
         0
     }
+
+    fn leaps(&self) -> Option<&CellLeaps<'_>> {
+        None
+    }
 }
 
 impl CellTest for HeldLeaps<'_> {
@@ -422,15 +440,17 @@ impl CellTest for HeldLeaps<'_> {
     fn distance(&self, lo: [u32; 3]) -> u8 {
         HeldLeaps::distance(self, lo)
     }
+
+    #[inline(always)]
+    fn leaps(&self) -> Option<&CellLeaps<'_>> {
+        Some(HeldLeaps::leaps(self))
+    }
 }
 
 /// Where a run through the interior stopped.
 enum Run {
     /// Past its last sample.
     Done,
-    /// At a sample in a cell the leap map calls empty: the cell's low corner (whole floats)
-    /// and its distance.
-    Empty { cell: Vec4, distance: u8 },
     /// At a sample the storage cannot give whole (not in an interior the storage defines:
     /// never, but the general step can read anything).
     Unread,
@@ -439,9 +459,10 @@ enum Run {
 }
 
 /// The samples from `ray.k` through `inside.end`, all in the interior: no clamp, no owner, no
-/// range check per corner, and of the skipping only the cell's leap distance. The same
-/// operations as the general step on each sample (its corner, fractions, read,
-/// classification, shading and compositing), so the same bits and the same counts.
+/// range check per corner, and of the skipping only the cell's leap distance, leaping from a
+/// cell the map calls empty as the general step would. The same operations as the general
+/// step on each sample (its corner, fractions, read, classification, shading and
+/// compositing), so the same bits and the same counts.
 #[allow(
     clippy::too_many_arguments,
     reason = "inlined into one caller; the arguments are the loop's state"
@@ -455,6 +476,7 @@ fn run<T: Sample, C: Classify, R: Reading<T>, E: CellTest>(
     inside: &Inside<'_, '_, R::Node, E>,
     ray: &mut RayState,
     (light, color, weight): (&Unshadowed<'_>, &mut Vec3, &mut f32),
+    skipper: &mut Skipper<'_>,
     counters: &mut Counters,
 ) -> Run {
     let (lattice, r, cutoff) = (ray.lattice, ray.ray, view.spec().cutoff);
@@ -467,8 +489,14 @@ fn run<T: Sample, C: Classify, R: Reading<T>, E: CellTest>(
         let q = r.at4(lattice.t(k));
         let (cell, lo) = field::interior_corner(q);
         let distance = inside.test.distance(lo);
-        if distance != 0 {
-            break Run::Empty { cell, distance };
+        if let (1.., Some(leaps)) = (distance, inside.test.leaps()) {
+            // The cell leaps the general step would take from here, taken without leaving
+            // the run.
+            ray.k = k;
+            let last = skipper.leap_cells(slab, ray, leaps, cell, distance);
+            skip_to(view, ray, last, counters);
+            k = ray.k;
+            continue;
         }
         let Some(nodes) = inside.cells.at(lo) else {
             break Run::Unread;
