@@ -245,7 +245,8 @@ impl<R: Read + Seek> Walk<R> {
                     }
                     continue;
                 }
-                // An item's start or end, or a fragment of encapsulated pixel data.
+                // An item's start or end, a fragment of encapsulated pixel data, or another
+                // element of group FFFE.
                 (Tag(0xFFFE, _), _) => {}
                 // Undefined length: encapsulated pixel data, whose fragments follow; any other
                 // element a sequence, whose items follow (in implicit VR where its VR is
@@ -275,8 +276,10 @@ impl<R: Read + Seek> Walk<R> {
                     left,
                 });
             }
-            // A sequence's or an item's elements follow its header; a fragment is bytes.
-            let container = (tag.group() == 0xFFFE && !in_fragments) || vr == Some(VR::SQ);
+            // A sequence's or an item's elements follow its header; a fragment is bytes, and
+            // so is the value of any other tag of group FFFE, an element as dicom-rs reads it.
+            let item = tag == Tag(0xFFFE, 0xE000) || tag == Tag(0xFFFE, 0xE00D);
+            let container = (item && !in_fragments) || vr == Some(VR::SQ);
             // A UID is at most 64 bytes.
             let transfer_syntax = meta && tag == Tag(0x0002, 0x0010) && declared <= 64;
             match (container, transfer_syntax) {
@@ -492,6 +495,22 @@ mod tests {
         let mut sl = short((0x0028, 0x0102), b"SL", 4);
         sl.extend_from_slice(&[0, 0, 0, 0]);
         assert!(checked(&part10(&sl)).is_ok());
+    }
+
+    #[test]
+    fn a_tag_of_group_fffe_that_is_no_item_or_delimiter_is_an_element() {
+        // A bare data set: (FFFE,59FF) with one byte of value, then an element declaring
+        // 4 GB (the coverage-guided fuzzer's 24-byte file, which dicom-rs read for 7 s in
+        // 4 GB): read as an item's start, the one byte put the walk out of step.
+        let mut bare = vec![0xFE, 0xFF, 0xFF, 0x59, 1, 0, 0, 0, 0];
+        bare.extend_from_slice(&[0x00, 0x00, 0x01, 0x00, 0, 0, 0, 0xFE]);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("bare");
+        std::fs::write(&path, &bare).unwrap();
+        assert_eq!(
+            too_long(check(&path, false)),
+            Some((0x0000, 0x0001, 0xFE00_0000))
+        );
     }
 
     #[test]
