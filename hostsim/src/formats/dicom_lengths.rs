@@ -126,13 +126,22 @@ pub fn check(path: &Path, part10: bool) -> Result<(), LengthError> {
         len,
     };
     if !part10 {
-        return walk.elements(Syntax::Implicit, false).map(drop);
+        return walk.elements(Syntax::Implicit, None).map(drop);
     }
     walk.skip(132)?;
-    // The meta group is explicit VR little endian, and names the data set's syntax.
-    let uid = walk.elements(Syntax::Explicit { big_endian: false }, true)?;
+    // The meta group is explicit VR little endian, and names the data set's syntax. dicom-rs
+    // reads it as its group length (0002,0000) says: whole elements until that many bytes are
+    // read, whatever their group; the data set starts after them. Without a group length it
+    // refuses the file before reading a value.
+    let head = walk.bytes::<12>(132)?;
+    if head[..8] != [0x02, 0x00, 0x00, 0x00, b'U', b'L', 4, 0] {
+        return Ok(());
+    }
+    let group_length = u32::from_le_bytes([head[8], head[9], head[10], head[11]]);
+    let meta_end = walk.pos + u64::from(group_length);
+    let uid = walk.elements(Syntax::Explicit { big_endian: false }, Some(meta_end))?;
     match Syntax::of(&uid) {
-        Some(syntax) => walk.elements(syntax, false).map(drop),
+        Some(syntax) => walk.elements(syntax, None).map(drop),
         None => Ok(()),
     }
 }
@@ -181,10 +190,15 @@ impl<R: Read + Seek> Walk<R> {
         Ok(b)
     }
 
-    /// Walk elements in `syntax` to the end of the file; with `meta`, only the meta group's
-    /// (group 0002), stopping before the first element of another group, and give the
-    /// transfer syntax UID it names (empty where it names none).
-    fn elements(&mut self, mut syntax: Syntax, meta: bool) -> Result<String, LengthError> {
+    /// Walk elements in `syntax` to the end of the file; with `meta_end`, the meta group's
+    /// (whole elements until the byte `meta_end` is reached), and give the transfer syntax
+    /// UID it names (empty where it names none).
+    fn elements(
+        &mut self,
+        mut syntax: Syntax,
+        meta_end: Option<u64>,
+    ) -> Result<String, LengthError> {
+        let meta = meta_end.is_some();
         let mut uid = String::new();
         // What each open element of undefined length holds, and the syntax to restore at
         // its delimiter.
@@ -200,14 +214,8 @@ impl<R: Read + Seek> Walk<R> {
                 true => u32::from_be_bytes(b),
                 false => u32::from_le_bytes(b),
             };
-            if meta {
-                // Peek at the group: the meta group ends where another begins.
-                let group = self.bytes::<2>(offset)?;
-                self.reader.seek_relative(-2)?;
-                self.pos -= 2;
-                if u16_of(group) != 0x0002 {
-                    return Ok(uid);
-                }
+            if meta_end.is_some_and(|end| offset >= end) {
+                return Ok(uid);
             }
             let head = self.bytes::<8>(offset)?;
             let tag = Tag(u16_of([head[0], head[1]]), u16_of([head[2], head[3]]));
@@ -235,6 +243,18 @@ impl<R: Read + Seek> Walk<R> {
                         size,
                     });
                 }
+            }
+            // Every length is checked, a delimiter's too: dicom-rs may take a delimiter's
+            // length for a fragment's and allocate it.
+            let left = self.len - self.pos;
+            if length != UNDEFINED && u64::from(length) > left {
+                return Err(LengthError::TooLong {
+                    group: tag.group(),
+                    element: tag.element(),
+                    offset,
+                    declared: u64::from(length),
+                    left,
+                });
             }
             let in_fragments = matches!(open.last(), Some(Open::Fragments(_)));
             match (tag, length) {
@@ -266,16 +286,6 @@ impl<R: Read + Seek> Walk<R> {
                 continue;
             }
             let declared = u64::from(length);
-            let left = self.len - self.pos;
-            if declared > left {
-                return Err(LengthError::TooLong {
-                    group: tag.group(),
-                    element: tag.element(),
-                    offset,
-                    declared,
-                    left,
-                });
-            }
             // A sequence's or an item's elements follow its header; a fragment is bytes, and
             // so is the value of any other tag of group FFFE, an element as dicom-rs reads it.
             let item = tag == Tag(0xFFFE, 0xE000) || tag == Tag(0xFFFE, 0xE00D);
@@ -511,6 +521,24 @@ mod tests {
             too_long(check(&path, false)),
             Some((0x0000, 0x0001, 0xFE00_0000))
         );
+    }
+
+    #[test]
+    fn a_delimiter_declaring_more_than_the_file_holds_is_refused() {
+        // Encapsulated pixel data whose sequence delimiter declares 512 MB (the
+        // coverage-guided fuzzer's file, for which dicom-rs allocated that much).
+        let mut px = long((0x7FE0, 0x0010), b"OB", UNDEFINED);
+        px.extend_from_slice(&item(0));
+        px.extend_from_slice(&item(2));
+        px.extend_from_slice(&[1, 2]);
+        px.extend_from_slice(&[0xFE, 0xFF, 0xDD, 0xE0, 0, 0, 0, 0x20]);
+        assert_eq!(
+            too_long(checked(&part10(&px))),
+            Some((0xFFFE, 0xE0DD, 0x2000_0000))
+        );
+        let n = px.len();
+        px[n - 1] = 0;
+        assert!(checked(&part10(&px)).is_ok());
     }
 
     #[test]
