@@ -133,11 +133,17 @@ pub fn check(path: &Path, part10: bool) -> Result<(), LengthError> {
     // reads it as its group length (0002,0000) says: whole elements until that many bytes are
     // read, whatever their group; the data set starts after them. Without a group length it
     // refuses the file before reading a value.
-    let head = walk.bytes::<12>(132)?;
-    if head[..8] != [0x02, 0x00, 0x00, 0x00, b'U', b'L', 4, 0] {
+    // Its header is read as dicom-rs reads it: the tag and a length of 4, whatever the VR.
+    let head = walk.bytes::<8>(132)?;
+    let vr = VR::from_binary([head[4], head[5]]).unwrap_or(VR::UN);
+    let length = match SHORT_VRS.contains(&vr) {
+        true => u32::from(u16::from_le_bytes([head[6], head[7]])),
+        false => u32::from_le_bytes(walk.bytes::<4>(132)?),
+    };
+    if head[..4] != [0x02, 0x00, 0x00, 0x00] || length != 4 {
         return Ok(());
     }
-    let group_length = u32::from_le_bytes([head[8], head[9], head[10], head[11]]);
+    let group_length = u32::from_le_bytes(walk.bytes::<4>(132)?);
     let meta_end = walk.pos + u64::from(group_length);
     let uid = walk.elements(Syntax::Explicit { big_endian: false }, Some(meta_end))?;
     match Syntax::of(&uid) {
@@ -539,6 +545,25 @@ mod tests {
         let n = px.len();
         px[n - 1] = 0;
         assert!(checked(&part10(&px)).is_ok());
+    }
+
+    #[test]
+    fn the_meta_group_is_walked_by_its_group_length_whatever_its_vr() {
+        // A group length written as FL (dicom-rs reads its 4 bytes all the same), then a
+        // meta element of unknown VR declaring 2.9 GB (the coverage-guided fuzzer's 307-byte
+        // file, for which dicom-rs allocated that much).
+        let mut file = part10(&[]);
+        file[136..138].copy_from_slice(b"FL");
+        assert!(checked(&file).is_ok());
+        let mut lie = vec![0x02, 0x00, 0x13, 0x00, b'U', 0, 0, 0];
+        lie.extend_from_slice(&0xAE49_3231u32.to_le_bytes());
+        let group = u32::from_le_bytes([file[140], file[141], file[142], file[143]]);
+        file[140..144].copy_from_slice(&(group + lie.len() as u32).to_le_bytes());
+        file.extend_from_slice(&lie);
+        assert_eq!(
+            too_long(checked(&file)),
+            Some((0x0002, 0x0013, 0xAE49_3231))
+        );
     }
 
     #[test]
