@@ -1610,6 +1610,27 @@ fn damaged_files_of_every_format_are_read_right_or_refused() {
             .expect("a slice");
         std::fs::copy(slice, dir.path().join(name)).expect("copy");
     }
+    // The intact files are the coverage-guided fuzzer's seeds (`fuzz/run.sh`), each in the
+    // corpus of its reader's target.
+    if let Some(seeds) = std::env::var_os("VOXCUBE_FUZZ_SEEDS") {
+        for (name, _) in files {
+            let target = match name.split_once('.').map_or("", |(_, ext)| ext) {
+                "nrrd" => "nrrd",
+                "nii" => "nifti",
+                "nii.gz" => "nifti_gz",
+                "mha" => "metaimage",
+                "vtk" => "vtk",
+                "vti" => "vti",
+                "map" => "mrc",
+                "ccp4.gz" => "mrc_gz",
+                "dcm" => "dicom",
+                other => panic!("{name}: no fuzz target for .{other}"),
+            };
+            let corpus = Path::new(&seeds).join(target);
+            std::fs::create_dir_all(&corpus).expect("mkdir");
+            std::fs::copy(dir.path().join(name), corpus.join(name)).expect("copy");
+        }
+    }
     let damaged = tempfile::tempdir().expect("tempdir");
     let mut state = 0x9e37_79b9_7f4a_7c15u64;
     let mut next = move || {

@@ -1,0 +1,4 @@
+//! The NIfTI-1 reader, given any bytes as `input.nii`.
+#![no_main]
+
+libfuzzer_sys::fuzz_target!(|data: &[u8]| voxcube_fuzz::read_as("input.nii", data));
