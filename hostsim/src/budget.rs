@@ -74,8 +74,9 @@ pub fn worker_bytes() -> usize {
 /// its min/max blocks, with the leap maps of `needs` (a byte per block each,
 /// [`voxcube_kernel::skip::leaps`]), its view's cell mask ([`voxcube_kernel::skip::cells`]),
 /// its cell leap maps (a byte per cell each, [`voxcube_kernel::skip::cell_leaps`]), its depth
-/// bounds ([`voxcube_kernel::skip::depths`]) and its node field
-/// ([`voxcube_kernel::volume::nodes`]).
+/// bounds ([`voxcube_kernel::skip::depths`]), its node field
+/// ([`voxcube_kernel::volume::nodes`]) and its cells' value ranges
+/// ([`voxcube_kernel::skip::cell_ranges`]).
 pub fn structure_bytes(grid: &Grid, owned: std::ops::Range<u32>, needs: ViewNeeds) -> usize {
     let stored = stored_planes(grid, owned.clone(), needs.ghost);
     needs.node_bytes * voxcube_kernel::volume::nodes::len_for(grid, owned)
@@ -83,7 +84,8 @@ pub fn structure_bytes(grid: &Grid, owned: std::ops::Range<u32>, needs: ViewNeed
             * (size_of::<voxcube_kernel::skip::blocks::Range>()
                 + needs.maps * size_of::<u8>()
                 + size_of::<voxcube_kernel::skip::cells::CellMask>()
-                + needs.cell_maps * voxcube_kernel::skip::cell_leaps::PER_BLOCK)
+                + needs.cell_maps * voxcube_kernel::skip::cell_leaps::PER_BLOCK
+                + needs.cell_ranges)
         + needs.depths
 }
 
@@ -104,6 +106,9 @@ pub struct ViewNeeds {
     /// Bytes per grid node of the fast tier's node field: none is needed, a node holds it
     /// where it fits ([`crate::render::node_skipping`]); 0 holds none.
     pub node_bytes: usize,
+    /// Bytes per min/max block of its cells' value ranges: none is needed, a node holds them
+    /// where they fit ([`crate::render::node_skipping`]); 0 holds none.
+    pub cell_ranges: usize,
 }
 
 impl ViewNeeds {
@@ -115,6 +120,7 @@ impl ViewNeeds {
             cell_maps: 0,
             depths: 0,
             node_bytes: 0,
+            cell_ranges: 0,
         }
     }
 
@@ -126,6 +132,14 @@ impl ViewNeeds {
     /// The same, with a node field of `node_bytes` bytes per grid node.
     pub fn with_node_bytes(self, node_bytes: usize) -> ViewNeeds {
         ViewNeeds { node_bytes, ..self }
+    }
+
+    /// The same, with cells' value ranges of `cell_ranges` bytes per min/max block.
+    pub fn with_cell_ranges(self, cell_ranges: usize) -> ViewNeeds {
+        ViewNeeds {
+            cell_ranges,
+            ..self
+        }
     }
 
     /// The same, with depth bounds of `depths` bytes.
@@ -307,6 +321,7 @@ mod tests {
             cell_maps: 0,
             depths: 0,
             node_bytes: 0,
+            cell_ranges: 0,
         };
         let cap = max_owned_planes(Profile::ncube2(), &grid, 1, needs, buffer);
         assert!(cap > 0 && cap < 208, "{cap}");
@@ -333,6 +348,7 @@ mod tests {
             cell_maps,
             depths: 0,
             node_bytes: 0,
+            cell_ranges: 0,
         };
         assert_eq!(structure_bytes(&grid, 3..7, needs(1, 0)), blocks * 17);
         // A node field of 8 bytes a node over the owned planes and one more each side.
@@ -352,6 +368,15 @@ mod tests {
             structure_bytes(&grid, 3..7, needs(1, 2)) - structure_bytes(&grid, 3..7, needs(1, 0)),
             blocks * 2 * 64
         );
+        // Byte samples' cells' ranges: two bytes a cell and two masks a block.
+        let with_ranges = ViewNeeds {
+            cell_ranges: size_of::<voxcube_kernel::skip::cell_ranges::BlockCells<u8>>(),
+            ..needs(1, 0)
+        };
+        assert_eq!(
+            structure_bytes(&grid, 3..7, with_ranges) - structure_bytes(&grid, 3..7, needs(1, 0)),
+            blocks * (2 * 64 + 2 * 8)
+        );
     }
 
     #[test]
@@ -370,6 +395,7 @@ mod tests {
                     cell_maps: 0,
                     depths: 0,
                     node_bytes: 0,
+                    cell_ranges: 0,
                 },
                 &buffer,
             )

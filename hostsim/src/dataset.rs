@@ -69,8 +69,8 @@ pub struct Volume {
     pub grid: Grid,
     /// The samples, plane-major.
     pub data: VolumeData,
-    /// The node fields built from `data` (a new volume for new samples starts with none).
-    pub fields: crate::nodes::Fields,
+    /// What is built once from `data` (a new volume for new samples starts with nothing).
+    pub built: crate::built::Built,
 }
 
 impl Volume {
@@ -79,7 +79,7 @@ impl Volume {
         Volume {
             grid,
             data,
-            fields: crate::nodes::Fields::default(),
+            built: crate::built::Built::default(),
         }
     }
 

@@ -286,9 +286,19 @@ fn structures_of<T: voxcube_kernel::volume::sample::Sample + Sync>(
     let mut out = format!(
         "structures (one node holding the whole volume; built on {threads} threads here):\n"
     );
+    let start = Instant::now();
+    let ranges = crate::ranges::SlabRanges::build(&slab, true, threads);
+    let took = start.elapsed();
+    let _ = writeln!(
+        out,
+        "  value ranges: min/max blocks {}, cells' ranges {}; built in {:.1} ms once per volume",
+        kib(size_of_val(ranges.blocks.as_slice())),
+        mib(ranges.cell_bytes()),
+        took.as_secs_f64() * 1e3
+    );
     for (name, view) in suggested_views(volume, isos)? {
         let start = Instant::now();
-        let skipping = Skipping::build_on(&slab, &view, SkipMode::ALL, threads);
+        let skipping = Skipping::build_on(&slab, &ranges, &view, SkipMode::ALL, threads);
         let took = start.elapsed();
         let parts: Vec<String> = skipping
             .bytes()

@@ -7,8 +7,9 @@
 //!   and their files), [`builtin`] (procedural volumes), [`framing`] (what a view can show),
 //!   [`info`] (`voxcube info`);
 //! - a node's memory and storage: [`profile`] (machine profiles), [`budget`] (what a node
-//!   holds, against its memory), [`storage`] (slabs and skipping structures), [`nodes`] (the
-//!   fast tier's node fields, once per volume), [`parts`] (builds split over threads),
+//!   holds, against its memory), [`storage`] (slabs and each view's skipping structures),
+//!   [`built`] (what is built once per volume: [`nodes`], the fast tier's node fields, and
+//!   [`ranges`], the slabs' value ranges), [`parts`] (builds split over threads),
 //!   [`balance`] (cuts by measured cost);
 //! - running: [`render`] (one view on a machine), [`fabric`] (the simulator, threads, MPI),
 //!   [`rng`] (seeded schedules), [`timeline`] (virtual-time traces);
@@ -20,6 +21,7 @@
 
 pub mod balance;
 pub mod budget;
+pub mod built;
 pub mod builtin;
 pub mod cli;
 pub mod commands;
@@ -33,6 +35,7 @@ pub mod nodes;
 pub mod output;
 pub mod parts;
 pub mod profile;
+pub mod ranges;
 pub mod render;
 pub mod report;
 pub mod rng;

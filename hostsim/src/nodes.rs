@@ -1,16 +1,12 @@
-//! A node's copy of the fast tier's node field (`voxcube_kernel::volume::nodes`), and the
-//! fields built from one volume: a field depends on the samples of a slab's planes alone, so
-//! it is built once per volume and set of planes, and shared by every view, orbit frame and
-//! repetition that reads one.
+//! A node's copy of the fast tier's node field (`voxcube_kernel::volume::nodes`): it depends
+//! on the samples of a slab's planes alone, so it is built once per volume and set of planes
+//! ([`crate::built`]), and shared by every view, orbit frame and repetition that reads one.
 //!
 //! Invariant: holding the field or not changes no pixel (the kernel computes the same lanes
 //! on the fly), so a node that cannot hold it, or whose build fails, renders without it.
 
 use crate::parts::{even_parts, run_parts, split_sizes, Part};
-use std::any::Any;
-use std::fmt;
 use std::ops::Range;
-use std::sync::{Arc, Mutex, PoisonError};
 use voxcube_kernel::volume::lanes::{Lanes, Nodes};
 use voxcube_kernel::volume::nodes;
 use voxcube_kernel::volume::sample::Sample;
@@ -60,61 +56,5 @@ impl<N: Lanes> NodeField<N> {
             Ok(field) => slab.with_nodes(field),
             Err(_) => slab,
         }
-    }
-}
-
-/// A built field, its lane type erased so that one volume's cache holds any sample kind's.
-type Built = Arc<dyn Any + Send + Sync>;
-
-/// The fields built so far, each with the planes it holds.
-type Shelf = Mutex<Vec<(Range<u32>, Built)>>;
-
-/// The node fields built from one volume, by the planes they hold. Cloning shares them.
-#[derive(Clone, Default)]
-pub struct Fields {
-    built: Arc<Shelf>,
-}
-
-impl Fields {
-    /// The field `slab` (of this cache's volume) reads where its node is to `hold` one
-    /// (`crate::storage::holds_node_field`): the one built for its planes before, else built
-    /// now on up to `threads` OS threads and kept; none where it holds none.
-    pub fn field<T: Sample + Sync>(
-        &self,
-        slab: &Slab<'_, T>,
-        hold: bool,
-        threads: usize,
-    ) -> Arc<NodeField<T::Node>> {
-        if !hold {
-            return Arc::default();
-        }
-        let planes = nodes::planes_for(slab.grid(), slab.owned());
-        // Built under the lock: the nodes of a machine that want the same planes wait for one
-        // build instead of each building it.
-        let mut built = self.built.lock().unwrap_or_else(PoisonError::into_inner);
-        let found = built
-            .iter()
-            .filter(|(p, _)| *p == planes)
-            .find_map(|(_, field)| Arc::clone(field).downcast::<NodeField<T::Node>>().ok());
-        if let Some(field) = found {
-            return field;
-        }
-        let field = Arc::new(NodeField::build(slab, threads));
-        built.push((planes, Arc::clone(&field) as Built));
-        field
-    }
-}
-
-impl fmt::Debug for Fields {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let built = self.built.lock().map_or(0, |b| b.len());
-        write!(f, "Fields({built} built)")
-    }
-}
-
-/// Every cache is equal: what a volume has built says nothing about what it is.
-impl PartialEq for Fields {
-    fn eq(&self, _: &Fields) -> bool {
-        true
     }
 }

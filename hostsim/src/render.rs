@@ -300,13 +300,14 @@ pub fn preflight(volume: &Volume, view: &View, machine: &Machine) -> Result<(), 
 }
 
 /// How `machine`'s nodes skip empty space in `view`: `machine.skipping`, without depth
-/// bounds where the view has none ([`crate::storage::depth_bytes`]) or a node could not hold them beside
-/// everything [`preflight`] counts, and without cell leap maps where the view takes none
-/// given its bounds ([`crate::storage::cell_leap_octants`]) or a node could not hold them
-/// beside all that. They are accelerations, not needs: a machine that fits without them
-/// renders without them, the same pixels. Slabs `balanced` by the host may grow up to the
-/// cap balancing keeps them under ([`budget::max_owned_planes`]), so then that slab must
-/// fit. Every node and the host decide alike from the same inputs.
+/// bounds where the view has none ([`crate::storage::depth_bytes`]) or a node could not hold
+/// them beside everything [`preflight`] counts, without cell leap maps where the view takes
+/// none given its bounds ([`crate::storage::cell_leap_octants`]) or a node could not hold them
+/// beside all that, and then without the node field and the cells' value ranges where a node
+/// could not hold them beside all that. They are accelerations, not needs: a machine that
+/// fits without them renders without them, the same pixels. Slabs `balanced` by the host may
+/// grow up to the cap balancing keeps them under ([`budget::max_owned_planes`]), so then that
+/// slab must fit. Every node and the host decide alike from the same inputs.
 pub fn node_skipping(volume: &Volume, view: &View, machine: &Machine, balanced: bool) -> SkipMode {
     let mode = machine.skipping;
     if machine.fabric == Fabric::Direct {
@@ -330,6 +331,7 @@ pub fn node_skipping(volume: &Volume, view: &View, machine: &Machine, balanced: 
             cell_leaps: false,
             depths: false,
             nodes: false,
+            ranges: false,
             ..mode
         };
     };
@@ -345,10 +347,15 @@ pub fn node_skipping(volume: &Volume, view: &View, machine: &Machine, balanced: 
     // Then the node field, which only the fast tier's shading reads.
     let lanes = crate::storage::node_field_bytes(view, mode, volume.data.kind());
     let nodes = lanes > 0 && fits(with_maps.with_node_bytes(lanes), cfg.buffer());
+    let with_nodes = with_maps.with_node_bytes(if nodes { lanes } else { 0 });
+    // Last the cells' value ranges, which only save each view's pass over the nodes.
+    let cells = crate::storage::cell_range_bytes(view, mode, volume.data.kind());
+    let ranges = cells > 0 && fits(with_nodes.with_cell_ranges(cells), cfg.buffer());
     SkipMode {
         cell_leaps: held,
         depths,
         nodes,
+        ranges,
         ..mode
     }
 }
@@ -433,12 +440,15 @@ fn render_typed<T: Sample + Sync>(
 ) -> Result<Rendered, SlabError> {
     let view = &*mode.view(view);
     let slab = Slab::whole(volume.grid, data)?;
-    // The clock covers the blocks, leap map and cell masks too: the leap map and the masks
-    // belong to the view, so they are part of its frame, as on every other fabric.
+    // The clock covers the leap map and cell masks too: they belong to the view, so they are
+    // part of its frame, as on every other fabric; and the volume's value ranges and node
+    // field, the first time they are built.
     let start = Instant::now();
-    let skipping = Skipping::build(&slab, view, mode);
+    let cells = crate::storage::cell_range_bytes(view, mode, T::KIND) > 0;
+    let ranges = volume.built.ranges(&slab, cells, 1);
+    let skipping = Skipping::build(&slab, &ranges, view, mode);
     let field = volume
-        .fields
+        .built
         .field(&slab, crate::storage::holds_node_field(view, mode), 1);
     let slab = field.apply(skipping.apply(slab));
     let mut counters = Counters::default();

@@ -6,8 +6,10 @@
 //! stores alone, so they are the same bits however the build is split or where it runs.
 
 use crate::parts::{even_parts, run_parts, split_sizes, Part};
+use crate::ranges::SlabRanges;
 use std::borrow::Cow;
 use std::ops::Range;
+use std::sync::Arc;
 use voxcube_kernel::node::partition::Partition;
 use voxcube_kernel::node::topology::Layout;
 use voxcube_kernel::trace::view::View;
@@ -40,6 +42,10 @@ pub struct SkipMode {
     /// skip, but an acceleration decided alike; without it the same lanes are computed on
     /// the fly.
     pub nodes: bool,
+    /// Hold each cell's value range, built once per volume (`crate::ranges`), so that a
+    /// view's cell masks classify them; without them each view's masks read the nodes, the
+    /// same bits.
+    pub ranges: bool,
 }
 
 impl SkipMode {
@@ -52,6 +58,7 @@ impl SkipMode {
         rows: false,
         depths: false,
         nodes: true,
+        ranges: true,
     };
     /// Empty samples skipped by whole blocks, each jump ending at its block's faces.
     pub const BLOCKS: SkipMode = SkipMode {
@@ -62,6 +69,7 @@ impl SkipMode {
         rows: true,
         depths: false,
         nodes: true,
+        ranges: true,
     };
     /// Empty samples skipped by whole blocks, each jump leaping over every empty block around.
     pub const LEAPS: SkipMode = SkipMode {
@@ -72,6 +80,7 @@ impl SkipMode {
         rows: true,
         depths: false,
         nodes: true,
+        ranges: true,
     };
     /// Leaps, and single empty cells skipped too (the default).
     pub const ALL: SkipMode = SkipMode {
@@ -82,6 +91,7 @@ impl SkipMode {
         rows: true,
         depths: true,
         nodes: true,
+        ranges: true,
     };
 
     /// `view` as this mode renders it: without its row leaps when `rows` is off.
@@ -110,6 +120,31 @@ pub fn node_field_bytes(
 ) -> usize {
     match holds_node_field(view, mode) {
         true => kind.node_bytes(),
+        false => 0,
+    }
+}
+
+/// Whether a node skipping as `mode` says builds cell masks for `view`: in the cell model.
+pub fn has_cell_masks(view: &View, mode: SkipMode) -> bool {
+    mode.skip && mode.cells && view.spec().model == voxcube_kernel::volume::grid::Model::Cell
+}
+
+/// Bytes per min/max block of the cells' ranges a node skipping as `mode` says holds for
+/// `view` over samples of `kind`: where it builds cell masks and `mode` holds them; none
+/// otherwise.
+pub fn cell_range_bytes(
+    view: &View,
+    mode: SkipMode,
+    kind: voxcube_kernel::volume::sample::SampleKind,
+) -> usize {
+    use voxcube_kernel::skip::cell_ranges::BlockCells;
+    use voxcube_kernel::volume::sample::SampleKind;
+    match mode.ranges && has_cell_masks(view, mode) {
+        true => match kind {
+            SampleKind::U8 => size_of::<BlockCells<u8>>(),
+            SampleKind::U16 => size_of::<BlockCells<u16>>(),
+            SampleKind::F32 => size_of::<BlockCells<f32>>(),
+        },
         false => 0,
     }
 }
@@ -194,7 +229,8 @@ pub fn samples_per_cell(view: &View) -> Option<f64> {
 /// bounds, each empty when that acceleration is off.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Skipping {
-    ranges: Vec<voxcube_kernel::skip::blocks::Range>,
+    /// The volume's blocks for the slab, shared with every view's.
+    ranges: Arc<Vec<voxcube_kernel::skip::blocks::Range>>,
     /// One leap map per octant in `octants`, in octant order.
     leaps: Vec<u8>,
     octants: u8,
@@ -210,11 +246,11 @@ pub struct Skipping {
 }
 
 impl Skipping {
-    /// Bytes of each structure held, by name: min/max blocks, leap maps, cell masks, cell leap
-    /// maps and depth bounds.
-    pub fn bytes(&self) -> [(&'static str, usize); 5] {
+    /// Bytes of each structure held for the view, by name: leap maps, cell masks, cell leap
+    /// maps and depth bounds (the min/max blocks it shares are the volume's,
+    /// [`SlabRanges`]).
+    pub fn bytes(&self) -> [(&'static str, usize); 4] {
         [
-            ("min/max blocks", size_of_val(self.ranges.as_slice())),
             ("leap maps", self.leaps.len()),
             ("cell masks", size_of_val(self.cells.as_slice())),
             ("cell leap maps", self.cell_leaps.len()),
@@ -222,100 +258,96 @@ impl Skipping {
         ]
     }
 
-    /// The blocks of `slab` (`mode.skip`), their distances for each octant of ray directions
-    /// the view takes (`mode.leap`) and cell masks (`mode.cells`, cell model only) for `view`.
+    /// The skipping storage of `slab` for `view` (`mode`): its blocks (`mode.skip`, from the
+    /// slab's value `ranges`, built once per volume: [`crate::built::Built::ranges`]), their
+    /// distances for each octant of ray directions the view takes (`mode.leap`) and cell
+    /// masks (`mode.cells`, cell model only), classified from the cells' ranges where
+    /// `ranges` holds them, else read from the slab's nodes.
     pub fn build<T: voxcube_kernel::volume::sample::Sample + Sync>(
         slab: &voxcube_kernel::volume::slab::Slab<'_, T>,
+        ranges: &SlabRanges<T>,
         view: &View,
         mode: SkipMode,
     ) -> Skipping {
-        Skipping::build_on(slab, view, mode, 1)
+        Skipping::build_on(slab, ranges, view, mode, 1)
     }
 
     /// [`Skipping::build`] with depth bounds for the image rows `rows` only: a node's, whose
     /// cluster traces those (`topology::Layout::cluster_rows`).
     pub fn build_for<T: voxcube_kernel::volume::sample::Sample + Sync>(
         slab: &voxcube_kernel::volume::slab::Slab<'_, T>,
+        ranges: &SlabRanges<T>,
         view: &View,
         mode: SkipMode,
         rows: voxcube_kernel::node::topology::Rows,
     ) -> Skipping {
-        Skipping::build_rows_on(slab, view, mode, 1, rows)
+        Skipping::build_rows_on(slab, ranges, view, mode, 1, rows)
     }
 
-    /// [`Skipping::build`] on up to `threads` OS threads: the blocks and the masks split by
-    /// block columns, each octant's distances (one pass over every block) beside the masks.
-    /// The same bits: a column's blocks and masks depend on its own nodes only. A machine's
-    /// start-up is on every frame's clock, and the masks of a composited SOD view alone took a
-    /// tenth of a one-node frame. The depth bounds cover every row: the in-process fabrics
-    /// share a ring position's storage among its clusters, whose nodes read their own rows.
+    /// [`Skipping::build`] on up to `threads` OS threads: the masks split by block columns,
+    /// each octant's distances (one pass over every block) beside the masks. The same bits:
+    /// a column's masks depend on its own nodes only. A machine's start-up is on every
+    /// frame's clock. The depth bounds cover every row: the in-process fabrics share a ring
+    /// position's storage among its clusters, whose nodes read their own rows.
     pub fn build_on<T: voxcube_kernel::volume::sample::Sample + Sync>(
         slab: &voxcube_kernel::volume::slab::Slab<'_, T>,
+        ranges: &SlabRanges<T>,
         view: &View,
         mode: SkipMode,
         threads: usize,
     ) -> Skipping {
         let all = voxcube_kernel::node::topology::Rows::ALL;
-        Skipping::build_rows_on(slab, view, mode, threads, all)
+        Skipping::build_rows_on(slab, ranges, view, mode, threads, all)
     }
 
     fn build_rows_on<T: voxcube_kernel::volume::sample::Sample + Sync>(
         slab: &voxcube_kernel::volume::slab::Slab<'_, T>,
+        ranges: &SlabRanges<T>,
         view: &View,
         mode: SkipMode,
         threads: usize,
         rows: voxcube_kernel::node::topology::Rows,
     ) -> Skipping {
-        use voxcube_kernel::skip::blocks::{column_len, Blocks, Range};
+        use voxcube_kernel::skip::blocks::{column_len, Blocks};
         use voxcube_kernel::skip::cells;
         use voxcube_kernel::skip::minmax::extent;
         if !mode.skip {
             return Skipping::default();
         }
-        let (x0, x1, len) = extent(slab);
+        let (_, _, len) = extent(slab);
+        let Ok(blocks) = Blocks::new(slab.grid(), slab.stored(), &ranges.blocks) else {
+            return Skipping::default();
+        };
         let per = column_len(slab.grid());
-        let columns = x1 - x0;
-        let n = threads.clamp(1, columns as usize) as u32;
-        let parts = even_parts(columns, n);
+        let columns = blocks.shape().0;
+        let parts = even_parts(columns, threads.clamp(1, columns.max(1) as usize) as u32);
         let sizes: Vec<usize> = parts.iter().map(|c| c.len() * per).collect();
-        // Every length comes from the slab: no build can fail; without blocks nothing is
-        // skipped, without distances each jump ends at its block's faces, without masks no
-        // single cell is skipped. A part that panics leaves the view without skipping.
-        //
-        // First each part of the block columns: their ranges, then their cell masks, which
-        // read only their own blocks' ranges (`Blocks::of_columns`). Built with a wait for
-        // every part's ranges between them, the two phases cost a thread start and join more
-        // and run unevenly.
-        let by_cell = mode.cells && view.spec().model == voxcube_kernel::volume::grid::Model::Cell;
-        let mut ranges = vec![Range::UNKNOWN; len];
-        let mut cells = if by_cell { vec![0; len] } else { Vec::new() };
-        let pieces = split_sizes(&mut ranges, sizes.iter().copied())
-            .zip(split_sizes(&mut cells, sizes.iter().copied()));
-        let jobs = pieces
+        // First the cell masks, in parts of the block columns: each reads its own blocks'
+        // cells. Without masks no single cell is skipped.
+        let by_cell = has_cell_masks(view, mode);
+        let mut masks = if by_cell { vec![0; len] } else { Vec::new() };
+        let held = ranges.holds_cells() && mode.ranges;
+        let jobs = split_sizes(&mut masks, sizes.iter().copied())
             .zip(parts)
-            .map(|((out, masks), cols)| -> Part<'_> {
-                let masks = by_cell.then_some(masks);
-                Box::new(move || {
-                    if voxcube_kernel::skip::minmax::build_columns(slab, cols.clone(), out).is_err()
-                    {
-                        return false;
+            .map(|(out, cols)| -> Part<'_> {
+                let (blocks, own) = (&blocks, cols.clone());
+                let cells = ranges
+                    .cells
+                    .get(cols.start as usize * per..cols.end as usize * per);
+                Box::new(move || match (held, cells) {
+                    (true, Some(cells)) => {
+                        cells::classify_columns(cells, blocks, view, own, out).is_ok()
                     }
-                    let Some(masks) = masks else {
-                        return true;
-                    };
-                    let own = 0..cols.len() as u32;
-                    Blocks::of_columns(slab.grid(), slab.stored(), cols, out)
-                        .and_then(|part| cells::build_columns(slab, &part, view, own, masks))
-                        .is_ok()
+                    _ => cells::build_columns(slab, blocks, view, own, out).is_ok(),
                 })
             })
             .collect();
-        if !run_parts(jobs, threads).into_iter().all(|built| built) {
-            return Skipping::default();
-        }
-        let Ok(blocks) = Blocks::new(slab.grid(), slab.stored(), &ranges) else {
-            return Skipping::default();
+        let classified = run_parts(jobs, threads).into_iter().all(|built| built);
+        let cells = match by_cell && classified {
+            true => masks,
+            false => Vec::new(),
         };
+        let ranges = Arc::clone(&ranges.blocks);
         // Then everything that reads the whole slab's blocks or masks, in one set of parts, in
         // this order: the depth bounds in parts of rows, a leap map for each octant the
         // view's rays take, and a cell leap map in parts of planes for each octant of the
@@ -384,8 +416,7 @@ impl Skipping {
             let n = threads.clamp(1, all.max(1));
             for (map, octant) in cell_leaps.chunks_mut(per_map).zip(chosen) {
                 let octant = voxcube_kernel::skip::octant::Octant::from_index(octant);
-                let parts: Vec<std::ops::Range<usize>> =
-                    (0..n).map(|i| part(i, n, all, octant)).collect();
+                let parts: Vec<Range<usize>> = (0..n).map(|i| part(i, n, all, octant)).collect();
                 let sizes: Vec<usize> = parts.iter().map(|p| p.len() * plane).collect();
                 let pieces = split_sizes(map, sizes.into_iter());
                 for (out, part) in pieces.zip(parts).filter(|(_, p)| !p.is_empty()) {
@@ -486,7 +517,7 @@ pub struct NodeStorage<'d, T: voxcube_kernel::volume::sample::Sample> {
     /// By ring position: every cluster holds the same slab there.
     skipping: Vec<Skipping>,
     /// The node field by ring position, as `skipping`.
-    fields: Vec<std::sync::Arc<crate::nodes::NodeField<T::Node>>>,
+    fields: Vec<Arc<crate::nodes::NodeField<T::Node>>>,
 }
 
 impl<'d, T: voxcube_kernel::volume::sample::Sample + Sync> NodeStorage<'d, T> {
@@ -528,13 +559,13 @@ impl<'d, T: voxcube_kernel::volume::sample::Sample + Sync> NodeStorage<'d, T> {
 
     /// The same storage, with the skipping storage and node field of each ring position for
     /// `view` (`mode`), built from cluster 0's node there on up to `threads` OS threads; the
-    /// fields taken from, or kept in, the volume's `fields`.
+    /// value ranges and fields taken from, or kept in, what the volume has `built`.
     pub fn with_skipping(
         mut self,
         view: &View,
         mode: SkipMode,
         threads: usize,
-        fields: &crate::nodes::Fields,
+        built: &crate::built::Built,
     ) -> NodeStorage<'d, T> {
         let slabs: Vec<_> = (0..self.layout.size())
             .map(|j| self.bare_slab(self.layout.node(0, j)).ok())
@@ -543,7 +574,11 @@ impl<'d, T: voxcube_kernel::volume::sample::Sample + Sync> NodeStorage<'d, T> {
             .iter()
             .map(|s| {
                 s.as_ref()
-                    .map(|s| Skipping::build_on(s, view, mode, threads))
+                    .map(|s| {
+                        let cells = cell_range_bytes(view, mode, T::KIND) > 0;
+                        let ranges = built.ranges(s, cells, threads);
+                        Skipping::build_on(s, &ranges, view, mode, threads)
+                    })
                     .unwrap_or_default()
             })
             .collect();
@@ -551,7 +586,7 @@ impl<'d, T: voxcube_kernel::volume::sample::Sample + Sync> NodeStorage<'d, T> {
             .iter()
             .map(|s| {
                 s.as_ref()
-                    .map(|s| fields.field(s, holds_node_field(view, mode), threads))
+                    .map(|s| built.field(s, holds_node_field(view, mode), threads))
                     .unwrap_or_default()
             })
             .collect();

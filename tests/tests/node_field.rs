@@ -93,9 +93,9 @@ fn colours(volume: &Volume, view: &View, held: bool) -> (Vec<[u32; 3]>, usize, C
             nodes: held,
             ..SkipMode::ALL
         };
-        let field = volume.fields.field(&slab, holds_node_field(view, mode), 2);
+        let field = volume.built.field(&slab, holds_node_field(view, mode), 2);
         // Built once for the volume: asked again, the same field.
-        let again = volume.fields.field(&slab, holds_node_field(view, mode), 1);
+        let again = volume.built.field(&slab, holds_node_field(view, mode), 1);
         assert!(std::sync::Arc::ptr_eq(&field, &again) || !held);
         let slab = field.apply(slab);
         assert_eq!(slab.nodes().is_some(), held);

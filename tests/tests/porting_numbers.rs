@@ -38,6 +38,7 @@ fn porting_md_slab_figure_holds() {
         cell_maps: 0,
         depths: 0,
         node_bytes: 0,
+        cell_ranges: 0,
     };
     let slab = voxcube::budget::largest_node(&grid, 1, 16, needs, 0)
         .expect("fits")

@@ -386,7 +386,8 @@ fn trace_typed<T: Sample + Sync>(
     mode: SkipMode,
 ) -> Vec<[u8; 4]> {
     let slab = Slab::whole(grid, data).expect("slab");
-    let skipping = Skipping::build(&slab, built_for, mode);
+    let ranges = voxcube::ranges::SlabRanges::build(&slab, mode.ranges, 1);
+    let skipping = Skipping::build(&slab, &ranges, built_for, mode);
     trace_all(traced, &skipping.apply(slab))
 }
 
@@ -615,10 +616,15 @@ fn skipping_built_on_threads_is_the_same_storage() {
                     ..SkipMode::ALL
                 };
                 for skipping in [SkipMode::ALL, no_depths, SkipMode::LEAPS, SkipMode::BLOCKS] {
-                    let one = Skipping::build(slab, &view, skipping);
+                    // One thread reading the nodes for the masks; several classifying the
+                    // cells' ranges, themselves built on as many threads.
+                    let nodes = voxcube::ranges::SlabRanges::build(slab, false, 1);
+                    let one = Skipping::build(slab, &nodes, &view, skipping);
                     assert_ne!(one, Skipping::default(), "{dims:?}: blocks are built");
                     for threads in [2, 3, 8] {
-                        let many = Skipping::build_on(slab, &view, skipping, threads);
+                        let ranges = voxcube::ranges::SlabRanges::build(slab, true, threads);
+                        assert!(ranges.holds_cells());
+                        let many = Skipping::build_on(slab, &ranges, &view, skipping, threads);
                         // Not assert_eq: the storage runs to thousands of entries.
                         assert!(
                             many == one,
@@ -762,7 +768,7 @@ fn every_node_skips_by_the_same_storage_however_the_build_is_threaded() {
         let storage =
             |threads: usize| {
                 NodeStorage::new(&grid, layout, &partition, ghost, data.as_slice(), None)
-                    .with_skipping(&view, mode, threads, &voxcube::nodes::Fields::default())
+                    .with_skipping(&view, mode, threads, &voxcube::built::Built::default())
             };
         let one = storage(1);
         for threads in [2, 3, 16] {

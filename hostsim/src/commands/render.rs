@@ -89,6 +89,10 @@ pub struct RenderArgs {
     /// node field (a debug option: it changes no pixel, only the time and the memory).
     #[arg(long)]
     pub no_node_field: bool,
+    /// Build each view's cell masks from the nodes, holding no cells' value ranges built
+    /// once per volume (a debug option: it changes no pixel, only the time and the memory).
+    #[arg(long)]
+    pub no_cell_ranges: bool,
     /// Inject a fault: node NODE stops answering after STEPS of its polls (with `:exit`,
     /// on MPI, its rank's process exits instead: a crash). The host declares it lost and
     /// the surviving clusters re-trace its cluster's unfinished rows: the same image, the
@@ -263,6 +267,7 @@ pub fn run(args: RenderArgs) -> Result<(), Box<dyn std::error::Error>> {
         no_row_leaps,
         no_depths,
         no_node_field,
+        no_cell_ranges,
         stop_node,
         lost_after,
         accuracy,
@@ -297,6 +302,7 @@ pub fn run(args: RenderArgs) -> Result<(), Box<dyn std::error::Error>> {
                 rows: !no_row_leaps,
                 depths: !no_depths,
                 nodes: !no_node_field,
+                ranges: !no_cell_ranges,
             };
             m.profile = match profile {
                 ProfileArg::Ncube2 => Profile::ncube2(),

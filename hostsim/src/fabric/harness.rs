@@ -178,7 +178,7 @@ impl<'v> Plan<'v> {
             data,
             shifted,
         )
-        .with_skipping(&self.view, cfg.skipping, threads, &volume.fields);
+        .with_skipping(&self.view, cfg.skipping, threads, &volume.built);
         Ok((storage, report))
     }
 

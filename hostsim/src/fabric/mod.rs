@@ -89,7 +89,8 @@ impl<'a> RunShape<'a> {
                     cfg.skipping,
                     cfg.layout.clusters(),
                 ))
-                .with_node_bytes(crate::storage::node_field_bytes(view, cfg.skipping, kind)),
+                .with_node_bytes(crate::storage::node_field_bytes(view, cfg.skipping, kind))
+                .with_cell_ranges(crate::storage::cell_range_bytes(view, cfg.skipping, kind)),
             sample_bytes: kind.bytes(),
         }
     }

@@ -682,9 +682,11 @@ fn serve_phase<T: Sample + Sync>(
     )?;
     // Depth bounds for this node's cluster's rows only, as its budget counts them.
     let rows = layout.cluster_rows(layout.place(node).0);
-    let skipping = crate::storage::Skipping::build_for(&slab, view, cfg.skipping, rows);
+    let cells = crate::storage::cell_range_bytes(view, cfg.skipping, volume.data.kind()) > 0;
+    let ranges = volume.built.ranges(&slab, cells, 1);
+    let skipping = crate::storage::Skipping::build_for(&slab, &ranges, view, cfg.skipping, rows);
     let hold = crate::storage::holds_node_field(view, cfg.skipping);
-    let field = volume.fields.field(&slab, hold, 1);
+    let field = volume.built.field(&slab, hold, 1);
     let slab = field.apply(skipping.apply(slab));
     let mut worker = node_worker(view, slab, &partition, cfg, node, flow)?;
     let mut port = MpiPort {

@@ -4,25 +4,24 @@
 //!
 //! Invariants: a cleared bit is a proof, the same proof a block gives: every value of the
 //! trilinear field inside the cell lies between the least and greatest of the cell's eight
-//! nodes, and the view calls that range empty ([`View::empty`]). Where that cannot be shown
-//! the bit is set: every cell of a block whose range is unknown, and every cell with a corner
-//! on a plane the slab does not store (in a block at the slab's ends). A block the view skips
-//! as a whole has no bit set (the marcher never asks). Masks serve the cell model only;
-//! voxel-model samples read a single node, and skipping one would save nothing. Like a leap
-//! map, a mask belongs to one view.
-//! Building them takes about 18 KiB of stack (a block's nodes and their ranges, and the
-//! remembered verdicts) and no other memory than the masks.
+//! nodes ([`crate::skip::cell_ranges`]), and the view calls that range empty
+//! ([`View::empty`]). Where that cannot be shown the bit is set: every cell of a block whose
+//! range is unknown, and every cell with a corner on a plane the slab does not store (in a
+//! block at the slab's ends). A block the view skips as a whole has no bit set (the marcher
+//! never asks). Masks serve the cell model only; voxel-model samples read a single node, and
+//! skipping one would save nothing. Like a leap map, a mask belongs to one view; the cells'
+//! ranges it classifies belong to the volume, and a mask classified from them
+//! ([`classify_columns`]) is the one built from the nodes ([`build_columns`]), bit for bit.
+//! Building them takes at most about 18 KiB of stack (a block's nodes and their ranges, and
+//! the remembered verdicts) and no other memory than the masks.
 
 use crate::skip::blocks::{Blocks, BlocksError, Range, BLOCK};
 pub use crate::skip::blocks::{CellMask, ALL};
+use crate::skip::cell_ranges::{self, BlockCells};
 use crate::skip::octant::Octant;
 use crate::trace::view::{Mode, View};
-use crate::volume::sample::Sample;
+use crate::volume::sample::{Sample, SampleKind};
 use crate::volume::slab::Slab;
-
-const EDGE: usize = BLOCK as usize;
-/// Nodes per block edge: the cells' corners.
-const NODES: usize = EDGE + 1;
 
 /// The bit, within its block, of the cell whose low corner is `lo` ([`crate::volume::field::Site::lo`]
 /// of a cell-model sample). The corner is `4·block + offset` along every axis in the cell model,
@@ -108,7 +107,7 @@ pub fn build<T: Sample>(
 
 /// Fill `out` with the masks of block columns `columns` of `blocks` (counted from the slab's
 /// first), as [`build`] fills their part of its storage: a build split by columns gives the
-/// same bits.
+/// same bits. One pass over the slab's nodes, for a host that holds no [`BlockCells`].
 pub fn build_columns<T: Sample>(
     slab: &Slab<'_, T>,
     blocks: &Blocks<'_>,
@@ -116,24 +115,56 @@ pub fn build_columns<T: Sample>(
     columns: core::ops::Range<u32>,
     out: &mut [CellMask],
 ) -> Result<(), BlocksError> {
+    let mut verdicts = Verdicts::new::<T>(view);
+    each_block(blocks, view, columns, out, |b, _| {
+        cell_ranges::of_block(slab, b).map(|cells| verdicts.mask(&cells))
+    })
+}
+
+/// Fill `out` with the masks of block columns `columns` of `blocks`, as [`build_columns`]
+/// does, from their cells' ranges `cells` ([`cell_ranges::build_columns`] of the same
+/// columns): a classification of ranges built once per volume, the same bits.
+pub fn classify_columns<T: Sample>(
+    cells: &[BlockCells<T>],
+    blocks: &Blocks<'_>,
+    view: &View,
+    columns: core::ops::Range<u32>,
+    out: &mut [CellMask],
+) -> Result<(), BlocksError> {
+    BlocksError::check_storage(out.len(), cells.len())?;
+    let mut verdicts = Verdicts::new::<T>(view);
+    each_block(blocks, view, columns, out, |_, i| {
+        cells.get(i).map(|cells| verdicts.mask(cells))
+    })
+}
+
+/// Each block of columns `columns` into its mask in `out`: none where the view skips the
+/// block as a whole, all where its range is unknown, else `mask` of its coordinates and
+/// index among the columns' blocks (all where that gives none).
+fn each_block(
+    blocks: &Blocks<'_>,
+    view: &View,
+    columns: core::ops::Range<u32>,
+    out: &mut [CellMask],
+    mut mask: impl FnMut([u32; 3], usize) -> Option<CellMask>,
+) -> Result<(), BlocksError> {
     let ranges = blocks.columns(columns.clone())?;
     BlocksError::check_storage(ranges.len(), out.len())?;
     let (_, ny, nz) = blocks.shape();
     let x0 = blocks.first_column() + columns.start;
-    let mut verdicts = Verdicts::new(view);
-    let mut masks = out.iter_mut().zip(ranges);
+    let mut masks = out.iter_mut().zip(ranges).enumerate();
     for bx in x0..x0 + columns.len() as u32 {
         for bz in 0..nz {
             for by in 0..ny {
-                let Some((mask, range)) = masks.next() else {
+                let Some((i, (out, range))) = masks.next() else {
                     return Ok(());
                 };
-                *mask = if view.empty(*range) {
+                *out = if view.empty(*range) {
                     0
                 } else if *range == Range::UNKNOWN {
                     ALL
                 } else {
-                    block_mask(slab, &mut verdicts, [bx, by, bz]).unwrap_or(ALL)
+                    mask([bx, by, bz], i).unwrap_or(ALL)
                 };
             }
         }
@@ -141,142 +172,115 @@ pub fn build_columns<T: Sample>(
     Ok(())
 }
 
-/// Slots of [`Verdicts`].
+/// Slots of [`Verdicts::Remembered`].
 const SLOTS: usize = 1024;
 
-/// The view's verdicts on cells. A surfaces view's is [`View::below_surfaces`] of a cell's
-/// greatest corner ([`View::empty`] reads nothing else): one comparison, with no least corner
-/// to find and nothing worth remembering. A composited view's walks the transfer function's
-/// points; cells repeat a few ranges (a `u8` volume has at most 32,896), and a verdict is a
-/// pure function of the range, so those are remembered, exactly.
-struct Verdicts<'v> {
-    view: &'v View,
-    /// Whether the greatest corner alone decides: a surfaces view.
-    by_greatest: bool,
+/// The greatest value a byte takes.
+const BYTES: usize = u8::MAX as usize + 1;
+
+/// A view's verdicts on cells' ranges ([`View::empty`], a pure function of the range).
+/// Emptiness is monotone in the range (a range inside an empty one is empty: the premise
+/// of every min/max proof), so for byte samples one table says it all: for each least
+/// value, the greatest value up to which the range is empty. Other samples' verdicts
+/// are remembered by range, exactly: cells repeat a few ranges.
+#[allow(
+    clippy::large_enum_variant,
+    reason = "one lives on the stack for a build; the kernel has no heap to box the larger"
+)]
+enum Verdicts<'v> {
+    /// `reach[lo]`: the greatest `hi` whose range from `lo` is empty, −1 where none is.
+    Bytes { reach: [i16; BYTES] },
+    /// A surfaces view: the greatest corner alone decides ([`View::below_surfaces`]).
+    ByGreatest { view: &'v View },
     /// By slot: the range's bits, and whether the view calls it empty.
-    seen: [Option<(u64, bool)>; SLOTS],
+    Remembered {
+        view: &'v View,
+        seen: [Option<(u64, bool)>; SLOTS],
+    },
 }
 
 impl<'v> Verdicts<'v> {
-    fn new(view: &'v View) -> Verdicts<'v> {
-        Verdicts {
-            view,
-            by_greatest: matches!(view.spec().mode, Mode::Surfaces(_)),
-            seen: [None; SLOTS],
+    fn new<T: Sample>(view: &'v View) -> Verdicts<'v> {
+        if T::KIND == SampleKind::U8 {
+            return Verdicts::Bytes { reach: reach(view) };
+        }
+        match view.spec().mode {
+            Mode::Surfaces(_) => Verdicts::ByGreatest { view },
+            Mode::Composite(_) => Verdicts::Remembered {
+                view,
+                seen: [None; SLOTS],
+            },
         }
     }
 
-    /// The verdict on a range, remembered (for views that read more than its greatest value).
+    /// The cells of `block` that the view cannot skip.
     #[inline]
-    fn empty(&mut self, r: Range) -> bool {
-        let key = u64::from(r.min.to_bits()) << 32 | u64::from(r.max.to_bits());
-        // Fibonacci hashing: the top bits of the product mix every bit of the key.
-        let slot = (key.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 54) as usize % SLOTS;
-        match self.seen[slot] {
-            Some((seen, empty)) if seen == key => empty,
-            _ => {
-                let empty = self.view.empty(r);
-                self.seen[slot] = Some((key, empty));
-                empty
+    fn mask<T: Sample>(&mut self, block: &BlockCells<T>) -> CellMask {
+        let mut mask: CellMask = 0;
+        let cells = block.lo.iter().zip(&block.hi);
+        match self {
+            Verdicts::Bytes { reach } => {
+                for (i, (lo, hi)) in cells.enumerate() {
+                    // Exact: a byte's value is a whole number below 256.
+                    let (lo, hi) = (lo.to_f32() as u8, hi.to_f32() as i16);
+                    mask |= CellMask::from(hi > reach[usize::from(lo)]) << i;
+                }
             }
-        }
-    }
-}
-
-/// The cells of block `b` that the view cannot skip, every cell with a corner on a plane the
-/// slab does not store among them (a block at the slab's end); `None` when a row of its nodes
-/// on a stored plane is not there.
-fn block_mask<T: Sample>(
-    slab: &Slab<'_, T>,
-    verdicts: &mut Verdicts<'_>,
-    b: [u32; 3],
-) -> Option<CellMask> {
-    let dims = slab.grid().dims();
-    // The block's nodes along each axis, as `Blocks` counts them: its cells' corners.
-    let first = b.map(|b| b * BLOCK);
-    let len: [usize; 3] = core::array::from_fn(|a| {
-        (((b[a] + 1) * BLOCK).min(dims[a].saturating_sub(1)) + 1 - first[a]) as usize
-    });
-    // The block's nodes once (at most 5³), an axis of fewer nodes padded with its last, so
-    // that a cell's far corner along an axis of one node is its near one, as in `locate`.
-    // Kept as stored: their order is their values' (`Sample::lesser`), so each cell's
-    // extremes are found before converting, and only those are converted.
-    let mut nodes = [[[T::default(); NODES]; NODES]; NODES];
-    // The cells with a corner on a plane not stored: their bits are set whatever their nodes
-    // (left at the default) say.
-    let stored = slab.stored();
-    let mut unstored: CellMask = 0;
-    for (x, plane) in nodes.iter_mut().enumerate() {
-        let at = first[0] + x.min(len[0] - 1) as u32;
-        if !stored.contains(&at) {
-            // The cells on either side of this plane of nodes, every Y and Z.
-            for cell in [x.checked_sub(1), Some(x)].into_iter().flatten() {
-                let cell = cell.min(EDGE - 1) as u32;
-                unstored |= box_bits([cell, 0, 0], [cell, BLOCK - 1, BLOCK - 1]);
+            Verdicts::ByGreatest { view } => {
+                for (i, (_, hi)) in cells.enumerate() {
+                    mask |= CellMask::from(!view.below_surfaces(hi.to_f32())) << i;
+                }
             }
-            continue;
-        }
-        for (z, line) in plane.iter_mut().enumerate() {
-            let (x, z) = (x.min(len[0] - 1) as u32, z.min(len[2] - 1) as u32);
-            let row = slab.row(first[0] + x, first[2] + z)?;
-            let start = first[1] as usize;
-            let values = row.get(start..start + len[1])?;
-            for (y, node) in line.iter_mut().enumerate() {
-                *node = values.get(y.min(len[1] - 1)).copied().unwrap_or_default();
-            }
-        }
-    }
-    // Each cell's greatest corner, and its least where the verdict reads it, in three passes
-    // over pairs of neighbours (along x, z, then y) instead of fourteen comparisons a cell.
-    let hi = corner_extremes(&nodes, T::greater);
-    let lo = (!verdicts.by_greatest).then(|| corner_extremes(&nodes, T::lesser));
-    let cells = len.map(|n| n.saturating_sub(1).max(1));
-    let mut mask = 0;
-    for x in 0..cells[0] {
-        for z in 0..cells[2] {
-            for y in 0..cells[1] {
-                let max = hi[x][z][y].greater(hi[x][z][y + 1]).to_f32();
-                let empty = match &lo {
-                    None => verdicts.view.below_surfaces(max),
-                    Some(lo) => verdicts.empty(Range {
-                        min: lo[x][z][y].lesser(lo[x][z][y + 1]).to_f32(),
-                        max,
-                    }),
-                };
-                if !empty {
-                    mask |= 1 << (x + EDGE * (y + EDGE * z));
+            Verdicts::Remembered { view, seen } => {
+                for (i, (lo, hi)) in cells.enumerate() {
+                    let r = Range {
+                        min: lo.to_f32(),
+                        max: hi.to_f32(),
+                    };
+                    let key = u64::from(r.min.to_bits()) << 32 | u64::from(r.max.to_bits());
+                    // Fibonacci hashing: the top bits of the product mix every bit of the key.
+                    let slot = (key.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 54) as usize % SLOTS;
+                    let empty = match seen[slot] {
+                        Some((known, empty)) if known == key => empty,
+                        _ => {
+                            let empty = view.empty(r);
+                            seen[slot] = Some((key, empty));
+                            empty
+                        }
+                    };
+                    mask |= CellMask::from(!empty) << i;
                 }
             }
         }
+        (mask & block.present) | block.unknown
     }
-    Some(mask | unstored)
 }
 
-/// The nodes of a block, each replaced (over the first `EDGE` along x and z) by `pick` of it
-/// and its neighbours one over along x and then z: what is left for the y pass of a cell.
-#[inline(always)]
-fn corner_extremes<T: Sample>(
-    nodes: &[[[T; NODES]; NODES]; NODES],
-    pick: fn(T, T) -> T,
-) -> [[[T; NODES]; NODES]; NODES] {
-    let mut out = *nodes;
-    for x in 0..EDGE {
-        for z in 0..NODES {
-            for y in 0..NODES {
-                out[x][z][y] = pick(out[x][z][y], nodes[x + 1][z][y]);
-            }
+/// For each byte value `lo`, the greatest `hi` such that `view` calls the range `lo..=hi`
+/// empty, −1 where it does not call `lo` alone empty. Each `lo` starts from the last reach
+/// found: by monotonicity a range inside an empty one is empty, so about 512 verdicts in all.
+fn reach(view: &View) -> [i16; BYTES] {
+    let empty = |lo: usize, hi: usize| {
+        view.empty(Range {
+            min: lo as f32,
+            max: hi as f32,
+        })
+    };
+    let mut reach = [-1; BYTES];
+    let mut last = 0;
+    for (lo, out) in reach.iter_mut().enumerate() {
+        if !empty(lo, lo) {
+            continue;
         }
-    }
-    for plane in out.iter_mut().take(EDGE) {
-        for z in 0..EDGE {
-            // Row z from row z + 1, which this pass has not changed yet.
-            let (near, far) = plane.split_at_mut(z + 1);
-            for (node, next) in near[z].iter_mut().zip(&far[0]) {
-                *node = pick(*node, *next);
-            }
+        let mut hi = last.max(lo);
+        while hi + 1 < BYTES && empty(lo, hi + 1) {
+            hi += 1;
         }
+        // Below 256.
+        *out = hi as i16;
+        last = hi;
     }
-    out
+    reach
 }
 
 #[cfg(test)]
@@ -403,6 +407,9 @@ mod tests {
                         build_columns(&slab, &blocks, &view, cut..cols, b).unwrap();
                         assert_eq!(split[..len], masks[..len], "cut at column {cut}");
                     }
+                    // Classified from the cells' ranges, built once: the same masks.
+                    let classified = classified(&slab, &blocks, &view);
+                    assert_eq!(classified[..len], masks[..len], "classified");
                     let masked = blocks.with_cells(&masks[..len]).unwrap();
                     // Every cell of every stored block against the definition.
                     let cells = dims.map(|n| n.saturating_sub(1).max(1));
@@ -453,6 +460,96 @@ mod tests {
         }
         // Both outcomes are exercised.
         assert!(cleared > 1000 && set > 1000, "{cleared} cleared, {set} set");
+    }
+
+    /// The masks of `blocks` (of `slab`, at most 27) for `view`, classified from their
+    /// cells' ranges.
+    fn classified<T: Sample>(
+        slab: &Slab<'_, T>,
+        blocks: &Blocks<'_>,
+        view: &View,
+    ) -> [CellMask; 3 * 3 * 3] {
+        let (cols, ny, nz) = blocks.shape();
+        let len = (cols * ny * nz) as usize;
+        let mut cells = [BlockCells::default(); 3 * 3 * 3];
+        cell_ranges::build_columns(slab, blocks, 0..cols, &mut cells[..len]).unwrap();
+        let mut masks = [0x5a5a; 3 * 3 * 3];
+        classify_columns(&cells[..len], blocks, view, 0..cols, &mut masks[..len]).unwrap();
+        masks
+    }
+
+    /// Whether `reach` gives `view`'s verdict on every range of byte values.
+    fn reach_agrees(reach: &[i16; BYTES], view: &View) -> bool {
+        (0..BYTES).all(|lo| {
+            (lo..BYTES).all(|hi| {
+                let r = Range {
+                    min: lo as f32,
+                    max: hi as f32,
+                };
+                (hi as i16 <= reach[lo]) == view.empty(r)
+            })
+        })
+    }
+
+    #[test]
+    fn the_byte_table_gives_the_views_verdict_on_every_range() {
+        let grid = Grid::new([9, 9, 9], Vec3::ONE).unwrap();
+        let mut tables = 0;
+        for clear in [0.0, 20.0, 99.5, 200.0, 254.0] {
+            for view in views(&grid, &[clear + 10.0, clear + 60.0], clear) {
+                let table = reach(&view);
+                assert!(reach_agrees(&table, &view), "clear {clear}");
+                // The negative control: a table one value too generous anywhere it can be
+                // is caught.
+                for lo in (0..BYTES).filter(|&lo| (0..255).contains(&table[lo])) {
+                    let mut wrong = table;
+                    wrong[lo] += 1;
+                    assert!(!reach_agrees(&wrong, &view), "clear {clear}, lo {lo}");
+                    tables += 1;
+                }
+            }
+        }
+        assert!(tables > 100, "{tables}");
+    }
+
+    /// Masks of `data` (a blob, as its values are converted by `to`) built from the nodes and
+    /// classified from its cells' ranges, for each of [`views`].
+    fn both_ways<T: Sample>(to: impl Fn(u8) -> T, scale: f32) -> usize {
+        let mut next = crate::testing::xorshift(0x7a61_e5c0);
+        let dims = [11, 9, 10];
+        let grid = Grid::new(dims, Vec3::ONE).unwrap();
+        let data: [T; 11 * 9 * 10] = core::array::from_fn(|i| {
+            let (x, y, z) = (i / 90, i % 9, (i / 9) % 10);
+            let d2 = (x.abs_diff(5).pow(2) + y.abs_diff(4).pow(2) + z.abs_diff(5).pow(2)) as u32;
+            to((200u32.saturating_sub(d2 * 10) + next() % 30) as u8)
+        });
+        let slab = Slab::whole(grid, &data).unwrap();
+        let mut ranges = [Range::UNKNOWN; 3 * 3 * 3];
+        let (_, _, len) = crate::skip::minmax::extent(&slab);
+        crate::skip::minmax::build(&slab, &mut ranges[..len]).unwrap();
+        let blocks = Blocks::new(slab.grid(), slab.stored(), &ranges[..len]).unwrap();
+        let mut kept = 0;
+        for view in views(&grid, &[90.0 * scale, 150.0 * scale], 60.0 * scale) {
+            let mut built = [0; 3 * 3 * 3];
+            build(&slab, &blocks, &view, &mut built[..len]).unwrap();
+            let classified = classified(&slab, &blocks, &view);
+            assert_eq!(built[..len], classified[..len], "{:?}", T::KIND);
+            kept += built.iter().map(|m| m.count_ones() as usize).sum::<usize>();
+        }
+        kept
+    }
+
+    #[test]
+    fn masks_classified_from_cells_ranges_are_the_masks_of_the_nodes_for_every_sample_kind() {
+        let kept = [
+            both_ways(|v| v, 1.0),
+            both_ways(|v| u16::from(v) * 200, 200.0),
+            both_ways(|v| f32::from(v) * 0.37, 0.37),
+        ];
+        // Neither all nor none of the cells kept.
+        for k in kept {
+            assert!(k > 100 && k < 3 * 27 * 64 - 100, "{kept:?}");
+        }
     }
 
     #[test]

@@ -4,7 +4,8 @@
 //! The marcher's face is [`blocks::Blocks`] (min/max blocks, which carry the view's maps)
 //! and [`scan`] (a ray's next samples against the cell masks). The rest are the maps the
 //! host builds once per view and node: [`leaps`] (chessboard distances between blocks per
-//! octant of ray directions), [`cells`] (each block's cells the view cannot skip),
+//! octant of ray directions), [`cells`] (each block's cells the view cannot skip, a classification of the
+//! [`cell_ranges`] built once per volume),
 //! [`cell_leaps`] (distances between those cells), [`depths`] (each pixel's ray parameter
 //! before its first cell that shows, read through [`bounds`]); [`octant`] keys the maps that
 //! look ahead of a ray, and [`minmax`] builds the blocks from a slab's samples.
@@ -15,6 +16,7 @@
 pub mod blocks;
 pub mod bounds;
 pub mod cell_leaps;
+pub mod cell_ranges;
 pub mod cells;
 pub mod depths;
 pub mod leaps;

@@ -36,7 +36,7 @@ impl SampleKind {
 }
 
 /// A scalar sample the tracer can read.
-pub trait Sample: Copy + Default + 'static {
+pub trait Sample: Copy + Default + Send + Sync + 'static {
     /// Which kind this is.
     const KIND: SampleKind;
     /// The value as `f32`, exactly.

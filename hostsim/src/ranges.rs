@@ -1,0 +1,81 @@
+//! A slab's value ranges: its min/max blocks and each block's cells' ranges
+//! (`voxcube_kernel::skip::cell_ranges`). They depend on the samples of its stored planes
+//! alone, so they are built once per volume and set of stored planes ([`crate::built`]); a
+//! view's skipping ([`crate::storage::Skipping`]) classifies them.
+//!
+//! Invariant: a build split over threads by block columns gives the same bits as one pass
+//! (each column's blocks and cells read its own nodes only); a build that fails holds no
+//! blocks, and a view then skips nothing.
+
+use crate::parts::{even_parts, run_parts, split_sizes, Part};
+use std::sync::Arc;
+use voxcube_kernel::skip::blocks::{column_len, Blocks, Range};
+use voxcube_kernel::skip::cell_ranges::{self, BlockCells};
+use voxcube_kernel::volume::sample::Sample;
+use voxcube_kernel::volume::slab::Slab;
+
+/// A slab's min/max blocks and their cells' ranges, in the blocks' order; no cells where
+/// they were not asked for, and neither where the build failed.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SlabRanges<T> {
+    /// The blocks' ranges, shared with every view's skipping storage.
+    pub blocks: Arc<Vec<Range>>,
+    /// Each block's cells' ranges.
+    pub cells: Vec<BlockCells<T>>,
+}
+
+impl<T: Sample + Sync> SlabRanges<T> {
+    /// Those of `slab` (its cells' where `with_cells`), on up to `threads` OS threads, each
+    /// a part of the block columns: first its blocks' ranges, then its cells', which read
+    /// only its own blocks (`Blocks::of_columns`).
+    pub fn build(slab: &Slab<'_, T>, with_cells: bool, threads: usize) -> SlabRanges<T> {
+        let (x0, x1, len) = voxcube_kernel::skip::minmax::extent(slab);
+        let per = column_len(slab.grid());
+        let columns = x1 - x0;
+        let parts = even_parts(columns, threads.clamp(1, columns.max(1) as usize) as u32);
+        let sizes: Vec<usize> = parts.iter().map(|c| c.len() * per).collect();
+        let mut blocks = vec![Range::UNKNOWN; len];
+        let mut cells = match with_cells {
+            true => vec![BlockCells::default(); len],
+            false => Vec::new(),
+        };
+        let pieces = split_sizes(&mut blocks, sizes.iter().copied())
+            .zip(split_sizes(&mut cells, sizes.iter().copied()));
+        let jobs = pieces
+            .zip(parts)
+            .map(|((out, cells), cols)| -> Part<'_> {
+                let cells = with_cells.then_some(cells);
+                Box::new(move || {
+                    if voxcube_kernel::skip::minmax::build_columns(slab, cols.clone(), out).is_err()
+                    {
+                        return false;
+                    }
+                    let Some(cells) = cells else {
+                        return true;
+                    };
+                    let own = 0..cols.len() as u32;
+                    Blocks::of_columns(slab.grid(), slab.stored(), cols, out)
+                        .and_then(|part| cell_ranges::build_columns(slab, &part, own, cells))
+                        .is_ok()
+                })
+            })
+            .collect();
+        match run_parts(jobs, threads).into_iter().all(|built| built) {
+            true => SlabRanges {
+                blocks: Arc::new(blocks),
+                cells,
+            },
+            false => SlabRanges::default(),
+        }
+    }
+
+    /// Whether it holds its cells' ranges.
+    pub fn holds_cells(&self) -> bool {
+        !self.cells.is_empty()
+    }
+
+    /// Bytes of the cells' ranges (the blocks' are [`crate::storage::Skipping::bytes`]'s).
+    pub fn cell_bytes(&self) -> usize {
+        size_of_val(self.cells.as_slice())
+    }
+}

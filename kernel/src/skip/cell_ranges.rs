@@ -1,0 +1,159 @@
+//! Cell ranges: for every min/max block of a slab, the least and greatest of each of its 4³
+//! cells' eight nodes, as stored. They depend on the slab's samples alone, so a host builds
+//! them once per volume and slab, and a view's cell masks are a classification of them
+//! ([`crate::skip::cells::classify_columns`]) rather than another pass over the volume.
+//!
+//! Invariants: a present cell's range holds every value of the trilinear field inside it
+//! (each lies between the least and greatest of its corners; an axis of one node pads its
+//! far corner with its near one, as [`crate::volume::field::locate`] does); a cell with a
+//! corner on a plane the slab does not store, and every cell of a block a stored row of which
+//! is missing, is `unknown`: no range is claimed for it. Cells past the grid's last node
+//! (in a block at its end) are not present; no sample lies in them. A build split by block
+//! columns gives the same bits as a whole one.
+
+use crate::skip::blocks::{Blocks, BlocksError, CellMask, ALL, BLOCK, PER_BLOCK};
+use crate::volume::sample::Sample;
+use crate::volume::slab::Slab;
+
+const EDGE: usize = BLOCK as usize;
+/// Nodes per block edge: the cells' corners.
+const NODES: usize = EDGE + 1;
+
+/// One block's cells: their ranges, by cell bit (`x + 4·(y + 4·z)` within the block, as
+/// [`crate::skip::cells::bit`]), and which of them the ranges speak for.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BlockCells<T> {
+    /// Each cell's least node.
+    pub lo: [T; PER_BLOCK],
+    /// Each cell's greatest node.
+    pub hi: [T; PER_BLOCK],
+    /// Cells inside the grid.
+    pub present: CellMask,
+    /// Cells whose range is not known: a verdict on them must keep them.
+    pub unknown: CellMask,
+}
+
+impl<T: Sample> Default for BlockCells<T> {
+    /// A block of which nothing is known.
+    fn default() -> Self {
+        BlockCells {
+            lo: [T::default(); PER_BLOCK],
+            hi: [T::default(); PER_BLOCK],
+            present: ALL,
+            unknown: ALL,
+        }
+    }
+}
+
+/// Fill `out` with the cells of `slab`'s block columns `columns` (counted from its first;
+/// `blocks` built from `slab`, one entry per block in its order).
+pub fn build_columns<T: Sample>(
+    slab: &Slab<'_, T>,
+    blocks: &Blocks<'_>,
+    columns: core::ops::Range<u32>,
+    out: &mut [BlockCells<T>],
+) -> Result<(), BlocksError> {
+    let ranges = blocks.columns(columns.clone())?;
+    BlocksError::check_storage(ranges.len(), out.len())?;
+    let (_, ny, nz) = blocks.shape();
+    let x0 = blocks.first_column() + columns.start;
+    let mut out = out.iter_mut();
+    for bx in x0..x0 + columns.len() as u32 {
+        for bz in 0..nz {
+            for by in 0..ny {
+                let Some(cells) = out.next() else {
+                    return Ok(());
+                };
+                *cells = of_block(slab, [bx, by, bz]).unwrap_or_default();
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The cells of block `b`; `None` when a row of its nodes on a stored plane is not there.
+pub(crate) fn of_block<T: Sample>(slab: &Slab<'_, T>, b: [u32; 3]) -> Option<BlockCells<T>> {
+    let dims = slab.grid().dims();
+    // The block's nodes along each axis, as `Blocks` counts them: its cells' corners.
+    let first = b.map(|b| b * BLOCK);
+    let len: [usize; 3] = core::array::from_fn(|a| {
+        (((b[a] + 1) * BLOCK).min(dims[a].saturating_sub(1)) + 1 - first[a]) as usize
+    });
+    // The block's nodes once (at most 5³), an axis of fewer nodes padded with its last. Kept
+    // as stored: their order is their values' (`Sample::lesser`).
+    let mut nodes = [[[T::default(); NODES]; NODES]; NODES];
+    let stored = slab.stored();
+    let mut unknown: CellMask = 0;
+    for (x, plane) in nodes.iter_mut().enumerate() {
+        let at = first[0] + x.min(len[0] - 1) as u32;
+        if !stored.contains(&at) {
+            // The cells on either side of this plane of nodes, every Y and Z.
+            for cell in [x.checked_sub(1), Some(x)].into_iter().flatten() {
+                let cell = cell.min(EDGE - 1);
+                for z in 0..EDGE {
+                    for y in 0..EDGE {
+                        unknown |= 1 << (cell + EDGE * (y + EDGE * z));
+                    }
+                }
+            }
+            continue;
+        }
+        for (z, line) in plane.iter_mut().enumerate() {
+            let (x, z) = (x.min(len[0] - 1) as u32, z.min(len[2] - 1) as u32);
+            let row = slab.row(first[0] + x, first[2] + z)?;
+            let start = first[1] as usize;
+            let values = row.get(start..start + len[1])?;
+            for (y, node) in line.iter_mut().enumerate() {
+                *node = values.get(y.min(len[1] - 1)).copied().unwrap_or_default();
+            }
+        }
+    }
+    // Each cell's extremes in three passes over pairs of neighbours (along x, z, then y)
+    // instead of fourteen comparisons a cell.
+    let hi = corner_extremes(&nodes, T::greater);
+    let lo = corner_extremes(&nodes, T::lesser);
+    let cells = len.map(|n| n.saturating_sub(1).max(1));
+    let mut block = BlockCells {
+        present: 0,
+        unknown,
+        ..BlockCells::default()
+    };
+    for x in 0..cells[0] {
+        for z in 0..cells[2] {
+            for y in 0..cells[1] {
+                let i = x + EDGE * (y + EDGE * z);
+                block.lo[i] = lo[x][z][y].lesser(lo[x][z][y + 1]);
+                block.hi[i] = hi[x][z][y].greater(hi[x][z][y + 1]);
+                block.present |= 1 << i;
+            }
+        }
+    }
+    Some(block)
+}
+
+/// The nodes of a block, each replaced (over the first `EDGE` along x and z) by `pick` of it
+/// and its neighbours one over along x and then z: what is left for the y pass of a cell.
+#[inline(always)]
+fn corner_extremes<T: Sample>(
+    nodes: &[[[T; NODES]; NODES]; NODES],
+    pick: fn(T, T) -> T,
+) -> [[[T; NODES]; NODES]; NODES] {
+    let mut out = *nodes;
+    for x in 0..EDGE {
+        for z in 0..NODES {
+            for y in 0..NODES {
+                out[x][z][y] = pick(out[x][z][y], nodes[x + 1][z][y]);
+            }
+        }
+    }
+    for plane in out.iter_mut().take(EDGE) {
+        for z in 0..EDGE {
+            // Row z from row z + 1, which this pass has not changed yet.
+            let (near, far) = plane.split_at_mut(z + 1);
+            for (node, next) in near[z].iter_mut().zip(&far[0]) {
+                *node = pick(*node, *next);
+            }
+        }
+    }
+    out
+}
