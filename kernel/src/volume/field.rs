@@ -10,6 +10,7 @@ use crate::volume::grid::{Grid, Model};
 use crate::volume::sample::Sample;
 use crate::volume::slab::Slab;
 use glam::{Vec3, Vec3A, Vec4};
+use voxcube_simd as whole;
 
 /// Node `(x, y, z)`'s value, or zero where `slab` does not store it (counted).
 #[inline]
@@ -124,7 +125,7 @@ pub fn corner4(grid: &Grid, model: Model, q: Vec4) -> Corner {
     match model {
         // The nearest node, halves rounding up: `v + 0.5` truncated, kept in the grid.
         Model::Voxel => Corner {
-            lo: whole_lanes((v + Vec4::splat(0.5)).min(last_node).trunc()),
+            lo: whole_lanes(whole::trunc((v + Vec4::splat(0.5)).min(last_node))),
             cell: None,
         },
         Model::Cell => {
@@ -151,7 +152,7 @@ pub fn cell4(grid: &Grid, q: Vec4) -> Vec4 {
 /// node (truncation is the floor there).
 #[inline(always)]
 fn cell_of(v: Vec4, last_cell: Vec4) -> Vec4 {
-    v.min(last_cell).trunc()
+    whole::trunc(v.min(last_cell))
 }
 
 /// `q` clamped into `[0, last_node]`: `q > 0` is false for NaN and -0.0, which land on +0.0.
@@ -174,13 +175,11 @@ pub(crate) fn whole_lanes(v: Vec4) -> [u32; 3] {
     [x, y, z]
 }
 
-/// Every lane of `v` as an integer, exactly for a whole number in `[0, 2^23]` ([`MAGIC`]); any
-/// other lane gives some integer, never a panic.
+/// Every lane of `v` as an integer, exactly for a whole number in `[0, 2^23]`
+/// ([`whole::lanes`]); any other lane gives some integer, never a panic.
 #[inline(always)]
 pub(crate) fn whole_lanes4(v: Vec4) -> [u32; 4] {
-    (v + Vec4::splat(MAGIC))
-        .to_array()
-        .map(|lane| lane.to_bits().wrapping_sub(MAGIC.to_bits()))
+    whole::lanes(v)
 }
 
 /// The field value at index-space point `p` under `model`.
@@ -275,8 +274,7 @@ fn lerp_x_lanes(low: Vec4, high: Vec4, frac: Vec3) -> f32 {
 /// floats and as integers, in every bit the corner [`corner4`] and [`cell4`] find there.
 #[inline(always)]
 pub(crate) fn interior_corner(q: Vec4) -> (Vec4, [u32; 3]) {
-    let cell = q.trunc();
-    (cell, whole_lanes(cell))
+    whole::trunc_lanes(q)
 }
 
 /// The trilinear value at four points at once, the four rays of a packet in the four SIMD
