@@ -74,6 +74,21 @@ pub fn lanes(v: Vec4) -> [u32; 4] {
     portable::lanes(v)
 }
 
+/// `x` truncated toward zero, as an integer: exact for `x` in `[0, 2^31)` (a table index
+/// clamped into its table as a float first), where `as` spends a comparison and a select on
+/// each end of its saturation.
+#[inline(always)]
+pub fn trunc_u32(x: f32) -> u32 {
+    #[cfg(all(target_arch = "x86_64", target_feature = "sse4.1"))]
+    {
+        use core::arch::x86_64::{_mm_cvttss_si32, _mm_set_ss};
+        // SAFETY: SSE and SSE2, all these need, are enabled (the cfg); no pointer is taken.
+        unsafe { _mm_cvttss_si32(_mm_set_ss(x)) as u32 }
+    }
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "sse4.1")))]
+    portable::trunc_u32(x)
+}
+
 #[cfg(all(target_arch = "x86_64", target_feature = "sse4.1"))]
 mod sse41 {
     use core::arch::x86_64::{__m128i, _mm_cvtsi128_si32, _mm_extract_epi32};
@@ -106,6 +121,11 @@ mod portable {
     #[inline(always)]
     pub(super) fn trunc(v: Vec4) -> Vec4 {
         v.trunc()
+    }
+
+    #[inline(always)]
+    pub(super) fn trunc_u32(x: f32) -> u32 {
+        x as u32
     }
 
     #[inline(always)]
@@ -167,6 +187,12 @@ mod tests {
             assert_eq!(lo, [whole[0], whole[1], whole[2]], "{v}");
             // The integers are the truncation's.
             assert_eq!(lo, [t.x, t.y, t.z].map(|c| c as u32), "{v}");
+            assert_eq!(trunc_u32(v.x), portable::trunc_u32(v.x), "{v}");
+        }
+        // And single values up to 2^31, past the lanes' range.
+        for _ in 0..400_000 {
+            let x = f32::from_bits(next() % 0x4f00_0000);
+            assert_eq!(trunc_u32(x), portable::trunc_u32(x), "{x}");
         }
     }
 
@@ -178,5 +204,6 @@ mod tests {
         let v = Vec4::new(3.0e9, 1.5, 2.5, 3.5);
         assert_eq!(portable::trunc(v).x, 3.0e9);
         assert_eq!(trunc(v).x, i32::MIN as f32);
+        assert_ne!(trunc_u32(3.0e9), portable::trunc_u32(3.0e9));
     }
 }

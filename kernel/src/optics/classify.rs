@@ -69,15 +69,15 @@ impl Classified {
     #[inline]
     fn index(&self, v: f32) -> usize {
         let x = (v - self.lo) * self.per_unit + 0.5;
-        // Clamped into [0, last] first (`x > 0` is false for NaN), and converted to `u32`:
-        // a few instructions where saturating to `usize` spends a dozen, on every sample of a
-        // composited frame.
+        // Clamped into [0, last] first (`x > 0` is false for NaN), then truncated by one
+        // instruction where `as` would saturate again, on every sample of a composited
+        // frame; the remainder tells the compiler the index is in the table.
         let x = if x > 0.0 {
             x.min((ENTRIES - 1) as f32)
         } else {
             0.0
         };
-        x as u32 as usize
+        voxcube_simd::trunc_u32(x) as usize % ENTRIES
     }
 
     /// Colour and corrected opacity of a full segment at value `v`.

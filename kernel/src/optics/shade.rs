@@ -231,9 +231,9 @@ impl Highlights {
     /// The highlight at cosine `x` (above 0; 1 and beyond, and NaN, read the last entry).
     #[inline]
     pub fn at(&self, x: f32) -> f32 {
-        let f = x.min(1.0) * HIGHLIGHT_STEPS as f32;
-        // `as` floors a non-negative value (and saturates a negative one to 0).
-        let i = (f as usize).min(HIGHLIGHT_STEPS - 1);
+        // In [0, HIGHLIGHT_STEPS] (NaN reads 1), where truncation floors.
+        let f = x.min(1.0).max(0.0) * HIGHLIGHT_STEPS as f32;
+        let i = (voxcube_simd::trunc_u32(f) as usize).min(HIGHLIGHT_STEPS - 1);
         let (a, b) = (self.table[i], self.table[i + 1]);
         a + (b - a) * (f - i as f32)
     }
