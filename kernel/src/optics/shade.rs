@@ -232,6 +232,10 @@ impl Highlights {
     #[inline]
     pub fn at(&self, x: f32) -> f32 {
         // In [0, HIGHLIGHT_STEPS] (NaN reads 1), where truncation floors.
+        #[allow(
+            clippy::manual_clamp,
+            reason = "`clamp` keeps a NaN, which must read the last entry"
+        )]
         let f = x.min(1.0).max(0.0) * HIGHLIGHT_STEPS as f32;
         let i = (voxcube_simd::trunc_u32(f) as usize).min(HIGHLIGHT_STEPS - 1);
         let (a, b) = (self.table[i], self.table[i + 1]);
