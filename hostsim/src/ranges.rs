@@ -3,25 +3,46 @@
 //! alone, so they are built once per volume and set of stored planes ([`crate::built`]); a
 //! view's skipping ([`crate::storage::Skipping`]) classifies them.
 //!
+//! A byte volume's cell masks and cell leap maps are a function of its cells' ranges and a
+//! view's verdicts on byte ranges (`voxcube_kernel::skip::cells::ByteVerdicts`), so the last
+//! ones a view built are kept here too, for the next view with the same verdicts: an orbit's
+//! next frame, a bench's next repetition, a view of the same transfer function from
+//! elsewhere.
+//!
 //! Invariant: a build split over threads by block columns gives the same bits as one pass
 //! (each column's blocks and cells read its own nodes only); a build that fails holds no
-//! blocks, and a view then skips nothing.
+//! blocks, and a view then skips nothing; what is kept is handed out only for equal
+//! verdicts.
 
 use crate::parts::{even_parts, run_parts, split_sizes, Part};
-use std::sync::Arc;
-use voxcube_kernel::skip::blocks::{column_len, Blocks, Range};
+use std::sync::{Arc, Mutex, PoisonError};
+use voxcube_kernel::skip::blocks::{column_len, Blocks, CellMask, Range};
 use voxcube_kernel::skip::cell_ranges::{self, BlockCells};
+use voxcube_kernel::skip::cells::ByteVerdicts;
 use voxcube_kernel::volume::sample::Sample;
 use voxcube_kernel::volume::slab::Slab;
 
 /// A slab's min/max blocks and their cells' ranges, in the blocks' order; no cells where
 /// they were not asked for, and neither where the build failed.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Debug, Default)]
 pub struct SlabRanges<T> {
     /// The blocks' ranges, shared with every view's skipping storage.
     pub blocks: Arc<Vec<Range>>,
     /// Each block's cells' ranges.
     pub cells: Vec<BlockCells<T>>,
+    /// The last masks and cell leap maps classified from them, for byte samples.
+    kept: Mutex<Option<Classified>>,
+}
+
+/// A byte volume's cell masks for some verdicts, and the cell leap maps built from them.
+#[derive(Clone, Debug)]
+pub struct Classified {
+    /// The verdicts they were classified by.
+    pub verdicts: ByteVerdicts,
+    /// The masks, one per block.
+    pub masks: Arc<Vec<CellMask>>,
+    /// The cell leap maps built from them and the octants they serve (a bit each), if any.
+    pub maps: Option<(u8, Arc<Vec<u8>>)>,
 }
 
 impl<T: Sample + Sync> SlabRanges<T> {
@@ -64,9 +85,22 @@ impl<T: Sample + Sync> SlabRanges<T> {
             true => SlabRanges {
                 blocks: Arc::new(blocks),
                 cells,
+                kept: Mutex::default(),
             },
             false => SlabRanges::default(),
         }
+    }
+
+    /// The masks (and maps) kept for `verdicts`, if the last ones kept were classified by
+    /// them.
+    pub fn kept(&self, verdicts: &ByteVerdicts) -> Option<Classified> {
+        let kept = self.kept.lock().unwrap_or_else(PoisonError::into_inner);
+        kept.as_ref().filter(|k| k.verdicts == *verdicts).cloned()
+    }
+
+    /// Keep `classified` in place of what was kept.
+    pub fn keep(&self, classified: Classified) {
+        *self.kept.lock().unwrap_or_else(PoisonError::into_inner) = Some(classified);
     }
 
     /// Whether it holds its cells' ranges.

@@ -6,7 +6,7 @@
 //! stores alone, so they are the same bits however the build is split or where it runs.
 
 use crate::parts::{even_parts, run_parts, split_sizes, Part};
-use crate::ranges::SlabRanges;
+use crate::ranges::{Classified, SlabRanges};
 use std::borrow::Cow;
 use std::ops::Range;
 use std::sync::Arc;
@@ -14,6 +14,7 @@ use voxcube_kernel::node::partition::Partition;
 use voxcube_kernel::node::topology::Layout;
 use voxcube_kernel::trace::view::View;
 use voxcube_kernel::volume::grid::Grid;
+use voxcube_kernel::volume::sample::SampleKind;
 use voxcube_kernel::volume::slab::stored_planes;
 
 /// How a node skips empty space: whether it does, whether its jumps leap over every empty
@@ -113,11 +114,7 @@ pub fn holds_node_field(view: &View, mode: SkipMode) -> bool {
 
 /// Bytes per grid node of the node field a node skipping as `mode` says holds for `view` over
 /// samples of `kind` ([`holds_node_field`]; none where it holds none).
-pub fn node_field_bytes(
-    view: &View,
-    mode: SkipMode,
-    kind: voxcube_kernel::volume::sample::SampleKind,
-) -> usize {
+pub fn node_field_bytes(view: &View, mode: SkipMode, kind: SampleKind) -> usize {
     match holds_node_field(view, mode) {
         true => kind.node_bytes(),
         false => 0,
@@ -132,13 +129,8 @@ pub fn has_cell_masks(view: &View, mode: SkipMode) -> bool {
 /// Bytes per min/max block of the cells' ranges a node skipping as `mode` says holds for
 /// `view` over samples of `kind`: where it builds cell masks and `mode` holds them; none
 /// otherwise.
-pub fn cell_range_bytes(
-    view: &View,
-    mode: SkipMode,
-    kind: voxcube_kernel::volume::sample::SampleKind,
-) -> usize {
+pub fn cell_range_bytes(view: &View, mode: SkipMode, kind: SampleKind) -> usize {
     use voxcube_kernel::skip::cell_ranges::BlockCells;
-    use voxcube_kernel::volume::sample::SampleKind;
     match mode.ranges && has_cell_masks(view, mode) {
         true => match kind {
             SampleKind::U8 => size_of::<BlockCells<u8>>(),
@@ -234,9 +226,10 @@ pub struct Skipping {
     /// One leap map per octant in `octants`, in octant order.
     leaps: Vec<u8>,
     octants: u8,
-    cells: Vec<voxcube_kernel::skip::cells::CellMask>,
-    /// One cell leap map per octant in `cell_octants`, in octant order.
-    cell_leaps: Vec<u8>,
+    /// The view's masks, shared with the next view of the same verdicts.
+    cells: Arc<Vec<voxcube_kernel::skip::cells::CellMask>>,
+    /// One cell leap map per octant in `cell_octants`, in octant order, shared as `cells`.
+    cell_leaps: Arc<Vec<u8>>,
     cell_octants: u8,
     /// The view's depth bounds over the slab, a bound per pixel of the rows `depth_rows` of
     /// an image `depth_width` wide.
@@ -308,8 +301,7 @@ impl Skipping {
         threads: usize,
         rows: voxcube_kernel::node::topology::Rows,
     ) -> Skipping {
-        use voxcube_kernel::skip::blocks::{column_len, Blocks};
-        use voxcube_kernel::skip::cells;
+        use voxcube_kernel::skip::blocks::Blocks;
         use voxcube_kernel::skip::minmax::extent;
         if !mode.skip {
             return Skipping::default();
@@ -318,35 +310,20 @@ impl Skipping {
         let Ok(blocks) = Blocks::new(slab.grid(), slab.stored(), &ranges.blocks) else {
             return Skipping::default();
         };
-        let per = column_len(slab.grid());
-        let columns = blocks.shape().0;
-        let parts = even_parts(columns, threads.clamp(1, columns.max(1) as usize) as u32);
-        let sizes: Vec<usize> = parts.iter().map(|c| c.len() * per).collect();
-        // First the cell masks, in parts of the block columns: each reads its own blocks'
-        // cells. Without masks no single cell is skipped.
+        // First the cell masks: without them no single cell is skipped. A byte volume's are
+        // kept with its ranges for the next view with the same verdicts, and its cell leap
+        // maps beside them.
         let by_cell = has_cell_masks(view, mode);
-        let mut masks = if by_cell { vec![0; len] } else { Vec::new() };
         let held = ranges.holds_cells() && mode.ranges;
-        let jobs = split_sizes(&mut masks, sizes.iter().copied())
-            .zip(parts)
-            .map(|(out, cols)| -> Part<'_> {
-                let (blocks, own) = (&blocks, cols.clone());
-                let cells = ranges
-                    .cells
-                    .get(cols.start as usize * per..cols.end as usize * per);
-                Box::new(move || match (held, cells) {
-                    (true, Some(cells)) => {
-                        cells::classify_columns(cells, blocks, view, own, out).is_ok()
-                    }
-                    _ => cells::build_columns(slab, blocks, view, own, out).is_ok(),
-                })
-            })
-            .collect();
-        let classified = run_parts(jobs, threads).into_iter().all(|built| built);
-        let cells = match by_cell && classified {
-            true => masks,
-            false => Vec::new(),
+        let verdicts = (by_cell && held && T::KIND == SampleKind::U8)
+            .then(|| voxcube_kernel::skip::cells::ByteVerdicts::of(view));
+        let kept = verdicts.as_ref().and_then(|v| ranges.kept(v));
+        let cells = match (&kept, by_cell) {
+            (Some(kept), _) => Arc::clone(&kept.masks),
+            (None, true) => Arc::new(masks(slab, ranges, &blocks, view, held, threads)),
+            (None, false) => Arc::default(),
         };
+        let ranges_kept = ranges;
         let ranges = Arc::clone(&ranges.blocks);
         // Then everything that reads the whole slab's blocks or masks, in one set of parts, in
         // this order: the depth bounds in parts of rows, a leap map for each octant the
@@ -364,7 +341,14 @@ impl Skipping {
             None => 0,
         };
         let per_map = len * voxcube_kernel::skip::cell_leaps::PER_BLOCK;
-        let mut cell_leaps = vec![0; cell_octants.count_ones() as usize * per_map];
+        let kept_maps = kept
+            .and_then(|kept| kept.maps)
+            .filter(|(octants, _)| *octants == cell_octants);
+        let building = match kept_maps {
+            Some(_) => 0,
+            None => cell_octants,
+        };
+        let mut cell_leaps = vec![0; building.count_ones() as usize * per_map];
         let (width, height) = (view.spec().width as usize, view.spec().height);
         let bounded = with_masks.as_ref().filter(|_| has_depths(view, mode));
         let held = rows.count(height);
@@ -406,7 +390,7 @@ impl Skipping {
         }
         if let Some(with_masks) = &with_masks {
             let chosen =
-                (0..voxcube_kernel::skip::octant::OCTANTS).filter(|o| cell_octants >> o & 1 == 1);
+                (0..voxcube_kernel::skip::octant::OCTANTS).filter(|o| building >> o & 1 == 1);
             // Each map in parts of planes, one a thread: a part is built with the planes ahead
             // of it that its distances depend on, and keeps its own. The parts even out what
             // each thread builds (`cell_leaps::part`).
@@ -446,10 +430,18 @@ impl Skipping {
             true => (leaps, octants),
             false => (Vec::new(), 0),
         };
-        let (cell_leaps, cell_octants) = match cells_built.iter().all(|&b| b) {
-            true if cell_octants != 0 => (cell_leaps, cell_octants),
-            _ => (Vec::new(), 0),
+        let (cell_leaps, cell_octants) = match (kept_maps, cells_built.iter().all(|&b| b)) {
+            (Some((octants, maps)), _) => (maps, octants),
+            (None, true) if cell_octants != 0 => (Arc::new(cell_leaps), cell_octants),
+            _ => (Arc::default(), 0),
         };
+        if let Some(verdicts) = verdicts {
+            ranges_kept.keep(Classified {
+                verdicts,
+                masks: Arc::clone(&cells),
+                maps: (cell_octants != 0).then(|| (cell_octants, Arc::clone(&cell_leaps))),
+            });
+        }
         if !depths_built.iter().all(|&b| b) {
             depths = Vec::new();
         }
@@ -500,6 +492,45 @@ impl Skipping {
             )),
         };
         slab.with_blocks(blocks)
+    }
+}
+
+/// The cell masks of `slab` (`blocks` from its `ranges`) for `view`, in parts of the block
+/// columns on up to `threads` OS threads (each part reads its own blocks' cells): classified
+/// from the cells' ranges where they are `held`, else read from the nodes; none where a part
+/// fails.
+fn masks<T: voxcube_kernel::volume::sample::Sample + Sync>(
+    slab: &voxcube_kernel::volume::slab::Slab<'_, T>,
+    ranges: &SlabRanges<T>,
+    blocks: &voxcube_kernel::skip::blocks::Blocks<'_>,
+    view: &View,
+    held: bool,
+    threads: usize,
+) -> Vec<voxcube_kernel::skip::cells::CellMask> {
+    use voxcube_kernel::skip::cells;
+    let per = voxcube_kernel::skip::blocks::column_len(slab.grid());
+    let columns = blocks.shape().0;
+    let parts = even_parts(columns, threads.clamp(1, columns.max(1) as usize) as u32);
+    let sizes: Vec<usize> = parts.iter().map(|c| c.len() * per).collect();
+    let mut masks = vec![0; ranges.blocks.len()];
+    let jobs = split_sizes(&mut masks, sizes.iter().copied())
+        .zip(parts)
+        .map(|(out, cols)| -> Part<'_> {
+            let own = cols.clone();
+            let cells = ranges
+                .cells
+                .get(cols.start as usize * per..cols.end as usize * per);
+            Box::new(move || match (held, cells) {
+                (true, Some(cells)) => {
+                    cells::classify_columns(cells, blocks, view, own, out).is_ok()
+                }
+                _ => cells::build_columns(slab, blocks, view, own, out).is_ok(),
+            })
+        })
+        .collect();
+    match run_parts(jobs, threads).into_iter().all(|built| built) {
+        true => masks,
+        false => Vec::new(),
     }
 }
 

@@ -639,6 +639,58 @@ fn skipping_built_on_threads_is_the_same_storage() {
     assert_eq!(compared, 5 * 3 * 3 * 4 * 3);
 }
 
+/// A byte volume's masks and cell leap maps kept with its ranges serve the next view only
+/// when its verdicts are the same: views taking turns on one volume's ranges each get the
+/// storage a fresh build gives them, bit for bit, whether it was kept or built again.
+#[test]
+fn kept_masks_and_cell_leap_maps_serve_only_views_of_the_same_verdicts() {
+    let volume = blobs([37, 21, 30], Vec3::ONE, 7);
+    let VolumeData::U8(data) = &volume.data else {
+        unreachable!("blobs are bytes")
+    };
+    let slab = Slab::whole(volume.grid, data.as_slice()).expect("slab");
+    let target = Vec3::new(18.5, 10.5, 15.0);
+    let point = |value: f32, opacity: f32| ControlPoint {
+        value,
+        color: Vec3::ONE,
+        opacity,
+    };
+    let composite = |clear: f32| {
+        Mode::Composite(
+            TransferFunction::new(&[point(clear, 0.0), point(clear + 30.0, 0.4)]).expect("sorted"),
+        )
+    };
+    let view = |mode: Mode, eye: Vec3| {
+        let cam = voxcube_tests::ortho(target + eye, target, Vec3::Y, 30.0);
+        voxcube_tests::view(
+            voxcube_tests::spec(cam, 4, 4, Model::Cell, 0.5, mode),
+            &volume,
+        )
+    };
+    let (ahead, behind) = (Vec3::new(40.0, 9.0, 17.0), Vec3::new(-40.0, 9.0, -17.0));
+    let views = [
+        view(composite(90.0), ahead),
+        // The same verdicts from the other side: the masks kept, the maps of another octant.
+        view(composite(90.0), behind),
+        view(composite(60.0), ahead),
+        view(voxcube_tests::surfaces(&[(120.0, 0.0)]), ahead),
+        view(composite(90.0), ahead),
+    ];
+    let fresh = |v: &View| {
+        let ranges = voxcube::ranges::SlabRanges::build(&slab, true, 1);
+        Skipping::build(&slab, &ranges, v, SkipMode::ALL)
+    };
+    // The negative control: the views' storages differ, so one handed another's is caught.
+    assert_ne!(fresh(&views[0]), fresh(&views[1]), "maps of two octants");
+    assert_ne!(fresh(&views[0]), fresh(&views[2]), "masks of two functions");
+    assert_ne!(fresh(&views[2]), fresh(&views[3]), "masks of two modes");
+    let shared = voxcube::ranges::SlabRanges::build(&slab, true, 2);
+    for (i, v) in views.iter().chain(views.iter().rev()).enumerate() {
+        let turn = Skipping::build_on(&slab, &shared, v, SkipMode::ALL, 2);
+        assert!(turn == fresh(v), "turn {i}");
+    }
+}
+
 /// `volume`'s whole slab (of blobs, bytes) and its blocks' ranges.
 fn whole_slab_blocks(volume: &Volume) -> (Slab<'_, u8>, Vec<voxcube_kernel::skip::blocks::Range>) {
     use voxcube_kernel::skip::blocks::Range;

@@ -256,6 +256,27 @@ impl<'v> Verdicts<'v> {
     }
 }
 
+/// Everything a byte volume's cell masks depend on in a view, beside the volume's cells'
+/// ranges: its verdict on every range of byte values, and on a block of unknown range. Two
+/// views with equal verdicts give such a volume the same masks, bit for bit, so a host may
+/// keep a view's masks for the next view with the same verdicts (an orbit's next frame, a
+/// bench's next repetition).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ByteVerdicts {
+    reach: [i16; BYTES],
+    unknown_empty: bool,
+}
+
+impl ByteVerdicts {
+    /// `view`'s verdicts (about 512 of [`View::empty`]).
+    pub fn of(view: &View) -> ByteVerdicts {
+        ByteVerdicts {
+            reach: reach(view),
+            unknown_empty: view.empty(Range::UNKNOWN),
+        }
+    }
+}
+
 /// For each byte value `lo`, the greatest `hi` such that `view` calls the range `lo..=hi`
 /// empty, −1 where it does not call `lo` alone empty. Each `lo` starts from the last reach
 /// found: by monotonicity a range inside an empty one is empty, so about 512 verdicts in all.
