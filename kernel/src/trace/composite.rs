@@ -421,10 +421,9 @@ struct Inside<'c, 'a, U, E> {
 /// The greatest cell leap distance that a run through the interior passes sample by sample
 /// rather than by leaping, for a step of `dt` cell edges. A leap's turn (its cube's exit,
 /// checked, and the landing's cell) costs about four samples' cell tests, and a ray has
-/// about `d / dt` samples in a cube of `d` cells: stepping pays below about `4·dt`.
-/// Measured on SOD: at Δt = ½, stepping distances up to 2 saves 1.4% of a frame's
-/// instructions and up to 3 or 4 less; at Δt = ⅕ stepping any costs 2% more
-/// (docs/speed-log.md). Either way the same samples are passed over.
+/// about `d / dt` samples in a cube of `d` cells: stepping pays below about `4·dt`, as
+/// measured on SOD at two steps (docs/speed-log.md). Either way the same samples are passed
+/// over.
 fn stepped_distances(dt: f32) -> u8 {
     // Saturating: a NaN or negative step steps over nothing.
     (4.0 * dt) as u8
