@@ -41,8 +41,20 @@ pub struct Classified {
     pub verdicts: ByteVerdicts,
     /// The masks, one per block.
     pub masks: Arc<Vec<CellMask>>,
-    /// The cell leap maps built from them and the octants they serve (a bit each), if any.
-    pub maps: Option<(u8, Arc<Vec<u8>>)>,
+    /// The cell leap maps built from them, if any.
+    pub maps: Option<KeptMaps>,
+}
+
+/// Cell leap maps kept with the masks they were built from.
+#[derive(Clone, Debug)]
+pub struct KeptMaps {
+    /// The octants they serve, a bit each.
+    pub octants: u8,
+    /// A map per octant, in octant order.
+    pub maps: Arc<Vec<u8>>,
+    /// The map laid out as the slab's nodes (`voxcube_kernel::skip::cell_leaps::NodeLeaps`),
+    /// or none.
+    pub nodes: Arc<Vec<u8>>,
 }
 
 impl<T: Sample + Sync> SlabRanges<T> {

@@ -6,12 +6,13 @@
 //! stores alone, so they are the same bits however the build is split or where it runs.
 
 use crate::parts::{even_parts, run_parts, split_sizes, Part};
-use crate::ranges::{Classified, SlabRanges};
+use crate::ranges::{Classified, KeptMaps, SlabRanges};
 use std::borrow::Cow;
 use std::ops::Range;
 use std::sync::Arc;
 use voxcube_kernel::node::partition::Partition;
 use voxcube_kernel::node::topology::Layout;
+use voxcube_kernel::skip::cell_leaps::NodeLeaps;
 use voxcube_kernel::trace::view::View;
 use voxcube_kernel::volume::grid::Grid;
 use voxcube_kernel::volume::sample::SampleKind;
@@ -230,6 +231,9 @@ pub struct Skipping {
     cells: Arc<Vec<voxcube_kernel::skip::cells::CellMask>>,
     /// One cell leap map per octant in `cell_octants`, in octant order, shared as `cells`.
     cell_leaps: Arc<Vec<u8>>,
+    /// Where `cell_octants` is one octant: its map laid out as the slab's stored nodes
+    /// (`cell_leaps::NodeLeaps`), shared as `cells`.
+    node_leaps: Arc<Vec<u8>>,
     cell_octants: u8,
     /// The view's depth bounds over the slab, a bound per pixel of the rows `depth_rows` of
     /// an image `depth_width` wide.
@@ -246,7 +250,10 @@ impl Skipping {
         [
             ("leap maps", self.leaps.len()),
             ("cell masks", size_of_val(self.cells.as_slice())),
-            ("cell leap maps", self.cell_leaps.len()),
+            (
+                "cell leap maps",
+                self.cell_leaps.len() + self.node_leaps.len(),
+            ),
             ("depth bounds", size_of_val(self.depths.as_slice())),
         ]
     }
@@ -343,7 +350,7 @@ impl Skipping {
         let per_map = len * voxcube_kernel::skip::cell_leaps::PER_BLOCK;
         let kept_maps = kept
             .and_then(|kept| kept.maps)
-            .filter(|(octants, _)| *octants == cell_octants);
+            .filter(|kept| kept.octants == cell_octants);
         let building = match kept_maps {
             Some(_) => 0,
             None => cell_octants,
@@ -430,16 +437,27 @@ impl Skipping {
             true => (leaps, octants),
             false => (Vec::new(), 0),
         };
-        let (cell_leaps, cell_octants) = match (kept_maps, cells_built.iter().all(|&b| b)) {
-            (Some((octants, maps)), _) => (maps, octants),
-            (None, true) if cell_octants != 0 => (Arc::new(cell_leaps), cell_octants),
-            _ => (Arc::default(), 0),
-        };
+        let (cell_leaps, cell_octants, node_leaps) =
+            match (kept_maps, cells_built.iter().all(|&b| b)) {
+                (Some(kept), _) => (kept.maps, kept.octants, kept.nodes),
+                (None, true) if cell_octants != 0 => {
+                    let nodes = with_masks
+                        .as_ref()
+                        .map(|blocks| node_layout(slab, blocks, &cell_leaps, cell_octants))
+                        .unwrap_or_default();
+                    (Arc::new(cell_leaps), cell_octants, Arc::new(nodes))
+                }
+                _ => (Arc::default(), 0, Arc::default()),
+            };
         if let Some(verdicts) = verdicts {
             ranges_kept.keep(Classified {
                 verdicts,
                 masks: Arc::clone(&cells),
-                maps: (cell_octants != 0).then(|| (cell_octants, Arc::clone(&cell_leaps))),
+                maps: (cell_octants != 0).then(|| KeptMaps {
+                    octants: cell_octants,
+                    maps: Arc::clone(&cell_leaps),
+                    nodes: Arc::clone(&node_leaps),
+                }),
             });
         }
         if !depths_built.iter().all(|&b| b) {
@@ -452,6 +470,7 @@ impl Skipping {
             cells,
             cell_leaps,
             cell_octants,
+            node_leaps,
             depths,
             depth_rows: rows,
             depth_width: view.spec().width,
@@ -483,6 +502,17 @@ impl Skipping {
             Ok(leaping) if self.cell_octants != 0 => leaping,
             _ => blocks,
         };
+        let octant = (0..voxcube_kernel::skip::octant::OCTANTS)
+            .find(|o| self.cell_octants == 1 << o)
+            .map(voxcube_kernel::skip::octant::Octant::from_index);
+        let blocks = match (octant, self.node_leaps.is_empty()) {
+            (Some(octant), false) => blocks.with_node_leaps(NodeLeaps::new(
+                &self.node_leaps,
+                slab.stored().start,
+                octant,
+            )),
+            _ => blocks,
+        };
         let blocks = match self.depths.is_empty() {
             true => blocks,
             false => blocks.with_depths(voxcube_kernel::skip::depths::Depths::new(
@@ -492,6 +522,32 @@ impl Skipping {
             )),
         };
         slab.with_blocks(blocks)
+    }
+}
+
+/// The cell leap map in `maps` (of `octants`, with `blocks` and their masks) laid out as
+/// `slab` stores its nodes, over its stored planes, where `octants` is one octant; none
+/// otherwise (the marcher then reads the map in its own layout).
+fn node_layout<T: voxcube_kernel::volume::sample::Sample>(
+    slab: &voxcube_kernel::volume::slab::Slab<'_, T>,
+    blocks: &voxcube_kernel::skip::blocks::Blocks<'_>,
+    maps: &[u8],
+    octants: u8,
+) -> Vec<u8> {
+    use voxcube_kernel::skip::cell_leaps::{fill_node_layout, CellLeaps};
+    let Some(octant) = (0..voxcube_kernel::skip::octant::OCTANTS).find(|o| octants == 1 << o)
+    else {
+        return Vec::new();
+    };
+    let toward = blocks.toward(voxcube_kernel::skip::octant::Octant::from_index(octant));
+    let Ok(leaps) = CellLeaps::new(&toward, maps) else {
+        return Vec::new();
+    };
+    let stored = slab.stored();
+    let mut out = vec![0; stored.len() * slab.grid().plane_len()];
+    match fill_node_layout(&leaps, slab.grid(), stored, &mut out) {
+        Ok(()) => out,
+        Err(_) => Vec::new(),
     }
 }
 

@@ -16,6 +16,7 @@
 //! inside a block that is not empty is skipped too.
 
 use crate::skip::bounds::Depths;
+use crate::skip::cell_leaps::NodeLeaps;
 use crate::skip::octant::Octant;
 use crate::volume::grid::Grid;
 use crate::volume::grid::Model;
@@ -122,6 +123,8 @@ pub struct Blocks<'a> {
     cell_maps: &'a [u8],
     cell_octants: u8,
     cell_leaps: Option<&'a [u8]>,
+    /// One octant's cell leap map laid out as the slab's nodes, where the host gave one.
+    node_leaps: Option<NodeLeaps<'a>>,
     /// One view's depth bounds ([`crate::skip::depths`]), a bound per pixel of the rows held, when
     /// its primary rays may pass over the samples before them.
     depths: Option<Depths<'a>>,
@@ -308,6 +311,7 @@ impl<'a> Blocks<'a> {
             cell_maps: &[],
             cell_octants: 0,
             cell_leaps: None,
+            node_leaps: None,
             depths: None,
             x0: x0 + columns.start,
             x1: x0 + columns.end,
@@ -383,6 +387,23 @@ impl<'a> Blocks<'a> {
     #[inline]
     pub fn cell_leap_map(&self) -> Option<&'a [u8]> {
         self.cell_leaps
+    }
+
+    /// The same blocks, with `map`: the cell leap map of its octant laid out as the slab's
+    /// nodes ([`crate::skip::cell_leaps::fill_node_layout`]).
+    pub fn with_node_leaps(self, map: NodeLeaps<'a>) -> Blocks<'a> {
+        Blocks {
+            node_leaps: Some(map),
+            ..self
+        }
+    }
+
+    /// The cell leap map laid out as the slab's nodes, when the blocks carry one for
+    /// [`Blocks::toward`]'s octant and a cell leap map for it too.
+    #[inline]
+    pub fn node_leaps(&self) -> Option<NodeLeaps<'a>> {
+        self.node_leaps
+            .filter(|map| map.octant() == self.toward && self.cell_leaps.is_some())
     }
 
     /// The same blocks, with the depth bounds `depths` ([`crate::skip::depths::build`] from these

@@ -126,6 +126,67 @@ impl<'a> CellLeaps<'a> {
     }
 }
 
+/// One octant's cell leap map laid out as a slab stores its nodes (plane-major, rows along Z,
+/// nodes along Y, the grid's strides), over some X planes: a cell's distance at its low
+/// node's place. A sample loop that reads a cell of such storage has that place in hand, so
+/// the distance costs it one load instead of an index of its own. Places that are no cell's
+/// low node (a row's last node, a plane's last row) and places past the map read 0: no leap.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NodeLeaps<'a> {
+    map: &'a [u8],
+    first: u32,
+    octant: Octant,
+}
+
+impl<'a> NodeLeaps<'a> {
+    /// The map of `octant`'s rays in `map`, laid out over planes from `first` on of a grid
+    /// ([`fill_node_layout`]).
+    pub fn new(map: &'a [u8], first: u32, octant: Octant) -> NodeLeaps<'a> {
+        NodeLeaps { map, first, octant }
+    }
+
+    /// The octant whose rays it serves.
+    pub fn octant(&self) -> Octant {
+        self.octant
+    }
+
+    /// The first X plane it holds.
+    pub fn first(&self) -> u32 {
+        self.first
+    }
+
+    /// The distance at place `i` (0 past the map).
+    #[inline(always)]
+    pub fn at(&self, i: usize) -> u8 {
+        self.map.get(i).copied().unwrap_or(0)
+    }
+}
+
+/// Fill `out` (`planes.len()` planes of `grid`'s nodes) with `leaps`' distances laid out as
+/// [`NodeLeaps`] reads them: each cell's at its low node's place, 0 elsewhere.
+pub fn fill_node_layout(
+    leaps: &CellLeaps<'_>,
+    grid: &crate::volume::grid::Grid,
+    planes: core::ops::Range<u32>,
+    out: &mut [u8],
+) -> Result<(), BlocksError> {
+    let [_, ny, nz] = grid.dims();
+    BlocksError::check_storage(planes.len() * grid.plane_len(), out.len())?;
+    let mut places = out.chunks_exact_mut(ny as usize);
+    for x in planes {
+        for z in 0..nz {
+            let Some(row) = places.next() else {
+                return Ok(());
+            };
+            for (y, place) in (0..).zip(row.iter_mut()) {
+                let cell = y + 1 < ny && z + 1 < nz;
+                *place = if cell { leaps.distance([x, y, z]) } else { 0 };
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Fill `out` (a byte per cell of `blocks`' columns, [`PER_BLOCK`] per block) with each
 /// cell's chessboard distance, for rays of `octant`, to the nearest cell ahead that the
 /// blocks' cell masks say may show. Blocks without masks show everywhere: every distance is 0.
@@ -523,7 +584,7 @@ mod held_tests {
     use glam::Vec3;
 
     #[test]
-    fn a_held_map_reads_the_distances_of_its_box_and_a_box_past_the_map_is_not_held() {
+    fn a_held_map_and_one_laid_out_as_the_nodes_read_the_distances_of_their_cells() {
         // Planes 3..14 stored: four block columns of two by three blocks.
         const BLOCKS: usize = 4 * 2 * 3;
         let grid = Grid::new([14, 9, 10], Vec3::ONE).unwrap();
@@ -551,5 +612,40 @@ mod held_tests {
         assert!(map.holding(x0..x1, y_end, z_end + 1).is_none());
         // Outside the box, never a panic.
         let _ = held.distance([u32::MAX; 3]);
+        // Laid out as the nodes: each cell's distance at its low node's place.
+        let [_, ny, nz] = grid.dims();
+        let planes = 3..14;
+        let mut out = [0xffu8; 11 * 9 * 10];
+        fill_node_layout(&map, &grid, planes.clone(), &mut out).unwrap();
+        assert!(fill_node_layout(&map, &grid, planes.clone(), &mut out[1..]).is_err());
+        // Read as a slab's storage of planes 2.. reads it: one offset away.
+        let storage = crate::volume::cells::Cells::new(&[0u8; 12 * 9 * 10], 2..14, ny, nz);
+        let cells = storage.holding(3..13, ny - 1, nz - 1).unwrap();
+        let (first, plane) = cells.planes();
+        let node = NodeLeaps::new(&out, planes.start, Octant::default());
+        let offset = (first as usize)
+            .wrapping_sub(planes.start as usize)
+            .wrapping_mul(plane);
+        let mut nonzero = 0;
+        for x in planes.clone() {
+            for z in 0..nz {
+                for y in 0..ny {
+                    let at = node.at(cells.index([x, y, z]).wrapping_add(offset));
+                    let cell = y + 1 < ny && z + 1 < nz;
+                    let expected = if cell { map.distance([x, y, z]) } else { 0 };
+                    assert_eq!(at, expected, "{x} {y} {z}");
+                    nonzero += usize::from(at != 0);
+                }
+            }
+        }
+        assert!(nonzero > 100, "{nonzero}");
+        // The negative control: one plane off, the distances read are another cell's.
+        let wrong = offset.wrapping_add(plane);
+        let differs = (3..12).any(|x| {
+            node.at(cells.index([x, 1, 1]).wrapping_add(wrong)) != map.distance([x, 1, 1])
+        });
+        assert!(differs);
+        // Past the map, no leap and no panic.
+        assert_eq!(node.at(usize::MAX), 0);
     }
 }

@@ -13,7 +13,7 @@
 use crate::counters::Counters;
 use crate::optics::classify::Classified;
 use crate::optics::transfer::{corrected_opacity, TransferFunction};
-use crate::skip::cell_leaps::{CellLeaps, HeldLeaps};
+use crate::skip::cell_leaps::{CellLeaps, HeldLeaps, NodeLeaps};
 use crate::trace::interior::Interior;
 use crate::trace::lattice::Lattice;
 use crate::trace::lighting::Unshadowed;
@@ -293,11 +293,13 @@ fn samples<T: Sample, C: Classify, R: Reading<T>>(
             )
             .and_then(|interior| {
                 let (x, y_end, z_end) = interior.cells();
-                let held = match leaps {
-                    Some(leaps) => Some(leaps.holding(x.clone(), y_end, z_end)?),
-                    None => None,
+                let cells = cells.holding(x.clone(), y_end, z_end)?;
+                let test = match (leaps, skipper.node_leaps()) {
+                    (Some(leaps), Some(map)) => Test::AtIndex(AtIndex::new(map, leaps, &cells)),
+                    (Some(leaps), None) => Test::Held(leaps.holding(x, y_end, z_end)?),
+                    (None, _) => Test::Every,
                 };
-                Some((interior, cells.holding(x, y_end, z_end)?, held))
+                Some((interior, cells, test))
             })
         }
         _ => None,
@@ -311,48 +313,33 @@ fn samples<T: Sample, C: Classify, R: Reading<T>>(
         if ray.k > ray.lattice.last {
             break Stop::Exit;
         }
-        if let (Some(end), Some((_, cells, leaps))) = (inside_to, &inner) {
+        if let (Some(end), Some((_, cells, test))) = (inside_to, &inner) {
             if ray.k <= end {
-                let lit = (&light, &mut color, &mut weight);
-                let ran = match leaps {
-                    Some(leaps) => {
-                        let inside = Inside {
-                            cells,
-                            test: leaps,
-                            end,
-                            stepped,
-                        };
+                // One loop for each way of telling empty cells.
+                macro_rules! through {
+                    ($test:expr) => {
                         run(
                             view,
                             slab,
                             classify,
                             read,
-                            &inside,
+                            &Inside {
+                                cells,
+                                test: $test,
+                                end,
+                                stepped,
+                            },
                             ray,
-                            lit,
+                            (&light, &mut color, &mut weight),
                             &mut skipper,
                             counters,
                         )
-                    }
-                    None => {
-                        let inside = Inside {
-                            cells,
-                            test: &EveryCell,
-                            end,
-                            stepped,
-                        };
-                        run(
-                            view,
-                            slab,
-                            classify,
-                            read,
-                            &inside,
-                            ray,
-                            lit,
-                            &mut skipper,
-                            counters,
-                        )
-                    }
+                    };
+                }
+                let ran = match test {
+                    Test::AtIndex(test) => through!(test),
+                    Test::Held(test) => through!(test),
+                    Test::Every => through!(&EveryCell),
                 };
                 match ran {
                     Run::Done => continue,
@@ -432,8 +419,54 @@ fn stepped_distances(dt: f32) -> u8 {
 /// What a run through the interior asks of a sample's cell before reading it: its distance
 /// in a cell leap map, 0 where the cell may show; and the map, to leap by.
 trait CellTest {
-    fn distance(&self, lo: [u32; 3]) -> u8;
+    /// The distance of the cell whose low node is `lo`, at `index` in the run's storage.
+    fn distance(&self, lo: [u32; 3], index: usize) -> u8;
     fn leaps(&self) -> Option<&CellLeaps<'_>>;
+}
+
+/// How a run through the interior tells empty cells.
+enum Test<'a> {
+    /// By a cell leap map laid out as the storage it reads.
+    AtIndex(AtIndex<'a>),
+    /// By a cell leap map of its own layout.
+    Held(HeldLeaps<'a>),
+    /// The slab carries no skipping structures: every cell may show.
+    Every,
+}
+
+/// A cell leap map laid out as the slab's nodes ([`NodeLeaps`]), read where the run's storage
+/// holds the cell's nodes, one offset away: the run's storage and the map share the grid's
+/// strides and differ only in their first plane.
+struct AtIndex<'a> {
+    map: NodeLeaps<'a>,
+    /// From a place in the run's storage to the same node's in the map (wrapping).
+    offset: usize,
+    leaps: CellLeaps<'a>,
+}
+
+impl<'a> AtIndex<'a> {
+    fn new<U: Copy>(map: NodeLeaps<'a>, leaps: CellLeaps<'a>, cells: &HeldCells<'_, U>) -> Self {
+        let (first, plane) = cells.planes();
+        // (first − map's first) planes, as a wrapping offset.
+        let planes = i64::from(first) - i64::from(map.first());
+        AtIndex {
+            map,
+            offset: (planes as isize as usize).wrapping_mul(plane),
+            leaps,
+        }
+    }
+}
+
+impl CellTest for AtIndex<'_> {
+    #[inline(always)]
+    fn distance(&self, _: [u32; 3], index: usize) -> u8 {
+        self.map.at(index.wrapping_add(self.offset))
+    }
+
+    #[inline(always)]
+    fn leaps(&self) -> Option<&CellLeaps<'_>> {
+        Some(&self.leaps)
+    }
 }
 
 /// The slab carries no skipping structures: every cell may show.
@@ -441,7 +474,7 @@ struct EveryCell;
 
 impl CellTest for EveryCell {
     #[inline(always)]
-    fn distance(&self, _: [u32; 3]) -> u8 {
+    fn distance(&self, _: [u32; 3], _: usize) -> u8 {
         0
     }
 
@@ -452,7 +485,7 @@ impl CellTest for EveryCell {
 
 impl CellTest for HeldLeaps<'_> {
     #[inline(always)]
-    fn distance(&self, lo: [u32; 3]) -> u8 {
+    fn distance(&self, lo: [u32; 3], _: usize) -> u8 {
         HeldLeaps::distance(self, lo)
     }
 
@@ -503,7 +536,8 @@ fn run<T: Sample, C: Classify, R: Reading<T>, E: CellTest>(
         }
         let q = r.at4(lattice.t(k));
         let (cell, lo) = field::interior_corner(q);
-        let distance = inside.test.distance(lo);
+        let index = inside.cells.index(lo);
+        let distance = inside.test.distance(lo, index);
         if (1..=inside.stepped).contains(&distance) {
             // Passed over by stepping: the same samples as a leap, fewer instructions.
             counters.skipped += 1;
@@ -519,7 +553,7 @@ fn run<T: Sample, C: Classify, R: Reading<T>, E: CellTest>(
             k = ray.k;
             continue;
         }
-        let Some(nodes) = inside.cells.at(lo) else {
+        let Some(nodes) = inside.cells.at_index(index) else {
             break Run::Unread;
         };
         let frac = (q - cell).truncate();

@@ -12,6 +12,7 @@ use crate::counters::Counters;
 use crate::skip::blocks::Blocks;
 use crate::skip::bounds::Depths;
 use crate::skip::cell_leaps::CellLeaps;
+use crate::skip::cell_leaps::NodeLeaps;
 use crate::skip::cells::{self, CellMask};
 use crate::skip::scan;
 use crate::trace::state::{RayKind, RayState};
@@ -122,6 +123,14 @@ impl<'s> Skipper<'s> {
         if let Some(last) = self.depth_run(slab, ray, may_skip) {
             skip_to(view, ray, last, counters);
         }
+    }
+
+    /// The cell leap map of [`Skipper::per_cell`] laid out as the slab's nodes, where the
+    /// slab carries it.
+    #[inline]
+    pub(crate) fn node_leaps(&self) -> Option<NodeLeaps<'s>> {
+        self.cell_leaps?;
+        self.blocks.as_ref()?.node_leaps()
     }
 
     /// What a run through the slab's interior ([`crate::trace::interior`]) asks of the

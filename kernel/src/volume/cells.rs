@@ -89,13 +89,31 @@ impl<U: Copy> HeldCells<'_, U> {
     /// ordered by corner bits `z y x` from 000 to 111. A cell outside the box gives some
     /// cell's items or `None`, never a panic: the box is the caller's to keep.
     #[inline(always)]
-    pub fn at(&self, [x, y, z]: [u32; 3]) -> Option<[U; 8]> {
+    pub fn at(&self, lo: [u32; 3]) -> Option<[U; 8]> {
+        self.at_index(self.index(lo))
+    }
+
+    /// Where the node `lo` is in the storage: what [`HeldCells::at_index`] reads the cell
+    /// whose low corner it is from, and what a structure laid out as the storage (as
+    /// [`crate::skip::cell_leaps::NodeLeaps`]) reads the cell's entry at, one offset away.
+    #[inline(always)]
+    pub fn index(&self, [x, y, z]: [u32; 3]) -> usize {
+        (x.wrapping_sub(self.cells.first) as usize)
+            .wrapping_mul(self.plane as usize)
+            .wrapping_add((z as usize).wrapping_mul(self.row as usize))
+            .wrapping_add(y as usize)
+    }
+
+    /// The storage's first X plane, and the items from one plane to the next.
+    pub fn planes(&self) -> (u32, usize) {
+        (self.cells.first, self.plane as usize)
+    }
+
+    /// [`HeldCells::at`] of the cell whose low corner is at `base` ([`HeldCells::index`]).
+    #[inline(always)]
+    pub fn at_index(&self, base: usize) -> Option<[U; 8]> {
         let c = &self.cells;
         let (row, plane) = (self.row as usize, self.plane as usize);
-        let base = (x.wrapping_sub(c.first) as usize)
-            .wrapping_mul(plane)
-            .wrapping_add((z as usize).wrapping_mul(row))
-            .wrapping_add(y as usize);
         let far = plane + row + 1;
         let cell = c.data.get(base..)?.get(..=far)?;
         Some([
