@@ -260,10 +260,11 @@ pub fn describe(name: &str, volume: &Volume) -> Result<String, InfoError> {
     Ok(out)
 }
 
-/// The structures one node holding the whole volume builds beside its samples, for each
-/// view of the suggested scene: each one's bytes, and how long building them all took here
-/// (they are built together, on this machine's threads, for every frame of the view); and
-/// the fast tier's node field, built once per volume.
+/// The structures one node holding the whole volume builds beside its samples: its value
+/// ranges, built once per volume; for each view of the suggested scene, each one's bytes and
+/// how long building them all took here (they are built together, on this machine's threads,
+/// for each new view; a byte volume keeps the masks and cell leap maps for the next frame
+/// of the same transfer function); and the fast tier's node field, built once per volume.
 fn structures(volume: &Volume, isos: &[f64]) -> Result<String, InfoError> {
     match &volume.data {
         VolumeData::U8(d) => structures_of(volume, d, isos),
@@ -308,7 +309,7 @@ fn structures_of<T: voxcube_kernel::volume::sample::Sample + Sync>(
             .collect();
         let _ = writeln!(
             out,
-            "  {name:<10} {}; built in {:.1} ms for every frame",
+            "  {name:<10} {}; built in {:.1} ms for each new view",
             parts.join(", "),
             took.as_secs_f64() * 1e3
         );

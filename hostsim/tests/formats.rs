@@ -1011,16 +1011,24 @@ fn info_describes_a_volume_and_its_scene_renders_something_on_the_first_try() {
     ] {
         assert!(text.contains(part), "info omits {part:?}:\n{text}");
     }
-    // Each view's skipping structures with their bytes and build time, and the node field:
-    // 24 × 20 × 16 samples make 6 × 5 × 4 blocks of 4³ cells' ranges, 8 bytes each as f32
-    // (0.9 KiB), and a node field of 7,680 nodes × 16 bytes (0.12 MiB).
+    // The volume's value ranges, each view's skipping structures with their bytes and build
+    // time, and the node field: 24 × 20 × 16 samples make 6 × 5 × 4 blocks of 4³ cells,
+    // min/max blocks of 8 bytes each (0.9 KiB) and cell masks of 8 bytes each (0.9 KiB), and
+    // a node field of 7,680 nodes × 16 bytes (0.12 MiB).
+    assert!(
+        text.lines()
+            .any(|l| l.contains("value ranges: min/max blocks 0.9 KiB")
+                && l.contains("cells' ranges")
+                && l.contains("ms once per volume")),
+        "{text}"
+    );
     for view in ["surfaces", "composite"] {
         let line = text
             .lines()
             .find(|l| l.trim_start().starts_with(view) && l.contains("built in"))
             .unwrap_or_else(|| panic!("no structures line for {view}:\n{text}"));
         assert!(
-            line.contains("min/max blocks 0.9 KiB") && line.contains("ms for every frame"),
+            line.contains("cell masks 0.9 KiB") && line.contains("ms for each new view"),
             "{line}"
         );
     }
