@@ -4,7 +4,8 @@
 //! tier's node field held) by this binary under callgrind, valgrind's instruction counter,
 //! three times over: loading alone, then one frame, then two. The second frame's
 //! instructions are what every further frame of that view costs (the bench's medians time
-//! those); the first frame's extra is what it builds once per volume.
+//! those); the first frame's extra is what it builds once per volume, and what a byte
+//! volume keeps from its first view of a transfer function (cell masks, cell leap maps).
 //!
 //! Invariant: a count is the difference of two whole runs of the same binary with the same
 //! arguments but the frame count, so what the process does around the frames (parsing,
@@ -240,7 +241,7 @@ pub fn table(counts: &[Count]) -> String {
     let _ = writeln!(
         out,
         "a lattice sample is one a frame's rays passed, evaluated or skipped as provably \
-         empty; 'first frame' adds what a volume's first frame builds once; {}",
+         empty; 'first frame' adds what a volume's first frame builds once and keeps; {}",
         super::bench::build_line()
     );
     if let Some(fast) = counts.iter().find(|c| c.view == FAST_VIEW) {
