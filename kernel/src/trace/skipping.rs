@@ -150,7 +150,10 @@ impl<'s> Skipper<'s> {
     /// The last sample of the cell leaps from `ray.k`, a cell-model sample in an owned plane,
     /// in the cell whose low corner is `cell` (whole floats), at `distance` (at least 1) in
     /// `leaps`, the map [`Skipper::per_cell`] gave: what [`Skipper::empty_run`] answers there.
-    #[inline]
+    // Not inlined: a leap's turn is rarer than a sample and needs many registers, which the
+    // run through the interior, inlined around it, then spills on every sample
+    // (docs/speed-log.md).
+    #[inline(never)]
     pub(crate) fn leap_cells<T: Sample>(
         &mut self,
         slab: &Slab<'_, T>,
