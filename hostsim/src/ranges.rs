@@ -52,7 +52,7 @@ pub struct KeptMaps {
     pub octants: u8,
     /// A map per octant, in octant order.
     pub maps: Arc<Vec<u8>>,
-    /// The map laid out as the slab's nodes (`voxcube_kernel::skip::cell_leaps::NodeLeaps`),
+    /// The map laid out as the slab's nodes (`voxcube_kernel::skip::node_leaps::NodeLeaps`),
     /// or none.
     pub nodes: Arc<Vec<u8>>,
 }

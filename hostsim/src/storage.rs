@@ -12,7 +12,7 @@ use std::ops::Range;
 use std::sync::Arc;
 use voxcube_kernel::node::partition::Partition;
 use voxcube_kernel::node::topology::Layout;
-use voxcube_kernel::skip::cell_leaps::NodeLeaps;
+use voxcube_kernel::skip::node_leaps::NodeLeaps;
 use voxcube_kernel::trace::view::View;
 use voxcube_kernel::volume::grid::Grid;
 use voxcube_kernel::volume::sample::SampleKind;
@@ -232,7 +232,7 @@ pub struct Skipping {
     /// One cell leap map per octant in `cell_octants`, in octant order, shared as `cells`.
     cell_leaps: Arc<Vec<u8>>,
     /// Where `cell_octants` is one octant: its map laid out as the slab's stored nodes
-    /// (`cell_leaps::NodeLeaps`), shared as `cells`.
+    /// (`node_leaps::NodeLeaps`), shared as `cells`.
     node_leaps: Arc<Vec<u8>>,
     cell_octants: u8,
     /// The view's depth bounds over the slab, a bound per pixel of the rows `depth_rows` of
@@ -330,8 +330,6 @@ impl Skipping {
             (None, true) => Arc::new(masks(slab, ranges, &blocks, view, held, threads)),
             (None, false) => Arc::default(),
         };
-        let ranges_kept = ranges;
-        let ranges = Arc::clone(&ranges.blocks);
         // Then everything that reads the whole slab's blocks or masks, in one set of parts, in
         // this order: the depth bounds in parts of rows, a leap map for each octant the
         // view's rays take, and a cell leap map in parts of planes for each octant of the
@@ -450,7 +448,7 @@ impl Skipping {
                 _ => (Arc::default(), 0, Arc::default()),
             };
         if let Some(verdicts) = verdicts {
-            ranges_kept.keep(Classified {
+            ranges.keep(Classified {
                 verdicts,
                 masks: Arc::clone(&cells),
                 maps: (cell_octants != 0).then(|| KeptMaps {
@@ -464,7 +462,7 @@ impl Skipping {
             depths = Vec::new();
         }
         Skipping {
-            ranges,
+            ranges: Arc::clone(&ranges.blocks),
             leaps,
             octants,
             cells,
@@ -502,10 +500,7 @@ impl Skipping {
             Ok(leaping) if self.cell_octants != 0 => leaping,
             _ => blocks,
         };
-        let octant = (0..voxcube_kernel::skip::octant::OCTANTS)
-            .find(|o| self.cell_octants == 1 << o)
-            .map(voxcube_kernel::skip::octant::Octant::from_index);
-        let blocks = match (octant, self.node_leaps.is_empty()) {
+        let blocks = match (sole_octant(self.cell_octants), self.node_leaps.is_empty()) {
             (Some(octant), false) => blocks.with_node_leaps(NodeLeaps::new(
                 &self.node_leaps,
                 slab.stored().start,
@@ -525,6 +520,13 @@ impl Skipping {
     }
 }
 
+/// The octant of `octants` (a bit each) where they are one.
+fn sole_octant(octants: u8) -> Option<voxcube_kernel::skip::octant::Octant> {
+    (octants.count_ones() == 1).then(|| {
+        voxcube_kernel::skip::octant::Octant::from_index(octants.trailing_zeros() as usize)
+    })
+}
+
 /// The cell leap map in `maps` (of `octants`, with `blocks` and their masks) laid out as
 /// `slab` stores its nodes, over its stored planes, where `octants` is one octant; none
 /// otherwise (the marcher then reads the map in its own layout).
@@ -535,11 +537,10 @@ fn node_layout<T: voxcube_kernel::volume::sample::Sample>(
     octants: u8,
 ) -> Vec<u8> {
     use voxcube_kernel::skip::cell_leaps::{fill_node_layout, CellLeaps};
-    let Some(octant) = (0..voxcube_kernel::skip::octant::OCTANTS).find(|o| octants == 1 << o)
-    else {
+    let Some(octant) = sole_octant(octants) else {
         return Vec::new();
     };
-    let toward = blocks.toward(voxcube_kernel::skip::octant::Octant::from_index(octant));
+    let toward = blocks.toward(octant);
     let Ok(leaps) = CellLeaps::new(&toward, maps) else {
         return Vec::new();
     };

@@ -16,7 +16,7 @@
 //! inside a block that is not empty is skipped too.
 
 use crate::skip::bounds::Depths;
-use crate::skip::cell_leaps::NodeLeaps;
+use crate::skip::node_leaps::NodeLeaps;
 use crate::skip::octant::Octant;
 use crate::volume::grid::Grid;
 use crate::volume::grid::Model;

@@ -126,44 +126,9 @@ impl<'a> CellLeaps<'a> {
     }
 }
 
-/// One octant's cell leap map laid out as a slab stores its nodes (plane-major, rows along Z,
-/// nodes along Y, the grid's strides), over some X planes: a cell's distance at its low
-/// node's place. A sample loop that reads a cell of such storage has that place in hand, so
-/// the distance costs it one load instead of an index of its own. Places that are no cell's
-/// low node (a row's last node, a plane's last row) and places past the map read 0: no leap.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct NodeLeaps<'a> {
-    map: &'a [u8],
-    first: u32,
-    octant: Octant,
-}
-
-impl<'a> NodeLeaps<'a> {
-    /// The map of `octant`'s rays in `map`, laid out over planes from `first` on of a grid
-    /// ([`fill_node_layout`]).
-    pub fn new(map: &'a [u8], first: u32, octant: Octant) -> NodeLeaps<'a> {
-        NodeLeaps { map, first, octant }
-    }
-
-    /// The octant whose rays it serves.
-    pub fn octant(&self) -> Octant {
-        self.octant
-    }
-
-    /// The first X plane it holds.
-    pub fn first(&self) -> u32 {
-        self.first
-    }
-
-    /// The distance at place `i` (0 past the map).
-    #[inline(always)]
-    pub fn at(&self, i: usize) -> u8 {
-        self.map.get(i).copied().unwrap_or(0)
-    }
-}
-
 /// Fill `out` (`planes.len()` planes of `grid`'s nodes) with `leaps`' distances laid out as
-/// [`NodeLeaps`] reads them: each cell's at its low node's place, 0 elsewhere.
+/// [`crate::skip::node_leaps::NodeLeaps`] reads them: each cell's at its low node's place, 0
+/// elsewhere.
 pub fn fill_node_layout(
     leaps: &CellLeaps<'_>,
     grid: &crate::volume::grid::Grid,
@@ -622,7 +587,7 @@ mod held_tests {
         let storage = crate::volume::cells::Cells::new(&[0u8; 12 * 9 * 10], 2..14, ny, nz);
         let cells = storage.holding(3..13, ny - 1, nz - 1).unwrap();
         let (first, plane) = cells.planes();
-        let node = NodeLeaps::new(&out, planes.start, Octant::default());
+        let node = crate::skip::node_leaps::NodeLeaps::new(&out, planes.start, Octant::default());
         let offset = (first as usize)
             .wrapping_sub(planes.start as usize)
             .wrapping_mul(plane);

@@ -13,7 +13,8 @@
 use crate::counters::Counters;
 use crate::optics::classify::Classified;
 use crate::optics::transfer::{corrected_opacity, TransferFunction};
-use crate::skip::cell_leaps::{CellLeaps, HeldLeaps, NodeLeaps};
+use crate::skip::cell_leaps::{CellLeaps, HeldLeaps};
+use crate::skip::node_leaps::NodeLeaps;
 use crate::trace::interior::Interior;
 use crate::trace::lattice::Lattice;
 use crate::trace::lighting::Unshadowed;
@@ -508,9 +509,9 @@ enum Run {
 
 /// The samples from `ray.k` through `inside.end`, all in the interior: no clamp, no owner, no
 /// range check per corner, and of the skipping only the cell's leap distance, stepping over
-/// or leaping from a cell the map calls empty (the same samples the general step passes). The same operations as the general
-/// step on each sample (its corner, fractions, read, classification, shading and
-/// compositing), so the same bits and the same counts.
+/// or leaping from a cell the map calls empty (the same samples the general step passes).
+/// The same operations as the general step on each sample (its corner, fractions, read,
+/// classification, shading and compositing), so the same bits and the same counts.
 #[allow(
     clippy::too_many_arguments,
     reason = "inlined into one caller; the arguments are the loop's state"

@@ -95,7 +95,7 @@ impl<U: Copy> HeldCells<'_, U> {
 
     /// Where the node `lo` is in the storage: what [`HeldCells::at_index`] reads the cell
     /// whose low corner it is from, and what a structure laid out as the storage (as
-    /// [`crate::skip::cell_leaps::NodeLeaps`]) reads the cell's entry at, one offset away.
+    /// [`crate::skip::node_leaps::NodeLeaps`]) reads the cell's entry at, one offset away.
     #[inline(always)]
     pub fn index(&self, [x, y, z]: [u32; 3]) -> usize {
         (x.wrapping_sub(self.cells.first) as usize)
