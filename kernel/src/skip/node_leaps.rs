@@ -21,7 +21,7 @@ pub struct NodeLeaps<'a> {
 
 impl<'a> NodeLeaps<'a> {
     /// The map of `octant`'s rays in `map`, laid out over planes from `first` on of a grid
-    /// ([`fill_node_layout`]).
+    /// ([`crate::skip::cell_leaps::fill_node_layout`]).
     pub fn new(map: &'a [u8], first: u32, octant: Octant) -> NodeLeaps<'a> {
         NodeLeaps { map, first, octant }
     }
