@@ -1,75 +1,33 @@
 //! What a render reports: a per-view summary table for people and the same as JSON for tools.
 
 use crate::render::{Machine, Rendered};
+use serde::ser::{SerializeMap, Serializer};
 use serde::Serialize;
 use std::collections::BTreeMap;
-use voxcube_kernel::counters::Counters;
+use voxcube_kernel::counters::{Counters, Group};
 use voxcube_kernel::node::stats::KIND_NAMES;
 use voxcube_kernel::trace::view::View;
 
-/// Rays by type.
-#[derive(Clone, Copy, Debug, Serialize, PartialEq, Eq)]
-pub struct Rays {
-    /// Primary rays that entered the volume.
-    pub primary: u64,
-    /// Transparency rays.
-    pub transparency: u64,
-    /// Shadow rays.
-    pub shadow: u64,
-}
+/// A trace's counters as a report lists them: one map per [`Group::LISTED`] group ("rays",
+/// "operations"), each counter under the key the kernel's table gives it, in the kernel's
+/// order. Flattened into its report, so the groups sit beside the report's other fields.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Counted(pub Counters);
 
-/// Operations by kind.
-#[derive(Clone, Copy, Debug, Serialize, PartialEq, Eq)]
-pub struct Operations {
-    /// Lattice samples evaluated.
-    pub samples: u64,
-    /// Lattice samples skipped as provably empty.
-    pub skipped: u64,
-    /// Trilinear interpolations.
-    pub interpolations: u64,
-    /// Nearest-node lookups.
-    pub lookups: u64,
-    /// Field evaluations refining crossings.
-    pub refinements: u64,
-    /// Gradient evaluations.
-    pub gradients: u64,
-    /// Shading evaluations.
-    pub shadings: u64,
-    /// Surface crossings.
-    pub crossings: u64,
-    /// Rays stopped early.
-    pub early_terminations: u64,
-    /// Fallback normals used.
-    pub normal_fallbacks: u64,
-    /// Reads outside a slab (must be 0).
-    pub slab_misses: u64,
-}
-
-impl From<&Counters> for Operations {
-    fn from(c: &Counters) -> Operations {
-        Operations {
-            samples: c.samples,
-            skipped: c.skipped,
-            interpolations: c.interpolations,
-            lookups: c.lookups,
-            refinements: c.refinements,
-            gradients: c.gradients,
-            shadings: c.shadings,
-            crossings: c.crossings,
-            early_terminations: c.early_terminations,
-            normal_fallbacks: c.normal_fallbacks,
-            slab_misses: c.slab_misses,
+impl Serialize for Counted {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        /// One group's counters, as a map.
+        struct InGroup<'a>(&'a Counters, Group);
+        impl Serialize for InGroup<'_> {
+            fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+                s.collect_map(self.0.in_group(self.1))
+            }
         }
-    }
-}
-
-impl From<&Counters> for Rays {
-    fn from(c: &Counters) -> Rays {
-        Rays {
-            primary: c.primary_rays,
-            transparency: c.transparency_rays,
-            shadow: c.shadow_rays,
+        let mut map = s.serialize_map(Some(Group::LISTED.len()))?;
+        for group in Group::LISTED {
+            map.serialize_entry(group.name(), &InGroup(&self.0, group))?;
         }
+        map.end()
     }
 }
 
@@ -105,10 +63,9 @@ pub struct NodeEntry {
     pub returned: u64,
     /// Messages sent, by kind.
     pub sent: BTreeMap<&'static str, u64>,
-    /// Rays by type (primary rays counted at their home).
-    pub rays: Rays,
-    /// Work done here.
-    pub operations: Operations,
+    /// Rays by type (primary rays counted at their home) and the work done here.
+    #[serde(flatten)]
+    pub counters: Counted,
     /// Measured memory high-water mark, bytes: slab, receive buffer at its peak, worker state,
     /// code and stack.
     pub memory_high_water: usize,
@@ -187,10 +144,9 @@ pub struct ViewReport {
     pub accuracy: &'static str,
     /// The approximations the tier made in this view (none in the exact tier).
     pub approximations: Vec<&'static str>,
-    /// Rays by type.
-    pub rays: Rays,
-    /// Work done.
-    pub operations: Operations,
+    /// Rays by type and work done.
+    #[serde(flatten)]
+    pub counters: Counted,
     /// Traffic of a distributed run.
     pub traffic: Option<TrafficReport>,
     /// Pixels whose colour was not finite before quantisation (always 0).
@@ -283,8 +239,7 @@ impl ViewReport {
                     ],
                     returned: n.stats.returned,
                     sent: kinds(&n.stats.sent),
-                    rays: Rays::from(&n.stats.counters),
-                    operations: Operations::from(&n.stats.counters),
+                    counters: Counted(n.stats.counters),
                     memory_high_water: n.memory.total(),
                     peak_buffer: n.peak_buffer,
                     busy_ms: n.busy.as_secs_f64() * 1e3,
@@ -329,8 +284,7 @@ impl ViewReport {
             },
             accuracy: view.spec().accuracy.name(),
             approximations: view.approximations().iter().map(|a| a.name()).collect(),
-            rays: Rays::from(c),
-            operations: Operations::from(c),
+            counters: Counted(*c),
             traffic,
             nan_pixels: c.non_finite_pixels,
             wall_ms: rendered.wall.as_secs_f64() * 1e3,
@@ -444,7 +398,7 @@ pub fn summary(views: &[ViewReport]) -> String {
         "wall"
     );
     for v in views {
-        let o = &v.operations;
+        let c = &v.counters.0;
         let (fwd, ret, mem) = match &v.traffic {
             Some(t) => (
                 count(t.rays_forwarded),
@@ -460,12 +414,12 @@ pub fn summary(views: &[ViewReport]) -> String {
             v.effects.mode,
             v.fabric,
             format!("{}/{}", v.nodes, v.clusters),
-            count(v.rays.primary),
-            count(v.rays.transparency),
-            count(v.rays.shadow),
-            count(o.samples),
-            count(o.interpolations + o.lookups),
-            count(o.shadings),
+            count(c.primary_rays),
+            count(c.transparency_rays),
+            count(c.shadow_rays),
+            count(c.samples),
+            count(c.interpolations + c.lookups),
+            count(c.shadings),
             fwd,
             ret,
             mem,
@@ -538,4 +492,32 @@ pub fn summary(views: &[ViewReport]) -> String {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counted_lists_each_group_s_counters_under_the_kernel_s_keys_in_its_order() {
+        let c = Counters {
+            primary_rays: 11,
+            shadow_rays: 13,
+            samples: 21,
+            slab_misses: 29,
+            rays_set_up: 99,
+            non_finite_pixels: 98,
+            ..Counters::default()
+        };
+        let json = serde_json::to_string(&Counted(c)).expect("counters serialise");
+        assert_eq!(
+            json,
+            r#"{"rays":{"primary":11,"transparency":0,"shadow":13},"operations":{"samples":21,"#
+                .to_owned()
+                + r#""skipped":0,"interpolations":0,"lookups":0,"refinements":0,"gradients":0,"#
+                + r#""shadings":0,"crossings":0,"early_terminations":0,"normal_fallbacks":0,"#
+                + r#""slab_misses":29}}"#,
+            "the counters apart (rays set up, non-finite pixels) are not in a group"
+        );
+    }
 }

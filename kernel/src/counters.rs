@@ -3,44 +3,101 @@
 //!
 //! Invariant: counters only grow; [`Counters::add`] is the only way two sets combine.
 
-/// What a trace did.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Counters {
+/// Where a report shows a counter: the host's JSON groups each trace's counters under "rays"
+/// and "operations" by this table, so a counter added here reaches the report without a
+/// second list.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Group {
+    /// Rays by type.
+    Rays,
+    /// Work by kind.
+    Operations,
+    /// Not in a group: a check the report names on its own (`nan_pixels`), or a count that
+    /// feeds the machine's cost model rather than the report (`rays_set_up`).
+    Apart,
+}
+
+impl Group {
+    /// The groups a report lists, in its order.
+    pub const LISTED: [Group; 2] = [Group::Rays, Group::Operations];
+
+    /// The group's key in a report.
+    pub fn name(self) -> &'static str {
+        match self {
+            Group::Rays => "rays",
+            Group::Operations => "operations",
+            Group::Apart => "apart",
+        }
+    }
+}
+
+/// Declares every counter once: its doc, field, report group and report key. The struct, the
+/// fixed order of the statistics message and the report's table all come from this list.
+macro_rules! counters {
+    ($($(#[doc = $doc:literal])* $field:ident: $group:ident $key:literal,)*) => {
+        /// What a trace did.
+        #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+        pub struct Counters {
+            $($(#[doc = $doc])* pub $field: u64,)*
+        }
+
+        impl Counters {
+            /// How many counters there are.
+            pub const COUNT: usize = [$(stringify!($field)),*].len();
+
+            /// Each counter's report group and key, in the order of [`Counters::fields`].
+            pub const REPORTED: [(Group, &'static str); Self::COUNT] =
+                [$((Group::$group, $key)),*];
+
+            /// Every counter, in one fixed order (the order of the statistics message).
+            pub fn fields(&self) -> [u64; Self::COUNT] {
+                [$(self.$field),*]
+            }
+
+            /// Every counter, mutably, in the order of [`Counters::fields`].
+            pub(crate) fn fields_mut(&mut self) -> [&mut u64; Self::COUNT] {
+                [$(&mut self.$field),*]
+            }
+        }
+    };
+}
+
+counters! {
     /// Primary rays that entered the volume's box.
-    pub primary_rays: u64,
+    primary_rays: Rays "primary",
     /// Primary rays set up (camera ray, box clip, first sample) to find whether and where
     /// they start: on every node that walks the pixel, whether the ray is its own, another
     /// slab's or a miss, as the paper's distributed generation does on every node of a ring.
     /// Pixels passed over by row leaps or runs of certain misses set up none.
-    pub rays_set_up: u64,
+    rays_set_up: Apart "rays_set_up",
     /// Transparency rays: continuations past a semi-transparent surface.
-    pub transparency_rays: u64,
+    transparency_rays: Rays "transparency",
     /// Shadow rays toward shadow-casting lights.
-    pub shadow_rays: u64,
+    shadow_rays: Rays "shadow",
     /// Lattice samples taken (one field value each).
-    pub samples: u64,
+    samples: Operations "samples",
     /// Lattice samples skipped as provably empty (min/max blocks).
-    pub skipped: u64,
+    skipped: Operations "skipped",
     /// Trilinear interpolations (cell model), for any purpose.
-    pub interpolations: u64,
+    interpolations: Operations "interpolations",
     /// Nearest-node lookups (voxel model), for any purpose.
-    pub lookups: u64,
+    lookups: Operations "lookups",
     /// Field evaluations spent refining surface crossings.
-    pub refinements: u64,
+    refinements: Operations "refinements",
     /// Gradient evaluations.
-    pub gradients: u64,
+    gradients: Operations "gradients",
     /// Shading evaluations (one per lit point).
-    pub shadings: u64,
+    shadings: Operations "shadings",
     /// Surface crossings found by primary and transparency rays.
-    pub crossings: u64,
+    crossings: Operations "crossings",
     /// Rays stopped early because what is behind can no longer show.
-    pub early_terminations: u64,
+    early_terminations: Operations "early_terminations",
     /// Zero or non-finite gradients replaced by the fallback normal.
-    pub normal_fallbacks: u64,
+    normal_fallbacks: Operations "normal_fallbacks",
     /// Reads outside a slab's stored planes (a ghost region too narrow): must stay zero.
-    pub slab_misses: u64,
+    slab_misses: Operations "slab_misses",
     /// Pixels whose colour was not finite before quantisation: must stay zero.
-    pub non_finite_pixels: u64,
+    non_finite_pixels: Apart "nan_pixels",
 }
 
 impl Counters {
@@ -53,49 +110,13 @@ impl Counters {
         d
     }
 
-    /// Every counter, in one fixed order (the order of the statistics message).
-    pub(crate) fn fields(&self) -> [u64; 16] {
-        let c = *self;
-        [
-            c.primary_rays,
-            c.rays_set_up,
-            c.transparency_rays,
-            c.shadow_rays,
-            c.samples,
-            c.skipped,
-            c.interpolations,
-            c.lookups,
-            c.refinements,
-            c.gradients,
-            c.shadings,
-            c.crossings,
-            c.early_terminations,
-            c.normal_fallbacks,
-            c.slab_misses,
-            c.non_finite_pixels,
-        ]
-    }
-
-    /// Every counter, mutably, in the order of [`Counters::fields`].
-    pub(crate) fn fields_mut(&mut self) -> [&mut u64; 16] {
-        [
-            &mut self.primary_rays,
-            &mut self.rays_set_up,
-            &mut self.transparency_rays,
-            &mut self.shadow_rays,
-            &mut self.samples,
-            &mut self.skipped,
-            &mut self.interpolations,
-            &mut self.lookups,
-            &mut self.refinements,
-            &mut self.gradients,
-            &mut self.shadings,
-            &mut self.crossings,
-            &mut self.early_terminations,
-            &mut self.normal_fallbacks,
-            &mut self.slab_misses,
-            &mut self.non_finite_pixels,
-        ]
+    /// The counters a report lists under `group`, with their keys, in the kernel's order.
+    pub fn in_group(&self, group: Group) -> impl Iterator<Item = (&'static str, u64)> {
+        Self::REPORTED
+            .into_iter()
+            .zip(self.fields())
+            .filter(move |((g, _), _)| *g == group)
+            .map(|((_, key), value)| (key, value))
     }
 
     /// Add `other` into `self` (saturating: counters never wrap).
@@ -109,6 +130,33 @@ impl Counters {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn each_counter_has_one_key_in_its_group_and_reads_its_own_field() {
+        let mut c = Counters::default();
+        for (i, slot) in c.fields_mut().into_iter().enumerate() {
+            *slot = 100 + i as u64;
+        }
+        let mut seen = 0;
+        for group in [Group::Rays, Group::Operations, Group::Apart] {
+            for (i, (key, _)) in c.in_group(group).enumerate() {
+                assert!(
+                    c.in_group(group).take(i).all(|(k, _)| k != key),
+                    "{key} twice in {}",
+                    group.name()
+                );
+                seen += 1;
+            }
+        }
+        assert_eq!(seen, Counters::COUNT, "every counter in exactly one group");
+        assert!(c.in_group(Group::Rays).eq([
+            ("primary", c.primary_rays),
+            ("transparency", c.transparency_rays),
+            ("shadow", c.shadow_rays)
+        ]));
+        let nan = c.in_group(Group::Apart).find(|(k, _)| *k == "nan_pixels");
+        assert_eq!(nan, Some(("nan_pixels", c.non_finite_pixels)));
+    }
 
     #[test]
     fn since_undoes_add() {

@@ -3,6 +3,7 @@
 //!
 //! Invariant: every kind has one encoded length, tag included, at most [`MAX_MSG_LEN`].
 
+use crate::counters::Counters;
 use crate::optics::shade::MAX_LIGHTS;
 
 /// Pixels one pixel-set message carries.
@@ -37,10 +38,9 @@ const RAY_LEN: usize = 1 + 4 + 36 + 16 + 1 + 4 + 4 + 1 + 2 + 1 + 4 + 12 + 6;
 const HIT_LEN: usize = 6 + 4 + 4 + 12 + 12 * MAX_LIGHTS + 1 + 1 + 1;
 const RESOLVED_LEN: usize = 6 + 4 + 1 + 12;
 const PIXELS_LEN: usize = 1 + 8 * PIXELS_PER_SET;
-const STATS_LEN: usize = 2 + 8 * COUNTER_FIELDS + 8 * 4 + 8 * KINDS + 8 + 8 * 5;
+const STATS_LEN: usize = 2 + 8 * Counters::COUNT + 8 * 4 + 8 * KINDS + 8 + 8 * 5;
 /// Number of message kinds.
 pub const KINDS: usize = 9;
-pub(crate) const COUNTER_FIELDS: usize = 16;
 const PLANES_LEN: usize = 4 + 4 + 2 + PLANE_CHUNK;
 
 /// The longest encoded message.

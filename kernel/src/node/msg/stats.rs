@@ -5,7 +5,6 @@
 
 use super::wire::{DecodeError, Reader, Writer};
 use crate::counters::Counters;
-use crate::node::kind::COUNTER_FIELDS;
 use crate::node::kind::KINDS;
 use crate::node::stats::NodeStats;
 
@@ -40,7 +39,7 @@ pub(super) fn emit(s: &NodeStats, w: &mut Writer<'_>) {
 pub(super) fn parse(r: &mut Reader<'_>) -> Result<NodeStats, DecodeError> {
     let node = r.u16()?;
     let mut counters = Counters::default();
-    let mut f = [0u64; COUNTER_FIELDS];
+    let mut f = [0u64; Counters::COUNT];
     for v in &mut f {
         *v = r.u64()?;
     }
