@@ -14,7 +14,7 @@ pub fn read_as(name: &str, data: &[u8]) {
     if std::fs::write(&path, data).is_err() {
         return;
     }
-    if let Some(format) = voxcube::formats::Format::from_extension(&path) {
-        let _ = voxcube::formats::load(&path, format, None);
+    if let Some(format) = voxcube::input::formats::Format::from_extension(&path) {
+        let _ = voxcube::input::formats::load(&path, format, None);
     }
 }

@@ -1,12 +1,13 @@
 //! The `voxcube` command line: its subcommands and flags, parsed and handed to the modules
-//! that do their work (`render` to [`crate::commands::render`], `info` to [`crate::info`],
-//! `bench`, `paper`, `accuracy` and `explore` to [`crate::experiments`]; `scene` prints the
-//! built-in default scene). Errors go to stderr with a non-zero exit.
+//! that do their work (`render` to [`crate::commands::render`], `info` to
+//! [`crate::commands::info`], `bench`, `paper`, `accuracy` and `explore` to
+//! [`crate::experiments`]; `scene` prints the built-in default scene). Errors go to stderr
+//! with a non-zero exit.
 
 use crate::experiments::bench;
 use crate::experiments::explore;
-use crate::output::{check_writable, stdout, write_atomic};
-use crate::scene::DEFAULT_SCENE;
+use crate::input::scene::DEFAULT_SCENE;
+use crate::output::files::{check_writable, stdout, write_atomic};
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 
@@ -30,7 +31,7 @@ pub struct Cli {
     pub command: Command,
     /// The most samples a volume file's header may declare: checked before anything is
     /// decompressed or kept for them (default 2^32, a 1,625³ volume).
-    #[arg(long, global = true, default_value_t = crate::formats::DEFAULT_MAX_SAMPLES)]
+    #[arg(long, global = true, default_value_t = crate::input::formats::DEFAULT_MAX_SAMPLES)]
     pub max_samples: u64,
 }
 
@@ -188,18 +189,18 @@ pub fn main() -> std::process::ExitCode {
 
 /// Run a parsed command.
 pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
-    crate::formats::set_max_samples(cli.max_samples);
+    crate::input::formats::set_max_samples(cli.max_samples);
     match cli.command {
         Command::Scene => {
             stdout(DEFAULT_SCENE)?;
             Ok(())
         }
         Command::Info { path, scene } => {
-            let volumes = crate::info::volumes(&path)?;
+            let volumes = crate::commands::info::volumes(&path)?;
             let text = if scene {
                 match &volumes[..] {
                     [(_, volume)] if path.extension().is_none_or(|e| e != "toml") => {
-                        crate::info::suggested_scene(&path, volume)?
+                        crate::commands::info::suggested_scene(&path, volume)?
                     }
                     _ => {
                         return Err(
@@ -210,7 +211,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             } else {
                 volumes
                     .iter()
-                    .map(|(name, v)| crate::info::describe(name, v))
+                    .map(|(name, v)| crate::commands::info::describe(name, v))
                     .collect::<Result<Vec<_>, _>>()?
                     .join("\n")
             };
@@ -243,7 +244,7 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
                 std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
                 check_writable(path)?;
                 let time = crate::experiments::paper::traced(&job, &profile, p, s)?;
-                let json = crate::timeline::chrome_trace(&time, s);
+                let json = crate::run::timeline::chrome_trace(&time, s);
                 write_atomic(path, json.to_string().as_bytes())?;
                 text += &format!(
                     "wrote the {p}-node, clusters-of-{s} timeline to {}\n",

@@ -1,7 +1,7 @@
 //! Every bad input gets an error that names the file, the key or field, and what was expected.
 
 use std::path::Path;
-use voxcube::scene::{Scene, SceneError};
+use voxcube::input::scene::{Scene, SceneError};
 
 /// Check and load scene text in `dir`; the error message.
 fn error_of(dir: &Path, text: &str) -> String {

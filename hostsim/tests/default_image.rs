@@ -4,8 +4,8 @@
 //! `cargo run --release -- render -o target/default-scene` and copy
 //! `target/default-scene/molecule-paper.png` over `docs/default-scene.png`.
 
-use voxcube::render::render;
-use voxcube::scene::Scene;
+use voxcube::input::scene::Scene;
+use voxcube::run::render::render;
 
 /// Pixels that differ between two RGBA8 buffers of the same size.
 fn differing(a: &[u8], b: &[u8]) -> usize {

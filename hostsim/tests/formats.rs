@@ -8,7 +8,7 @@ use dicom_object::{FileMetaTableBuilder, InMemDicomObject};
 use std::io::Write;
 use std::path::Path;
 use std::process::Command;
-use voxcube::scene::Scene;
+use voxcube::input::scene::Scene;
 
 const DIMS: [usize; 3] = [24, 20, 16];
 const SPACING: [f32; 3] = [1.0, 1.0, 1.5];
@@ -459,7 +459,10 @@ fn every_format_loads_the_same_samples_as_the_raw_file() {
         .and_then(Scene::load)
         .unwrap_or_else(|e| panic!("{e}"));
     let raw = &loaded[0].volume;
-    assert!(matches!(raw.data, voxcube::dataset::VolumeData::F32(_)));
+    assert!(matches!(
+        raw.data,
+        voxcube::input::dataset::VolumeData::F32(_)
+    ));
     for (d, (name, _)) in loaded.iter().zip(&datasets) {
         assert_eq!(d.volume.grid, raw.grid, "{name}: grid");
         assert!(
@@ -622,7 +625,7 @@ fn a_density_map_whose_header_lies_is_refused_by_name() {
     for (bytes, expected) in cases {
         let path = dir.path().join("bad.map");
         std::fs::write(&path, &bytes).expect("write");
-        let message = voxcube::formats::mrc::load(&path, None)
+        let message = voxcube::input::formats::mrc::load(&path, None)
             .expect_err(expected)
             .to_string();
         assert!(
@@ -634,7 +637,7 @@ fn a_density_map_whose_header_lies_is_refused_by_name() {
     let packed = gzip(&good);
     let path = dir.path().join("bad.map.gz");
     std::fs::write(&path, &packed[..packed.len() - 9]).expect("write");
-    let message = voxcube::formats::mrc::load(&path, None)
+    let message = voxcube::input::formats::mrc::load(&path, None)
         .expect_err("cut")
         .to_string();
     assert!(message.contains("corrupt compressed data"), "{message}");
@@ -1122,7 +1125,8 @@ fn a_corrupt_gzip_nifti_is_refused_never_read_to_other_samples() {
     let original = gzip(&nifti(4, 16, 1.0, 0.0, &le(&samples())));
     let path = dir.path().join("blob.nii.gz");
     std::fs::write(&path, &original).expect("write");
-    let reference = voxcube::formats::nifti::load(&path, None).expect("the intact file reads");
+    let reference =
+        voxcube::input::formats::nifti::load(&path, None).expect("the intact file reads");
     let (mut refused, mut same) = (0, 0);
     let n = original.len();
     // A spread of offsets through the header, the deflate data, and every trailer byte.
@@ -1131,7 +1135,7 @@ fn a_corrupt_gzip_nifti_is_refused_never_read_to_other_samples() {
         let mut bad = original.clone();
         bad[offset] ^= 0xa5;
         std::fs::write(&path, &bad).expect("write");
-        match voxcube::formats::nifti::load(&path, None) {
+        match voxcube::input::formats::nifti::load(&path, None) {
             Ok(volume) => {
                 assert!(
                     volume.grid == reference.grid && volume.data == reference.data,
@@ -1161,7 +1165,7 @@ fn a_corrupt_gzip_nifti_is_refused_never_read_to_other_samples() {
     let last = bad.len() - 1;
     bad[last] ^= 1;
     std::fs::write(&image, &bad).expect("write");
-    let message = voxcube::formats::nifti::load(&dir.path().join("pair.hdr.gz"), None)
+    let message = voxcube::input::formats::nifti::load(&dir.path().join("pair.hdr.gz"), None)
         .expect_err("a corrupt image stream")
         .to_string();
     assert!(
@@ -1185,7 +1189,7 @@ fn a_nifti_header_declaring_more_than_its_file_holds_is_refused_before_allocatin
     let expected = 352 + 1_000u64.pow(3);
     let plain = dir.path().join("huge.nii");
     std::fs::write(&plain, &huge).expect("write");
-    let message = voxcube::formats::nifti::load(&plain, None)
+    let message = voxcube::input::formats::nifti::load(&plain, None)
         .expect_err("a 400-byte file cannot hold 1 GB")
         .to_string();
     assert!(
@@ -1195,7 +1199,7 @@ fn a_nifti_header_declaring_more_than_its_file_holds_is_refused_before_allocatin
     );
     let packed = dir.path().join("huge.nii.gz");
     std::fs::write(&packed, gzip(&huge)).expect("write");
-    let message = voxcube::formats::nifti::load(&packed, None)
+    let message = voxcube::input::formats::nifti::load(&packed, None)
         .expect_err("nor its gzipped copy")
         .to_string();
     assert!(
@@ -1207,7 +1211,7 @@ fn a_nifti_header_declaring_more_than_its_file_holds_is_refused_before_allocatin
     offset[108..112].copy_from_slice(&352.5f32.to_le_bytes());
     let odd = dir.path().join("odd.nii");
     std::fs::write(&odd, &offset).expect("write");
-    let message = voxcube::formats::nifti::load(&odd, None)
+    let message = voxcube::input::formats::nifti::load(&odd, None)
         .expect_err("half a byte")
         .to_string();
     assert!(
@@ -1233,7 +1237,7 @@ fn a_compressed_stream_longer_than_its_header_declares_is_refused_not_kept() {
         .concat(),
     )
     .expect("write");
-    let message = voxcube::formats::nrrd::load(&nrrd, None)
+    let message = voxcube::input::formats::nrrd::load(&nrrd, None)
         .expect_err("8 MiB where 64 bytes are declared")
         .to_string();
     assert!(
@@ -1244,7 +1248,7 @@ fn a_compressed_stream_longer_than_its_header_declares_is_refused_not_kept() {
     let mhd = dir.path().join("flood.mhd");
     let header = "ObjectType = Image\nNDims = 3\nDimSize = 4 4 4\nElementType = MET_UCHAR\nCompressedData = True\nElementDataFile = LOCAL\n";
     std::fs::write(&mhd, [header.as_bytes(), &zlib(&flood)].concat()).expect("write");
-    let message = voxcube::formats::metaimage::load(&mhd, None)
+    let message = voxcube::input::formats::metaimage::load(&mhd, None)
         .expect_err("the same in zlib")
         .to_string();
     assert!(
@@ -1263,7 +1267,7 @@ fn a_compressed_stream_longer_than_its_header_declares_is_refused_not_kept() {
         .concat(),
     )
     .expect("write");
-    let message = voxcube::formats::nrrd::load(&skip, None)
+    let message = voxcube::input::formats::nrrd::load(&skip, None)
         .expect_err("byte skip -1 with gzip")
         .to_string();
     assert!(message.contains("byte skip -1"), "{message}");
@@ -1283,7 +1287,7 @@ fn a_header_declaring_more_samples_than_the_cap_is_refused_before_decompressing(
     }
     let path = dir.path().join("huge.nii.gz");
     std::fs::write(&path, gzip(&huge)).expect("write");
-    let message = voxcube::formats::nifti::load(&path, None)
+    let message = voxcube::input::formats::nifti::load(&path, None)
         .expect_err("2^33 samples")
         .to_string();
     assert!(
@@ -1307,7 +1311,7 @@ fn a_header_declaring_more_samples_than_the_cap_is_refused_before_decompressing(
         .expect("meta")
         .write_to_file(folder.join("IM0001"))
         .expect("write dicom");
-    let message = voxcube::formats::dicom::load(&folder, None)
+    let message = voxcube::input::formats::dicom::load(&folder, None)
         .expect_err("4.8e10 samples")
         .to_string();
     assert!(
@@ -1337,7 +1341,7 @@ fn a_header_declaring_more_samples_than_the_cap_is_refused_before_decompressing(
         .expect("meta")
         .write_to_file(folder.join("IM0001"))
         .expect("write dicom");
-    let message = voxcube::formats::dicom::load(&folder, None)
+    let message = voxcube::input::formats::dicom::load(&folder, None)
         .expect_err("a 30,000² JPEG frame in a 24 × 20 image")
         .to_string();
     assert!(
@@ -1420,8 +1424,8 @@ fn headers_declaring_more_samples_than_their_files_hold_are_refused_by_every_rea
     for (name, text, expected) in files {
         let path = dir.path().join(name);
         std::fs::write(&path, text).expect("write");
-        let format = voxcube::formats::Format::from_extension(&path).expect("a format");
-        let e = voxcube::formats::load(&path, format, None)
+        let format = voxcube::input::formats::Format::from_extension(&path).expect("a format");
+        let e = voxcube::input::formats::load(&path, format, None)
             .expect_err(name)
             .to_string();
         assert!(e.contains(name) && e.contains(expected), "{name}: {e}");
@@ -1488,12 +1492,12 @@ fn a_vti_whose_blocks_lie_or_are_damaged_is_refused_before_decoding() {
     let n = stored.len() as u32;
     let read = |bytes: &[u8]| {
         std::fs::write(&path, bytes).expect("write");
-        voxcube::formats::vtk::load(&path, None)
+        voxcube::input::formats::vtk::load(&path, None)
     };
     let nrrd = dir.path().join("same.nrrd");
     let header = "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 8 8 8\nencoding: raw\n\n";
     std::fs::write(&nrrd, [header.as_bytes(), &data].concat()).expect("write");
-    let reference = voxcube::formats::nrrd::load(&nrrd, None).expect("the raw samples");
+    let reference = voxcube::input::formats::nrrd::load(&nrrd, None).expect("the raw samples");
     for appended in [false, true] {
         // The intact file reads its samples: the cases below differ from it only as said.
         let intact =
@@ -1560,11 +1564,11 @@ fn a_compressed_vti_whose_last_block_is_full_reads_its_samples() {
             format!("NRRD0004\ntype: uchar\ndimension: 3\nsizes: 64 64 {nz}\nencoding: raw\n\n");
         let nrrd = dir.path().join("same.nrrd");
         std::fs::write(&nrrd, [header.as_bytes(), &data].concat()).expect("write");
-        let reference = voxcube::formats::nrrd::load(&nrrd, None).expect("the raw samples");
+        let reference = voxcube::input::formats::nrrd::load(&nrrd, None).expect("the raw samples");
         for appended in [false, true] {
             let path = dir.path().join("blocks.vti");
             std::fs::write(&path, vti_zlib(dims, &data, 32_768, appended)).expect("write");
-            let volume = voxcube::formats::vtk::load(&path, None)
+            let volume = voxcube::input::formats::vtk::load(&path, None)
                 .unwrap_or_else(|e| panic!("{nz} planes, appended {appended}: {e}"));
             assert!(
                 volume.data == reference.data,
@@ -1649,8 +1653,8 @@ fn damaged_files_of_every_format_are_read_right_or_refused() {
     };
     for (name, checked) in files {
         let path = dir.path().join(name);
-        let format = voxcube::formats::Format::from_extension(&path).expect("a format");
-        let original = voxcube::formats::load(&path, format, None).expect("the intact file");
+        let format = voxcube::input::formats::Format::from_extension(&path).expect("a format");
+        let original = voxcube::input::formats::load(&path, format, None).expect("the intact file");
         let bytes = std::fs::read(&path).expect("read");
         let target = damaged.path().join(name);
         let (mut read, mut refused) = (0, 0);
@@ -1677,7 +1681,8 @@ fn damaged_files_of_every_format_are_read_right_or_refused() {
                 }
             }
             std::fs::write(&target, &bad).expect("write");
-            let result = std::panic::catch_unwind(|| voxcube::formats::load(&target, format, None));
+            let result =
+                std::panic::catch_unwind(|| voxcube::input::formats::load(&target, format, None));
             match result {
                 Err(_) => panic!("{name}, copy {copy} (seed {seed:#x}): the reader panicked"),
                 Ok(Ok(volume)) => {

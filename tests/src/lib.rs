@@ -1,7 +1,7 @@
 //! Helpers shared by voxcube's integration tests: small volumes built from functions, views
 //! built without a scene file, and whole-image traces that keep the unquantised colours.
 
-use voxcube::dataset::{plane_major_from_fn, Volume, VolumeData};
+use voxcube::input::dataset::{plane_major_from_fn, Volume, VolumeData};
 use voxcube_kernel::counters::Counters;
 use voxcube_kernel::heapless;
 use voxcube_kernel::optics::shade::{Light, Shading};
@@ -22,7 +22,7 @@ pub fn shared_data() -> std::path::PathBuf {
 
 /// The jobs of `scenes/sod.toml` (the paper's dataset), or `None` where the shared data is
 /// not beside the repository (an error on CI, which always has it).
-pub fn sod_jobs() -> Option<Vec<voxcube::scene::DatasetJob>> {
+pub fn sod_jobs() -> Option<Vec<voxcube::input::scene::DatasetJob>> {
     let dir = shared_data();
     if !dir.is_dir() {
         assert!(
@@ -34,7 +34,8 @@ pub fn sod_jobs() -> Option<Vec<voxcube::scene::DatasetJob>> {
         return None;
     }
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/sod.toml");
-    let jobs = voxcube::scene::Scene::from_file(&path).and_then(voxcube::scene::Scene::load);
+    let jobs =
+        voxcube::input::scene::Scene::from_file(&path).and_then(voxcube::input::scene::Scene::load);
     Some(jobs.unwrap_or_else(|e| panic!("{e}")))
 }
 

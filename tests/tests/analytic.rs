@@ -1,6 +1,6 @@
 //! Tests against analytic answers: the silhouette of a sphere and Beer–Lambert attenuation.
 
-use voxcube::builtin;
+use voxcube::input::builtin;
 use voxcube_kernel::trace::view::{Accuracy, Approximation, ViewSpec};
 use voxcube_kernel::volume::grid::Model;
 use voxcube_kernel::Vec3;

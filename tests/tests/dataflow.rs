@@ -5,9 +5,9 @@
 use proptest::prelude::*;
 use voxcube::fabric::sim;
 use voxcube::fabric::RunConfig;
-use voxcube::render::{render, render_skipping};
-use voxcube::scene::{DatasetJob, Scene};
-use voxcube::storage::SkipMode;
+use voxcube::input::scene::{DatasetJob, Scene};
+use voxcube::memory::storage::SkipMode;
+use voxcube::run::render::{render, render_skipping};
 use voxcube_kernel::node::topology::Layout;
 use voxcube_kernel::node::worker::{Generation, Mutants};
 use voxcube_kernel::optics::shade::Light;
@@ -211,7 +211,7 @@ fn the_same_seed_gives_the_same_run() {
 }
 
 fn random_view(
-    volume: &voxcube::dataset::Volume,
+    volume: &voxcube::input::dataset::Volume,
     pick: u8,
     eye: Vec3,
     dt: f32,

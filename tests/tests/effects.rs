@@ -2,7 +2,7 @@
 //! call for. Each assertion of "zero" is paired with a control showing the same scene with the
 //! effect on does the work, so the counters are known to count.
 
-use voxcube::scene::Scene;
+use voxcube::input::scene::Scene;
 use voxcube_kernel::counters::Counters;
 use voxcube_tests::trace_all;
 

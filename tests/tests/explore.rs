@@ -37,7 +37,7 @@ fn flow_control_on_no_deadlock_no_violation_identical_images() {
 }
 
 /// A few configurations with small buffers and shadows, where faults show.
-fn tight(job: &voxcube::scene::DatasetJob) -> Vec<Config> {
+fn tight(job: &voxcube::input::scene::DatasetJob) -> Vec<Config> {
     configs(job)
         .into_iter()
         .filter(|c| c.view < 2 && c.size >= 2 && c.buffer <= flow::buffer_bytes(c.size as usize, 8))
@@ -206,7 +206,7 @@ mod buffer_limits {
     use super::*;
     use proptest::prelude::*;
     use voxcube::fabric::Scheduler;
-    use voxcube::render::render;
+    use voxcube::run::render::render;
 
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(if std::env::var_os("VOXCUBE_LONG").is_some() { 400 } else { 48 }))]

@@ -5,7 +5,7 @@
 
 use voxcube::fabric::sim;
 use voxcube::fabric::{RunConfig, RunError};
-use voxcube::scene::{DatasetJob, Scene};
+use voxcube::input::scene::{DatasetJob, Scene};
 
 fn default_scene() -> Vec<DatasetJob> {
     Scene::default_scene()

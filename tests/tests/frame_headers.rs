@@ -3,7 +3,7 @@
 //! a whole header passes exactly when it declares the image's size.
 
 use proptest::prelude::*;
-use voxcube::formats::dicom_frames::check;
+use voxcube::input::formats::dicom_frames::check;
 
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(4000))]

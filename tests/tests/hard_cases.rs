@@ -4,8 +4,8 @@
 //! ever NaN over random volumes, views and steps.
 
 use proptest::prelude::*;
-use voxcube::builtin;
-use voxcube::dataset::Volume;
+use voxcube::input::builtin;
+use voxcube::input::dataset::Volume;
 use voxcube_kernel::counters::Counters;
 use voxcube_kernel::optics::shade::Light;
 use voxcube_kernel::optics::transfer::{ControlPoint, TransferFunction};

@@ -2,9 +2,9 @@
 //! fits; measured high-water marks within budget), and images bit-identical for every cube
 //! size and cluster size.
 
-use voxcube::budget::Profile;
-use voxcube::render::{render, render_on, Fabric, Machine, RenderError};
-use voxcube::scene::Scene;
+use voxcube::input::scene::Scene;
+use voxcube::memory::budget::Profile;
+use voxcube::run::render::{render, render_on, Fabric, Machine, RenderError};
 use voxcube_kernel::volume::grid::Model;
 use voxcube_kernel::Vec3;
 use voxcube_tests::*;
@@ -74,7 +74,7 @@ fn a_volume_too_big_for_one_node_renders_once_the_cluster_is_large_enough() {
 }
 
 /// The dataflow suite's test scenes, loaded.
-fn test_scenes() -> Vec<voxcube::scene::DatasetJob> {
+fn test_scenes() -> Vec<voxcube::input::scene::DatasetJob> {
     let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/scenes.toml"))
         .expect("scenes");
     Scene::parse(&text, "scenes.toml", std::path::Path::new("."))

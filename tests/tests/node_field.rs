@@ -4,10 +4,10 @@
 //! some nodes and not on others give the same image. A field whose differences are off
 //! changes the image, so the comparisons would catch a field that is not the slab's own.
 
-use voxcube::dataset::{Volume, VolumeData};
 use voxcube::fabric::{sim, threads, RunConfig};
-use voxcube::render::render;
-use voxcube::storage::{holds_node_field, SkipMode};
+use voxcube::input::dataset::{Volume, VolumeData};
+use voxcube::memory::storage::{holds_node_field, SkipMode};
+use voxcube::run::render::render;
 use voxcube_kernel::counters::Counters;
 use voxcube_kernel::optics::shade::Light;
 use voxcube_kernel::trace::tracer::trace_pixel;

@@ -11,7 +11,7 @@ fn porting_md_memory_map_figures_hold() {
         text.contains(&format!("{buffer} bytes")),
         "docs/porting.md must quote the 16-node, i_max 8 receive buffer: {buffer} bytes"
     );
-    let worker = voxcube::budget::worker_bytes();
+    let worker = voxcube::memory::budget::worker_bytes();
     assert!(
         text.contains(&format!("{worker} bytes")),
         "docs/porting.md must quote the simulator worker's size: {worker} bytes"
@@ -32,7 +32,7 @@ fn porting_md_slab_figure_holds() {
     let grid = voxcube_kernel::volume::grid::Grid::new([97, 97, 116], voxcube_kernel::Vec3::ONE)
         .expect("grid");
     // The paper's view: a parallel projection without shadows, so one leap map.
-    let needs = voxcube::budget::ViewNeeds {
+    let needs = voxcube::memory::budget::ViewNeeds {
         ghost: 3,
         maps: 1,
         cell_maps: 0,
@@ -40,7 +40,7 @@ fn porting_md_slab_figure_holds() {
         node_bytes: 0,
         cell_ranges: 0,
     };
-    let slab = voxcube::budget::largest_node(&grid, 1, 16, needs, 0)
+    let slab = voxcube::memory::budget::largest_node(&grid, 1, 16, needs, 0)
         .expect("fits")
         .slab;
     let figure = format!(

@@ -3,8 +3,8 @@
 //! tests skip with a message — except under CI (`CI` set), where a missing folder fails.
 
 use std::path::{Path, PathBuf};
-use voxcube::render::render;
-use voxcube::scene::Scene;
+use voxcube::input::scene::Scene;
+use voxcube::run::render::render;
 
 fn data_or_skip() -> Option<PathBuf> {
     let dir = voxcube_tests::shared_data();
@@ -21,7 +21,7 @@ fn data_or_skip() -> Option<PathBuf> {
 }
 
 /// SOD as the paper's experiments load it, from the shared data folder.
-fn paper_job() -> voxcube::scene::DatasetJob {
+fn paper_job() -> voxcube::input::scene::DatasetJob {
     let mut notes = String::new();
     let data = voxcube_tests::shared_data();
     let source = voxcube::experiments::paper::Source::Sod(&data);
@@ -106,7 +106,7 @@ fn sod_paper_view_projects_onto_the_papers_area() {
 
 #[test]
 fn sod_renders_identically_on_one_and_sixteen_nodes() {
-    use voxcube::render::{render_on, Fabric, Machine};
+    use voxcube::run::render::{render_on, Fabric, Machine};
     if data_or_skip().is_none() {
         return;
     }

@@ -8,12 +8,12 @@
 //! and depth bounds are held only where they fit, and maps only where they pay.
 
 use proptest::prelude::*;
-use voxcube::dataset::{Volume, VolumeData};
 use voxcube::fabric::sim;
 use voxcube::fabric::RunConfig;
-use voxcube::render::render_skipping;
-use voxcube::scene::{DatasetJob, Scene};
-use voxcube::storage::{cell_leap_octants, SkipMode, Skipping};
+use voxcube::input::dataset::{Volume, VolumeData};
+use voxcube::input::scene::{DatasetJob, Scene};
+use voxcube::memory::storage::{cell_leap_octants, SkipMode, Skipping};
+use voxcube::run::render::render_skipping;
 use voxcube_kernel::optics::transfer::{ControlPoint, TransferFunction};
 use voxcube_kernel::skip::scan;
 use voxcube_kernel::trace::pixel::rgba8;
@@ -386,7 +386,7 @@ fn trace_typed<T: Sample + Sync>(
     mode: SkipMode,
 ) -> Vec<[u8; 4]> {
     let slab = Slab::whole(grid, data).expect("slab");
-    let ranges = voxcube::ranges::SlabRanges::build(&slab, mode.ranges, 1);
+    let ranges = voxcube::memory::ranges::SlabRanges::build(&slab, mode.ranges, 1);
     let skipping = Skipping::build(&slab, &ranges, built_for, mode);
     trace_all(traced, &skipping.apply(slab))
 }
@@ -618,11 +618,12 @@ fn skipping_built_on_threads_is_the_same_storage() {
                 for skipping in [SkipMode::ALL, no_depths, SkipMode::LEAPS, SkipMode::BLOCKS] {
                     // One thread reading the nodes for the masks; several classifying the
                     // cells' ranges, themselves built on as many threads.
-                    let nodes = voxcube::ranges::SlabRanges::build(slab, false, 1);
+                    let nodes = voxcube::memory::ranges::SlabRanges::build(slab, false, 1);
                     let one = Skipping::build(slab, &nodes, &view, skipping);
                     assert_ne!(one, Skipping::default(), "{dims:?}: blocks are built");
                     for threads in [2, 3, 8] {
-                        let ranges = voxcube::ranges::SlabRanges::build(slab, true, threads);
+                        let ranges =
+                            voxcube::memory::ranges::SlabRanges::build(slab, true, threads);
                         assert!(ranges.holds_cells());
                         let many = Skipping::build_on(slab, &ranges, &view, skipping, threads);
                         // Not assert_eq: the storage runs to thousands of entries.
@@ -677,14 +678,14 @@ fn kept_masks_and_cell_leap_maps_serve_only_views_of_the_same_verdicts() {
         view(composite(90.0), ahead),
     ];
     let fresh = |v: &View| {
-        let ranges = voxcube::ranges::SlabRanges::build(&slab, true, 1);
+        let ranges = voxcube::memory::ranges::SlabRanges::build(&slab, true, 1);
         Skipping::build(&slab, &ranges, v, SkipMode::ALL)
     };
     // The negative control: the views' storages differ, so one handed another's is caught.
     assert_ne!(fresh(&views[0]), fresh(&views[1]), "maps of two octants");
     assert_ne!(fresh(&views[0]), fresh(&views[2]), "masks of two functions");
     assert_ne!(fresh(&views[2]), fresh(&views[3]), "masks of two modes");
-    let shared = voxcube::ranges::SlabRanges::build(&slab, true, 2);
+    let shared = voxcube::memory::ranges::SlabRanges::build(&slab, true, 2);
     for (i, v) in views.iter().chain(views.iter().rev()).enumerate() {
         let turn = Skipping::build_on(&slab, &shared, v, SkipMode::ALL, 2);
         assert!(turn == fresh(v), "turn {i}");
@@ -790,7 +791,7 @@ fn a_leap_map_built_for_another_octant_changes_the_image() {
 /// one thread or split over several, more threads than block columns too.
 #[test]
 fn every_node_skips_by_the_same_storage_however_the_build_is_threaded() {
-    use voxcube::storage::NodeStorage;
+    use voxcube::memory::storage::NodeStorage;
     use voxcube_kernel::node::partition::Partition;
     use voxcube_kernel::node::topology::Layout;
     let volume = blobs([37, 21, 30], Vec3::ONE, 0x7e_4d_11);
@@ -817,11 +818,14 @@ fn every_node_skips_by_the_same_storage_however_the_build_is_threaded() {
         let layout = Layout::new(clusters, size).expect("layout");
         let partition = Partition::uniform(grid.dims()[0], size as usize).expect("partition");
         let ghost = view.ghost_planes();
-        let storage =
-            |threads: usize| {
-                NodeStorage::new(&grid, layout, &partition, ghost, data.as_slice(), None)
-                    .with_skipping(&view, mode, threads, &voxcube::built::Built::default())
-            };
+        let storage = |threads: usize| {
+            NodeStorage::new(&grid, layout, &partition, ghost, data.as_slice(), None).with_skipping(
+                &view,
+                mode,
+                threads,
+                &voxcube::memory::built::Built::default(),
+            )
+        };
         let one = storage(1);
         for threads in [2, 3, 16] {
             let many = storage(threads);
@@ -844,8 +848,8 @@ fn every_node_skips_by_the_same_storage_however_the_build_is_threaded() {
 
 /// Whether a cell holds fewer of `view`'s samples than cell leap maps need beside depth bounds.
 fn samples_below(view: &View) -> bool {
-    voxcube::storage::samples_per_cell(view)
-        .is_some_and(|n| n < voxcube::storage::MAP_SAMPLES_PER_CELL)
+    voxcube::memory::storage::samples_per_cell(view)
+        .is_some_and(|n| n < voxcube::memory::storage::MAP_SAMPLES_PER_CELL)
 }
 
 /// Cell leap maps are an acceleration, not a need: a node holds them only where its memory has
@@ -854,7 +858,7 @@ fn samples_below(view: &View) -> bool {
 /// one that alone fills most of an nCUBE 2 node does not, on one node or balanced.
 #[test]
 fn nodes_hold_cell_leap_maps_only_where_they_fit() {
-    use voxcube::render::{node_skipping, preflight, Fabric, Machine};
+    use voxcube::run::render::{node_skipping, preflight, Fabric, Machine};
     let cam = |n: f32| {
         voxcube_tests::ortho(
             Vec3::new(n * 2.5, n * 0.4, n * 0.5),
@@ -899,7 +903,7 @@ fn nodes_hold_cell_leap_maps_only_where_they_fit() {
     );
     // With depth bounds, maps only where a cell holds enough of the rays' samples: not at
     // 40×30 pixels over 60 units (0.9 samples a cell) nor at 160×120 (14.2), at 240×180 (32).
-    let few = voxcube::storage::samples_per_cell(&parallel).expect("parallel");
+    let few = voxcube::memory::storage::samples_per_cell(&parallel).expect("parallel");
     assert!((few - 1.0 / (1.5 * 1.5 * 0.5)).abs() < 1e-9, "{few}");
     assert_eq!(cell_leap_octants(&parallel, SkipMode::ALL), 0);
     let sized = |w: u32, h: u32| {
@@ -923,8 +927,8 @@ fn nodes_hold_cell_leap_maps_only_where_they_fit() {
 /// has none.
 #[test]
 fn nodes_hold_depth_bounds_only_where_they_fit() {
-    use voxcube::render::{node_skipping, preflight, Fabric, Machine};
-    use voxcube::storage::depth_bytes;
+    use voxcube::memory::storage::depth_bytes;
+    use voxcube::run::render::{node_skipping, preflight, Fabric, Machine};
     let small = blobs([40, 40, 40], Vec3::ONE, 7);
     let cam = voxcube_tests::ortho(
         Vec3::new(100.0, 16.0, 20.0),

@@ -4,8 +4,8 @@
 //! classification table built for another Δt changes the image, so the comparisons catch it.
 
 use voxcube::fabric::{sim, threads, RunConfig};
-use voxcube::render::render;
-use voxcube::scene::{DatasetJob, Scene};
+use voxcube::input::scene::{DatasetJob, Scene};
+use voxcube::run::render::render;
 use voxcube_kernel::node::topology::Layout;
 use voxcube_kernel::trace::view::{Accuracy, View};
 use voxcube_tests::in_tier;

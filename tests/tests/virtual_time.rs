@@ -3,10 +3,10 @@
 
 use voxcube::fabric::sim;
 use voxcube::fabric::RunConfig;
+use voxcube::input::scene::Scene;
+use voxcube::memory::storage::SkipMode;
 use voxcube::profile::MachineProfile;
-use voxcube::render::render;
-use voxcube::scene::Scene;
-use voxcube::storage::SkipMode;
+use voxcube::run::render::render;
 
 fn timed(clusters: u32, size: u32) -> RunConfig {
     RunConfig {

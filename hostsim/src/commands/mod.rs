@@ -1,5 +1,6 @@
-//! The commands' work, one module each, that [`crate::cli`] parses and dispatches to. Here:
-//! [`render`]; `info`, `bench`, `paper`, `accuracy` and `explore` live with their kind of
-//! work ([`crate::info`], [`crate::experiments`]).
+//! The commands' work, one module each, that [`crate::cli`] parses and dispatches to:
+//! [`render`] and [`info`]. `bench`, `paper`, `accuracy` and `explore` live with the other
+//! experiments ([`crate::experiments`]).
 
+pub mod info;
 pub mod render;

@@ -3,12 +3,12 @@
 //! view's images, the report and the summary. [`run`] is the whole command, for the command
 //! line and for tests alike.
 
-use crate::budget::Profile;
-use crate::output::{check_writable, stdout, write_atomic, write_png};
-use crate::render::{preflight, render_cut, Fabric, Machine};
-use crate::report::{summary, BalanceReport, FailedView, LostPixels, Report, ViewReport};
-use crate::scene::{Scene, ViewJob};
-use crate::storage::SkipMode;
+use crate::input::scene::{Scene, ViewJob};
+use crate::memory::budget::Profile;
+use crate::memory::storage::SkipMode;
+use crate::output::files::{check_writable, stdout, write_atomic, write_png};
+use crate::output::report::{summary, BalanceReport, FailedView, LostPixels, Report, ViewReport};
+use crate::run::render::{preflight, render_cut, Fabric, Machine};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::cell::Cell;
 use std::path::PathBuf;
@@ -433,7 +433,10 @@ pub fn run(args: RenderArgs) -> Result<(), Box<dyn std::error::Error>> {
         // Written before each view: a process ended during it (a rank's death ends an
         // MPI job at once) leaves a report of the views finished and the one cut short.
         // A FIFO or device gets the final report only.
-        if let Some(path) = report.as_ref().filter(|p| crate::output::rewritable(p)) {
+        if let Some(path) = report
+            .as_ref()
+            .filter(|p| crate::output::files::rewritable(p))
+        {
             Report {
                 scene: &name,
                 views: &views,
@@ -494,7 +497,7 @@ pub fn run(args: RenderArgs) -> Result<(), Box<dyn std::error::Error>> {
             }
             _ => render_cut(&job.volume, &v.view, &machine, cuts, &progress).map_err(|e| {
                 let lost = match &e {
-                    crate::render::RenderError::Run { source, .. } => LostPixels::of(source),
+                    crate::run::render::RenderError::Run { source, .. } => LostPixels::of(source),
                     _ => None,
                 };
                 (e.to_string(), lost)
@@ -532,7 +535,7 @@ pub fn run(args: RenderArgs) -> Result<(), Box<dyn std::error::Error>> {
         bar.finish_and_clear();
         let image = out.join(format!("{}-{}.png", job.name, v.name));
         let pixels = rendered.bytes();
-        let mut warnings = crate::framing::blank_reasons(&job.volume, &v.view);
+        let mut warnings = crate::input::framing::blank_reasons(&job.volume, &v.view);
         if warnings.is_empty() && pixels.chunks_exact(4).all(|p| p == &pixels[..4]) {
             warnings.push("the view drew nothing: every pixel is the background".into());
         }
@@ -573,7 +576,7 @@ pub fn run(args: RenderArgs) -> Result<(), Box<dyn std::error::Error>> {
                 .as_ref()
                 .and_then(|d| d.time.as_ref())
                 .ok_or("--trace: the simulator returned no timeline")?;
-            let json = crate::timeline::chrome_trace(time, machine.cluster_size());
+            let json = crate::run::timeline::chrome_trace(time, machine.cluster_size());
             write_atomic(&path, json.to_string().as_bytes())?;
         }
         report.balance = balanced;
@@ -623,7 +626,7 @@ fn write_gif(path: &std::path::Path, frames: Vec<image::RgbaImage>) -> Result<()
 /// Static load balancing of `view` for `machine`'s clusters, timed by the `profile` chosen
 /// with `--machine`, each slab kept within the node memory of `machine`'s profile.
 fn balance_view(
-    volume: &crate::dataset::Volume,
+    volume: &crate::input::dataset::Volume,
     view: &View,
     machine: &Machine,
     profile: ProfileArg,
@@ -635,23 +638,23 @@ fn balance_view(
     let timing = crate::profile::MachineProfile::load(name).map_err(|e| e.to_string())?;
     let size = machine.cluster_size();
     let buffer = machine.sim_config().map_err(|e| e.to_string())?.buffer();
-    let cap = crate::budget::max_owned_planes(
+    let cap = crate::memory::budget::max_owned_planes(
         machine.profile,
         &volume.grid,
         volume.data.kind().bytes(),
-        crate::budget::ViewNeeds::of(view),
+        crate::memory::budget::ViewNeeds::of(view),
         buffer,
     );
-    let b = crate::balance::balance(volume, view, &timing, size, machine.skipping, cap)
+    let b = crate::run::balance::balance(volume, view, &timing, size, machine.skipping, cap)
         .map_err(|e| e.to_string())?;
-    let probe = crate::balance::probe_view(view, volume).map_err(|e| e.to_string())?;
+    let probe = crate::run::balance::probe_view(view, volume).map_err(|e| e.to_string())?;
     let rays = [probe.spec().width, probe.spec().height];
     Ok(BalanceReport::new(&b, rays, name))
 }
 
 #[cfg(feature = "mpi")]
 fn mpi_start(
-    plan: &[(&crate::scene::DatasetJob, &ViewJob, Machine)],
+    plan: &[(&crate::input::scene::DatasetJob, &ViewJob, Machine)],
 ) -> Result<Option<mpi::environment::Universe>, String> {
     use mpi::topology::Communicator;
     if !plan.iter().any(|(_, _, m)| m.fabric == Fabric::Mpi) {
@@ -683,7 +686,7 @@ fn mpi_start(
 #[cfg(feature = "mpi")]
 fn mpi_serve(
     world: &mpi::topology::SimpleCommunicator,
-    volume: &crate::dataset::Volume,
+    volume: &crate::input::dataset::Volume,
     view: &View,
     machine: &Machine,
     balanced: bool,
@@ -691,7 +694,7 @@ fn mpi_serve(
     // Balanced: the node takes the host's cuts and shifts to them.
     let cfg = crate::fabric::RunConfig {
         shift: balanced,
-        skipping: crate::render::node_skipping(volume, view, machine, balanced),
+        skipping: crate::run::render::node_skipping(volume, view, machine, balanced),
         ..machine.sim_config()?
     };
     Ok(crate::fabric::mpi::serve(world, volume, view, &cfg)?)
@@ -700,19 +703,19 @@ fn mpi_serve(
 #[cfg(feature = "mpi")]
 fn mpi_host(
     world: &mpi::topology::SimpleCommunicator,
-    volume: &crate::dataset::Volume,
+    volume: &crate::input::dataset::Volume,
     view: &View,
     machine: &Machine,
     cuts: Option<&[u32]>,
-) -> Result<crate::render::Rendered, Box<dyn std::error::Error>> {
+) -> Result<crate::run::render::Rendered, Box<dyn std::error::Error>> {
     let cfg = crate::fabric::RunConfig {
         cuts: cuts.map(<[u32]>::to_vec),
         shift: cuts.is_some(),
-        skipping: crate::render::node_skipping(volume, view, machine, cuts.is_some()),
+        skipping: crate::run::render::node_skipping(volume, view, machine, cuts.is_some()),
         ..machine.sim_config()?
     };
     let run = crate::fabric::mpi::host(world, volume, view, &cfg)?;
-    Ok(crate::render::Rendered::from_run(view, run))
+    Ok(crate::run::render::Rendered::from_run(view, run))
 }
 
 #[cfg(test)]

@@ -11,10 +11,10 @@
 //! The accuracy tiers are swept too, on the first composited view: exact and fast at Δt = 1/2
 //! and 1/5 against the same reference.
 
+use crate::input::scene::DatasetJob;
+use crate::memory::storage::SkipMode;
 use crate::profile::MachineProfile;
-use crate::render::render_skipping;
-use crate::scene::DatasetJob;
-use crate::storage::SkipMode;
+use crate::run::render::render_skipping;
 use plotters::prelude::*;
 use std::fmt::Write as _;
 use std::path::Path;

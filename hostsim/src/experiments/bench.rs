@@ -7,9 +7,9 @@
 //! instructions, which does not move with the machine's load, is
 //! [`super::instructions`]'s.
 
-use crate::render::{render_on, Fabric, Machine, RenderError};
-use crate::scene::{Scene, SceneError};
-use crate::storage::SkipMode;
+use crate::input::scene::{Scene, SceneError};
+use crate::memory::storage::SkipMode;
+use crate::run::render::{render_on, Fabric, Machine, RenderError};
 use std::fmt::Write;
 use std::path::Path;
 use std::time::Duration;
@@ -242,8 +242,8 @@ pub fn machines(cores: u32, size: Size) -> Vec<(String, Machine)> {
         (
             format!("threads, {cores} clusters of 1, modern nodes"),
             Machine {
-                profile: crate::budget::Profile::builtin("modern")
-                    .unwrap_or_else(crate::budget::Profile::ncube2),
+                profile: crate::memory::budget::Profile::builtin("modern")
+                    .unwrap_or_else(crate::memory::budget::Profile::ncube2),
                 ..Machine::new(Fabric::Threads, cores, cores, 1)
             },
         ),

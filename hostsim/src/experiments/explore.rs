@@ -6,8 +6,8 @@
 
 use crate::fabric::sim;
 use crate::fabric::{RunConfig, RunError, Scheduler};
-use crate::render::render;
-use crate::scene::{DatasetJob, Scene, SceneError};
+use crate::input::scene::{DatasetJob, Scene, SceneError};
+use crate::run::render::render;
 use std::fmt;
 use voxcube_kernel::node::flow;
 

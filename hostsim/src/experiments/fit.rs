@@ -8,8 +8,8 @@
 //! 10% slow weighs what a row 10% fast does, whatever its size.
 
 use super::runs::{sequential, timed, PaperError};
+use crate::input::scene::DatasetJob;
 use crate::profile::MachineProfile;
-use crate::scene::DatasetJob;
 use std::collections::BTreeMap;
 use voxcube_kernel::trace::view::View;
 
@@ -239,7 +239,7 @@ pub fn fit(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::Scene;
+    use crate::input::scene::Scene;
 
     /// The built-in molecule on a small image, so that every fit test runs in seconds.
     fn small() -> DatasetJob {

@@ -12,9 +12,9 @@
 //! loading, exiting) cancels; the frames' own counters come from the same runs.
 
 use super::bench::{sod_scene, Size, FAST_VIEW};
-use crate::budget::Profile;
-use crate::render::{render_on, Fabric, Machine};
-use crate::scene::Scene;
+use crate::input::scene::Scene;
+use crate::memory::budget::Profile;
+use crate::run::render::{render_on, Fabric, Machine};
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -81,7 +81,7 @@ pub enum InstructionsError {
 }
 
 /// The bench's SOD views at 350×250, read from `sod`.
-fn sod_views(sod: &Path) -> Result<Vec<crate::scene::DatasetJob>, String> {
+fn sod_views(sod: &Path) -> Result<Vec<crate::input::scene::DatasetJob>, String> {
     let text = sod_scene(Size::PAPER, sod);
     Scene::parse(&text, "<bench>", Path::new("."))
         .and_then(|s| s.load())

@@ -9,7 +9,7 @@
 //! worker's per-sample slab test accounts for. Table 4 shows waiting as its own line, `idle`,
 //! apart from the `ntest` calls that find work, and the primary rays' set-up as `generate`.
 //!
-//! Static load balancing follows the paper (see [`crate::balance`]): one cluster traces a
+//! Static load balancing follows the paper (see [`crate::run::balance`]): one cluster traces a
 //! probe grid of primary rays, the workers' times set new slab sizes by the paper's formula,
 //! and the new cuts are kept only if the probe runs faster with them. In the balanced runs
 //! of Table 3 every node starts on its uniform slab and shifts planes to its neighbours in
@@ -19,9 +19,9 @@ pub use super::runs::{sequential, timed, traced, PaperError, SOD_FILE};
 use crate::fabric::sim;
 use crate::fabric::Category;
 use crate::fabric::RunConfig;
-use crate::output::write_png;
+use crate::input::scene::{DatasetJob, Scene};
+use crate::output::files::write_png;
 use crate::profile::MachineProfile;
-use crate::scene::{DatasetJob, Scene};
 use plotters::prelude::*;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -131,7 +131,7 @@ pub fn dataset(source: Source<'_>, notes: &mut String) -> Result<DatasetJob, Pap
         .remove(0))
 }
 
-/// The paper's static load balancing for one cluster of `size` (see [`crate::balance`]; the
+/// The paper's static load balancing for one cluster of `size` (see [`crate::run::balance`]; the
 /// paper's tracer had no empty-space skipping, and memory does not bind on SOD): the cuts.
 pub fn balance(
     job: &DatasetJob,
@@ -140,12 +140,12 @@ pub fn balance(
     size: u32,
 ) -> Result<Vec<u32>, PaperError> {
     let nx = job.volume.grid.dims()[0];
-    let b = crate::balance::balance(
+    let b = crate::run::balance::balance(
         &job.volume,
         view,
         profile,
         size,
-        crate::storage::SkipMode::OFF,
+        crate::memory::storage::SkipMode::OFF,
         nx,
     )
     .map_err(|e| PaperError::Write(e.to_string()))?;

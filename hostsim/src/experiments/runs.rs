@@ -8,8 +8,8 @@
 use crate::fabric::sim;
 use crate::fabric::VirtualTime;
 use crate::fabric::{RunConfig, RunError};
+use crate::input::scene::{DatasetJob, SceneError};
 use crate::profile::MachineProfile;
-use crate::scene::{DatasetJob, SceneError};
 use voxcube_kernel::trace::view::View;
 
 /// Why the experiments could not run.
@@ -53,8 +53,12 @@ pub fn sequential(
     view: &View,
     profile: &MachineProfile,
 ) -> Result<f64, PaperError> {
-    let run = crate::render::render_skipping(&job.volume, view, crate::storage::SkipMode::OFF)
-        .map_err(|e| PaperError::Write(e.to_string()))?;
+    let run = crate::run::render::render_skipping(
+        &job.volume,
+        view,
+        crate::memory::storage::SkipMode::OFF,
+    )
+    .map_err(|e| PaperError::Write(e.to_string()))?;
     Ok(crate::experiments::accuracy::one_node_seconds(
         &run.counters,
         view,
@@ -108,7 +112,7 @@ fn timed_with(
         timeline,
         shift: cuts.is_some(),
         cuts,
-        skipping: crate::storage::SkipMode::OFF,
+        skipping: crate::memory::storage::SkipMode::OFF,
         ..base
     };
     let run = sim::run(&job.volume, view, &cfg)?;

@@ -5,10 +5,10 @@
 //! cost goes as the volume or the image grows.
 
 use super::bench::{BenchError, COMPOSITE_TRANSFER};
-use crate::builtin;
-use crate::dataset::{plane_major_from_fn, Volume, VolumeData};
-use crate::render::{render_on, Fabric, Machine};
-use crate::scene::Scene;
+use crate::input::builtin;
+use crate::input::dataset::{plane_major_from_fn, Volume, VolumeData};
+use crate::input::scene::Scene;
+use crate::run::render::{render_on, Fabric, Machine};
 use std::fmt::Write;
 use std::path::Path;
 use std::time::Duration;
@@ -109,7 +109,7 @@ pub fn run(runs: usize, out: &mut String) -> Result<Vec<ScaleRow>, BenchError> {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get() as u32);
     let cores = cores.next_power_of_two();
     // Today's nodes, not the nCUBE 2's 4 MiB: a 512³ volume is 128 MiB on one node.
-    let modern = crate::budget::Profile::builtin("modern")
+    let modern = crate::memory::budget::Profile::builtin("modern")
         .ok_or_else(|| BenchError::Scale("the shipped modern profile is missing".into()))?;
     let on = |m: Machine| Machine {
         profile: modern,

@@ -5,8 +5,8 @@
 //! Invariant: nothing here changes a pixel. The image depends on the view alone; a
 //! configuration decides only where the work runs, in what order and at what cost.
 
+use crate::memory::storage::SkipMode;
 use crate::profile::MachineProfile;
-use crate::storage::SkipMode;
 use std::fmt;
 use voxcube_kernel::node::flow;
 use voxcube_kernel::node::partition::{Partition, PartitionError};

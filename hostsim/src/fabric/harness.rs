@@ -11,8 +11,8 @@ use super::error::RunError;
 use super::host::Host;
 use super::shift::{ShiftJob, ShiftReport};
 use super::{Distributed, NodeReport, RunShape};
-use crate::dataset::Volume;
-use crate::storage::NodeStorage;
+use crate::input::dataset::Volume;
+use crate::memory::storage::NodeStorage;
 use std::borrow::Cow;
 use std::time::{Duration, Instant};
 use voxcube_kernel::node::flow::{self, FlowControl};
@@ -26,7 +26,7 @@ use voxcube_kernel::volume::grid::Grid;
 use voxcube_kernel::volume::sample::{Sample, SampleKind};
 use voxcube_kernel::volume::slab::Slab;
 
-pub use crate::budget::NodeWorker;
+pub use crate::memory::budget::NodeWorker;
 
 /// A ring of one's rays a poll: a pixel set's, which a `u8` must hold (checked here, not
 /// truncated by a cast should the set grow).
@@ -257,7 +257,7 @@ impl<'v> Plan<'v> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dataset::VolumeData;
+    use crate::input::dataset::VolumeData;
     use glam::Vec3;
     use voxcube_kernel::node::flow::Class;
     use voxcube_kernel::node::msg::{Msg, Outcome, Reply, Resolved, Travel, NO_LIGHT};
@@ -269,8 +269,8 @@ mod tests {
 
     /// Ring position 0's set-up in a ring of `size` over the default scene, handed to `check`.
     fn at_position_0(size: u32, rays_per_poll: u8, check: impl FnOnce(Setup<'_, u8>)) {
-        let jobs = crate::scene::Scene::default_scene()
-            .and_then(crate::scene::Scene::load)
+        let jobs = crate::input::scene::Scene::default_scene()
+            .and_then(crate::input::scene::Scene::load)
             .unwrap();
         let (volume, view) = (&jobs[0].volume, &jobs[0].views[0].view);
         let VolumeData::U8(data) = &volume.data else {

@@ -20,7 +20,7 @@ pub mod threads;
 pub use config::{RunConfig, Schedule, Scheduler, DEFAULT_I_MAX};
 pub use error::{RunError, Trace};
 
-use crate::budget::{structure_bytes, worker_bytes, NodeMemory, ViewNeeds, CODE_AND_STACK};
+use crate::memory::budget::{structure_bytes, worker_bytes, NodeMemory, ViewNeeds, CODE_AND_STACK};
 use std::ops::Range;
 use std::time::Duration;
 use voxcube_kernel::counters::Counters;
@@ -77,20 +77,29 @@ impl<'a> RunShape<'a> {
         view: &View,
         kind: voxcube_kernel::volume::sample::SampleKind,
     ) -> RunShape<'a> {
-        let cell_maps = crate::storage::cell_leap_octants(view, cfg.skipping).count_ones() as usize;
+        let cell_maps =
+            crate::memory::storage::cell_leap_octants(view, cfg.skipping).count_ones() as usize;
         RunShape {
             layout: cfg.layout,
             partition,
             grid,
             needs: ViewNeeds::of(view)
                 .with_cell_maps(cell_maps)
-                .with_depths(crate::storage::depth_bytes(
+                .with_depths(crate::memory::storage::depth_bytes(
                     view,
                     cfg.skipping,
                     cfg.layout.clusters(),
                 ))
-                .with_node_bytes(crate::storage::node_field_bytes(view, cfg.skipping, kind))
-                .with_cell_ranges(crate::storage::cell_range_bytes(view, cfg.skipping, kind)),
+                .with_node_bytes(crate::memory::storage::node_field_bytes(
+                    view,
+                    cfg.skipping,
+                    kind,
+                ))
+                .with_cell_ranges(crate::memory::storage::cell_range_bytes(
+                    view,
+                    cfg.skipping,
+                    kind,
+                )),
             sample_bytes: kind.bytes(),
         }
     }

@@ -30,7 +30,7 @@ use super::harness::{node_worker, Plan};
 use super::recovery::{self, LostNode, Retraced};
 use super::shift::{self as planes, Counted, ShiftFailure, ShiftReport};
 use super::{Distributed, Recovery, RunConfig, RunError};
-use crate::dataset::{Volume, VolumeData};
+use crate::input::dataset::{Volume, VolumeData};
 use mpi::datatype::Equivalence;
 use mpi::point_to_point::{Destination, Source};
 use mpi::topology::{Communicator, SimpleCommunicator};
@@ -682,10 +682,12 @@ fn serve_phase<T: Sample + Sync>(
     )?;
     // Depth bounds for this node's cluster's rows only, as its budget counts them.
     let rows = layout.cluster_rows(layout.place(node).0);
-    let cells = crate::storage::cell_range_bytes(view, cfg.skipping, volume.data.kind()) > 0;
+    let cells =
+        crate::memory::storage::cell_range_bytes(view, cfg.skipping, volume.data.kind()) > 0;
     let ranges = volume.built.ranges(&slab, cells, 1);
-    let skipping = crate::storage::Skipping::build_for(&slab, &ranges, view, cfg.skipping, rows);
-    let hold = crate::storage::holds_node_field(view, cfg.skipping);
+    let skipping =
+        crate::memory::storage::Skipping::build_for(&slab, &ranges, view, cfg.skipping, rows);
+    let hold = crate::memory::storage::holds_node_field(view, cfg.skipping);
     let field = volume.built.field(&slab, hold, 1);
     let slab = field.apply(skipping.apply(slab));
     let mut worker = node_worker(view, slab, &partition, cfg, node, flow)?;

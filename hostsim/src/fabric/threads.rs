@@ -21,7 +21,7 @@ use super::host::Host;
 use super::recovery::{self, LostNode, Retraced};
 use super::shift::{self as planes, Counted, ShiftFailure, ShiftJob, ShiftReport};
 use super::{Distributed, RunConfig, RunError};
-use crate::dataset::{Volume, VolumeData};
+use crate::input::dataset::{Volume, VolumeData};
 use crossbeam_queue::SegQueue;
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};

@@ -12,9 +12,9 @@
 //! possible and the host not done is a deadlock.
 
 use super::{checks, Sim};
-use crate::dataset::{Volume, VolumeData};
 use crate::fabric::harness::Plan;
 use crate::fabric::{RunConfig, RunError};
+use crate::input::dataset::{Volume, VolumeData};
 use std::collections::{BTreeSet, HashSet};
 use std::hash::{DefaultHasher, Hasher};
 use voxcube_kernel::trace::view::View;

@@ -29,7 +29,7 @@ use super::harness::{NodeWorker, Plan};
 use super::host::Host;
 use super::recovery::{self, LostNode, Retraced};
 use super::{Category, Distributed};
-use crate::dataset::{Volume, VolumeData};
+use crate::input::dataset::{Volume, VolumeData};
 use crate::profile::MachineProfile;
 use crate::rng::SplitMix;
 use checks::{Event, EventLog};

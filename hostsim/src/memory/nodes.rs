@@ -1,11 +1,11 @@
 //! A node's copy of the fast tier's node field (`voxcube_kernel::volume::nodes`): it depends
 //! on the samples of a slab's planes alone, so it is built once per volume and set of planes
-//! ([`crate::built`]), and shared by every view, orbit frame and repetition that reads one.
+//! ([`super::built`]), and shared by every view, orbit frame and repetition that reads one.
 //!
 //! Invariant: holding the field or not changes no pixel (the kernel computes the same lanes
 //! on the fly), so a node that cannot hold it, or whose build fails, renders without it.
 
-use crate::parts::{even_parts, run_parts, split_sizes, Part};
+use crate::memory::parts::{even_parts, run_parts, split_sizes, Part};
 use std::ops::Range;
 use voxcube_kernel::volume::lanes::{Lanes, Nodes};
 use voxcube_kernel::volume::nodes;

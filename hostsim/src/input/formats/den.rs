@@ -5,7 +5,7 @@
 //! `map_length` (the sample count). The byte order is detected from the version field.
 
 use super::{check_size, decode, read, Endian, FileType, LoadError, LoadErrorKind};
-use crate::dataset::Volume;
+use crate::input::dataset::Volume;
 use std::path::Path;
 use voxcube_kernel::Vec3;
 

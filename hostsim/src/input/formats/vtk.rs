@@ -4,7 +4,7 @@
 //! spacing is the file's, the origin is not applied (index space).
 
 use super::{decode, Endian, FileType, LoadError, LoadErrorKind};
-use crate::dataset::Volume;
+use crate::input::dataset::Volume;
 use std::path::Path;
 use voxcube_kernel::Vec3;
 use vtkio::model::{Attribute, DataSet, ElementType, IOBuffer};

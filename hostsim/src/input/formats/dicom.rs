@@ -16,7 +16,7 @@
 //! against the image's ([`super::dicom_frames`]), before its pixel data is decoded.
 
 use super::{LoadError, LoadErrorKind};
-use crate::dataset::{to_plane_major, Volume, VolumeData};
+use crate::input::dataset::{to_plane_major, Volume, VolumeData};
 use dicom_dictionary_std::tags;
 use dicom_object::{open_file, DefaultDicomObject, Tag};
 use dicom_pixeldata::{ConvertOptions, ModalityLutOption, PixelDecoder};

@@ -1,7 +1,7 @@
 //! A slab's value ranges: its min/max blocks and each block's cells' ranges
 //! (`voxcube_kernel::skip::cell_ranges`). They depend on the samples of its stored planes
-//! alone, so they are built once per volume and set of stored planes ([`crate::built`]); a
-//! view's skipping ([`crate::storage::Skipping`]) classifies them.
+//! alone, so they are built once per volume and set of stored planes ([`super::built`]); a
+//! view's skipping ([`crate::memory::storage::Skipping`]) classifies them.
 //!
 //! A byte volume's cell masks and cell leap maps are a function of its cells' ranges and a
 //! view's verdicts on byte ranges (`voxcube_kernel::skip::cells::ByteVerdicts`), so the last
@@ -14,7 +14,7 @@
 //! blocks, and a view then skips nothing; what is kept is handed out only for equal
 //! verdicts.
 
-use crate::parts::{even_parts, run_parts, split_sizes, Part};
+use crate::memory::parts::{even_parts, run_parts, split_sizes, Part};
 use std::sync::{Arc, Mutex, PoisonError};
 use voxcube_kernel::skip::blocks::{column_len, Blocks, CellMask, Range};
 use voxcube_kernel::skip::cell_ranges::{self, BlockCells};
@@ -120,7 +120,7 @@ impl<T: Sample + Sync> SlabRanges<T> {
         !self.cells.is_empty()
     }
 
-    /// Bytes of the cells' ranges (the blocks' are [`crate::storage::Skipping::bytes`]'s).
+    /// Bytes of the cells' ranges (the blocks' are [`crate::memory::storage::Skipping::bytes`]'s).
     pub fn cell_bytes(&self) -> usize {
         size_of_val(self.cells.as_slice())
     }

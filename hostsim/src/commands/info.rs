@@ -6,10 +6,10 @@
 //! background from the material, the second the material from its densest part. They are
 //! starting points for a scene, not a segmentation.
 
-use crate::budget::{largest_node, Profile, ViewNeeds};
-use crate::dataset::{Volume, VolumeData};
-use crate::formats::{self, Format};
-use crate::scene::Scene;
+use crate::input::dataset::{Volume, VolumeData};
+use crate::input::formats::{self, Format};
+use crate::input::scene::Scene;
+use crate::memory::budget::{largest_node, Profile, ViewNeeds};
 use std::fmt::Write;
 use std::path::Path;
 use voxcube_kernel::node::flow;
@@ -278,7 +278,7 @@ fn structures_of<T: voxcube_kernel::volume::sample::Sample + Sync>(
     data: &[T],
     isos: &[f64],
 ) -> Result<String, InfoError> {
-    use crate::storage::{SkipMode, Skipping};
+    use crate::memory::storage::{SkipMode, Skipping};
     use std::time::Instant;
     let bad = |e: String| InfoError::Load(format!("the suggested scene does not build: {e}"));
     let slab = voxcube_kernel::volume::slab::Slab::whole(volume.grid, data)
@@ -288,7 +288,7 @@ fn structures_of<T: voxcube_kernel::volume::sample::Sample + Sync>(
         "structures (one node holding the whole volume; built on {threads} threads here):\n"
     );
     let start = Instant::now();
-    let ranges = crate::ranges::SlabRanges::build(&slab, true, threads);
+    let ranges = crate::memory::ranges::SlabRanges::build(&slab, true, threads);
     let took = start.elapsed();
     let _ = writeln!(
         out,
@@ -315,7 +315,7 @@ fn structures_of<T: voxcube_kernel::volume::sample::Sample + Sync>(
         );
     }
     let start = Instant::now();
-    let field = crate::nodes::NodeField::build(&slab, threads);
+    let field = crate::memory::nodes::NodeField::build(&slab, threads);
     let took = start.elapsed();
     let _ = writeln!(
         out,

@@ -70,7 +70,7 @@ pub struct Volume {
     /// The samples, plane-major.
     pub data: VolumeData,
     /// What is built once from `data` (a new volume for new samples starts with nothing).
-    pub built: crate::built::Built,
+    pub built: crate::memory::built::Built,
 }
 
 impl Volume {
@@ -79,7 +79,7 @@ impl Volume {
         Volume {
             grid,
             data,
-            built: crate::built::Built::default(),
+            built: crate::memory::built::Built::default(),
         }
     }
 

@@ -5,13 +5,13 @@
 //! formula, so their images are bit-identical; a non-finite colour is counted in the counters
 //! (`non_finite_pixels`, which tests require to be zero) before it becomes a defined pixel.
 
-use crate::budget::{self, BudgetError, Profile};
-use crate::dataset::{Volume, VolumeData};
 use crate::fabric::sim;
 use crate::fabric::threads;
 use crate::fabric::Distributed;
 use crate::fabric::{RunConfig, RunError};
-use crate::storage::{SkipMode, Skipping};
+use crate::input::dataset::{Volume, VolumeData};
+use crate::memory::budget::{self, BudgetError, Profile};
+use crate::memory::storage::{SkipMode, Skipping};
 use std::time::{Duration, Instant};
 use voxcube_kernel::counters::Counters;
 use voxcube_kernel::node::flow;
@@ -300,14 +300,14 @@ pub fn preflight(volume: &Volume, view: &View, machine: &Machine) -> Result<(), 
 }
 
 /// How `machine`'s nodes skip empty space in `view`: `machine.skipping`, without depth
-/// bounds where the view has none ([`crate::storage::depth_bytes`]) or a node could not hold
-/// them beside everything [`preflight`] counts, without cell leap maps where the view takes
-/// none given its bounds ([`crate::storage::cell_leap_octants`]) or a node could not hold them
-/// beside all that, and then without the node field and the cells' value ranges where a node
-/// could not hold them beside all that. They are accelerations, not needs: a machine that
-/// fits without them renders without them, the same pixels. Slabs `balanced` by the host may
-/// grow up to the cap balancing keeps them under ([`budget::max_owned_planes`]), so then that
-/// slab must fit. Every node and the host decide alike from the same inputs.
+/// bounds where the view has none ([`crate::memory::storage::depth_bytes`]) or a node could
+/// not hold them beside everything [`preflight`] counts, without cell leap maps where the view
+/// takes none given its bounds ([`crate::memory::storage::cell_leap_octants`]) or a node could
+/// not hold them beside all that, and then without the node field and the cells' value
+/// ranges where a node could not hold them beside all that. They are accelerations, not
+/// needs: a machine that fits without them renders without them, the same pixels. Slabs
+/// `balanced` by the host may grow up to the cap balancing keeps them under
+/// ([`budget::max_owned_planes`]), so then that slab must fit. Every node and the host decide alike from the same inputs.
 pub fn node_skipping(volume: &Volume, view: &View, machine: &Machine, balanced: bool) -> SkipMode {
     let mode = machine.skipping;
     if machine.fabric == Fabric::Direct {
@@ -337,19 +337,19 @@ pub fn node_skipping(volume: &Volume, view: &View, machine: &Machine, balanced: 
     };
     // Depth bounds first: whether a view takes cell leap maps depends on whether it has them.
     let least = budget::ViewNeeds::of(view);
-    let bounds = crate::storage::depth_bytes(view, mode, cfg.layout.clusters());
+    let bounds = crate::memory::storage::depth_bytes(view, mode, cfg.layout.clusters());
     let depths = bounds > 0 && fits(least.with_depths(bounds), cfg.buffer());
     let with_depths = least.with_depths(if depths { bounds } else { 0 });
-    let maps = crate::storage::cell_leap_octants(view, SkipMode { depths, ..mode });
+    let maps = crate::memory::storage::cell_leap_octants(view, SkipMode { depths, ..mode });
     let maps = maps.count_ones() as usize;
     let held = maps > 0 && fits(with_depths.with_cell_maps(maps), cfg.buffer());
     let with_maps = with_depths.with_cell_maps(if held { maps } else { 0 });
     // Then the node field, which only the fast tier's shading reads.
-    let lanes = crate::storage::node_field_bytes(view, mode, volume.data.kind());
+    let lanes = crate::memory::storage::node_field_bytes(view, mode, volume.data.kind());
     let nodes = lanes > 0 && fits(with_maps.with_node_bytes(lanes), cfg.buffer());
     let with_nodes = with_maps.with_node_bytes(if nodes { lanes } else { 0 });
     // Last the cells' value ranges, which only save each view's pass over the nodes.
-    let cells = crate::storage::cell_range_bytes(view, mode, volume.data.kind());
+    let cells = crate::memory::storage::cell_range_bytes(view, mode, volume.data.kind());
     let ranges = cells > 0 && fits(with_nodes.with_cell_ranges(cells), cfg.buffer());
     SkipMode {
         cell_leaps: held,
@@ -444,12 +444,14 @@ fn render_typed<T: Sample + Sync>(
     // part of its frame, as on every other fabric; and the volume's value ranges and node
     // field, the first time they are built.
     let start = Instant::now();
-    let cells = crate::storage::cell_range_bytes(view, mode, T::KIND) > 0;
+    let cells = crate::memory::storage::cell_range_bytes(view, mode, T::KIND) > 0;
     let ranges = volume.built.ranges(&slab, cells, 1);
     let skipping = Skipping::build(&slab, &ranges, view, mode);
-    let field = volume
-        .built
-        .field(&slab, crate::storage::holds_node_field(view, mode), 1);
+    let field = volume.built.field(
+        &slab,
+        crate::memory::storage::holds_node_field(view, mode),
+        1,
+    );
     let slab = field.apply(skipping.apply(slab));
     let mut counters = Counters::default();
     let n = view.pixel_count();

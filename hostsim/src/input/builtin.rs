@@ -8,7 +8,7 @@
 //! Invariant: every volume is the same bits on every machine: a fixed seed, integer-exact
 //! arithmetic where possible, and libm (not the platform's maths library) for the rest.
 
-use crate::dataset::{plane_major_from_fn, Volume, VolumeData};
+use crate::input::dataset::{plane_major_from_fn, Volume, VolumeData};
 use crate::rng::SplitMix;
 use voxcube_kernel::volume::grid::Grid;
 use voxcube_kernel::Vec3;
@@ -138,7 +138,7 @@ pub fn molecule() -> Volume {
         .collect();
     volume_from(
         DIMS,
-        VolumeData::U8(crate::dataset::to_plane_major(&file_order, DIMS)),
+        VolumeData::U8(crate::input::dataset::to_plane_major(&file_order, DIMS)),
     )
 }
 

@@ -12,7 +12,7 @@
 //! errors that name the field.
 
 use super::{decode, rescale, Endian, FileType, LoadError, LoadErrorKind};
-use crate::dataset::Volume;
+use crate::input::dataset::Volume;
 use nifti::{NiftiHeader, NiftiType};
 use std::io::{BufReader, Read};
 use std::path::{Path, PathBuf};

@@ -98,16 +98,16 @@ pub struct ViewNeeds {
     /// projection without shadows, at most eight).
     pub maps: usize,
     /// Cell leap maps: none is needed, a node holds them where they fit
-    /// ([`crate::render::node_skipping`]).
+    /// ([`crate::run::render::node_skipping`]).
     pub cell_maps: usize,
     /// Bytes of depth bounds: none are needed, a node holds them where they fit
-    /// ([`crate::render::node_skipping`]).
+    /// ([`crate::run::render::node_skipping`]).
     pub depths: usize,
     /// Bytes per grid node of the fast tier's node field: none is needed, a node holds it
-    /// where it fits ([`crate::render::node_skipping`]); 0 holds none.
+    /// where it fits ([`crate::run::render::node_skipping`]); 0 holds none.
     pub node_bytes: usize,
     /// Bytes per min/max block of its cells' value ranges: none is needed, a node holds them
-    /// where they fit ([`crate::render::node_skipping`]); 0 holds none.
+    /// where they fit ([`crate::run::render::node_skipping`]); 0 holds none.
     pub cell_ranges: usize,
 }
 

@@ -10,12 +10,12 @@
 //! same scene balances the same way on every fabric and every run. The image does not depend
 //! on the cuts (bit-identical for any partition), only the time does.
 
-use crate::dataset::Volume;
 use crate::fabric::sim;
 use crate::fabric::RunConfig;
 use crate::fabric::{Category, VirtualTime};
+use crate::input::dataset::Volume;
+use crate::memory::storage::SkipMode;
 use crate::profile::MachineProfile;
-use crate::storage::SkipMode;
 use std::fmt;
 use voxcube_kernel::node::partition::Partition;
 use voxcube_kernel::trace::view::{View, ViewSpec};

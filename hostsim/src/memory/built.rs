@@ -1,13 +1,13 @@
 //! What is built once from one volume's samples, whatever the view: each slab's node field
-//! ([`crate::nodes`]) and its value ranges ([`crate::ranges`]), kept by the planes they
-//! cover and shared by every view, orbit frame and bench repetition that reads them.
+//! ([`crate::memory::nodes`]) and its value ranges ([`crate::memory::ranges`]), kept by the
+//! planes they cover and shared by every view, orbit frame and bench repetition that reads them.
 //!
 //! Invariant: each structure is a pure function of the samples of the planes it is kept
 //! by, so one built before serves every later slab with those planes; and holding one or
 //! not changes no pixel.
 
-use crate::nodes::NodeField;
-use crate::ranges::SlabRanges;
+use crate::memory::nodes::NodeField;
+use crate::memory::ranges::SlabRanges;
 use std::any::Any;
 use std::fmt;
 use std::ops::Range;
@@ -31,7 +31,7 @@ pub struct Built {
 
 impl Built {
     /// The node field `slab` (of this volume) reads where its node is to `hold` one
-    /// (`crate::storage::holds_node_field`), built on up to `threads` OS threads the first
+    /// (`crate::memory::storage::holds_node_field`), built on up to `threads` OS threads the first
     /// time; none where it holds none.
     pub fn field<T: Sample + Sync>(
         &self,

@@ -9,7 +9,7 @@
 //! `AnatomicalOrientation` are not applied (index space). A short header needs no crate.
 
 use super::{check_length, decode, read, Endian, FileType, LoadError, LoadErrorKind};
-use crate::dataset::Volume;
+use crate::input::dataset::Volume;
 use std::path::{Path, PathBuf};
 use voxcube_kernel::Vec3;
 

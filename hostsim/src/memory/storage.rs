@@ -5,8 +5,8 @@
 //! Invariant: skipping changes no pixel, and a node's structures are built from the planes it
 //! stores alone, so they are the same bits however the build is split or where it runs.
 
-use crate::parts::{even_parts, run_parts, split_sizes, Part};
-use crate::ranges::{Classified, KeptMaps, SlabRanges};
+use crate::memory::parts::{even_parts, run_parts, split_sizes, Part};
+use crate::memory::ranges::{Classified, KeptMaps, SlabRanges};
 use std::borrow::Cow;
 use std::ops::Range;
 use std::sync::Arc;
@@ -40,11 +40,11 @@ pub struct SkipMode {
     /// Pass a primary ray at once over the samples before its pixel's depth bound (only
     /// with cell masks, parallel projections; `voxcube_kernel::skip::depths`).
     pub depths: bool,
-    /// Hold the fast tier's node field where the view reads one (`crate::nodes`): not a
+    /// Hold the fast tier's node field where the view reads one (`crate::memory::nodes`): not a
     /// skip, but an acceleration decided alike; without it the same lanes are computed on
     /// the fly.
     pub nodes: bool,
-    /// Hold each cell's value range, built once per volume (`crate::ranges`), so that a
+    /// Hold each cell's value range, built once per volume (`crate::memory::ranges`), so that a
     /// view's cell masks classify them; without them each view's masks read the nodes, the
     /// same bits.
     pub ranges: bool,
@@ -259,7 +259,7 @@ impl Skipping {
     }
 
     /// The skipping storage of `slab` for `view` (`mode`): its blocks (`mode.skip`, from the
-    /// slab's value `ranges`, built once per volume: [`crate::built::Built::ranges`]), their
+    /// slab's value `ranges`, built once per volume: [`super::built::Built::ranges`]), their
     /// distances for each octant of ray directions the view takes (`mode.leap`) and cell
     /// masks (`mode.cells`, cell model only), classified from the cells' ranges where
     /// `ranges` holds them, else read from the slab's nodes.
@@ -605,7 +605,7 @@ pub struct NodeStorage<'d, T: voxcube_kernel::volume::sample::Sample> {
     /// By ring position: every cluster holds the same slab there.
     skipping: Vec<Skipping>,
     /// The node field by ring position, as `skipping`.
-    fields: Vec<Arc<crate::nodes::NodeField<T::Node>>>,
+    fields: Vec<Arc<crate::memory::nodes::NodeField<T::Node>>>,
 }
 
 impl<'d, T: voxcube_kernel::volume::sample::Sample + Sync> NodeStorage<'d, T> {
@@ -653,7 +653,7 @@ impl<'d, T: voxcube_kernel::volume::sample::Sample + Sync> NodeStorage<'d, T> {
         view: &View,
         mode: SkipMode,
         threads: usize,
-        built: &crate::built::Built,
+        built: &crate::memory::built::Built,
     ) -> NodeStorage<'d, T> {
         let slabs: Vec<_> = (0..self.layout.size())
             .map(|j| self.bare_slab(self.layout.node(0, j)).ok())

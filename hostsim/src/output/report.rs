@@ -1,6 +1,6 @@
 //! What a render reports: a per-view summary table for people and the same as JSON for tools.
 
-use crate::render::{Machine, Rendered};
+use crate::run::render::{Machine, Rendered};
 use serde::ser::{SerializeMap, Serializer};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -187,7 +187,7 @@ pub struct BalanceReport {
 
 impl BalanceReport {
     /// The report of `b`, probed at `probe` rays with `profile`.
-    pub fn new(b: &crate::balance::Balance, probe: [u32; 2], profile: &str) -> BalanceReport {
+    pub fn new(b: &crate::run::balance::Balance, probe: [u32; 2], profile: &str) -> BalanceReport {
         BalanceReport {
             probe,
             cuts_before: b.before.clone(),
@@ -288,7 +288,7 @@ impl ViewReport {
             traffic,
             nan_pixels: c.non_finite_pixels,
             wall_ms: rendered.wall.as_secs_f64() * 1e3,
-            pixels_sha256: crate::output::pixels_sha256(&rendered.bytes()),
+            pixels_sha256: crate::output::files::pixels_sha256(&rendered.bytes()),
             balance: None,
             recovery: rendered
                 .distributed
@@ -317,7 +317,7 @@ impl Report<'_> {
     /// Write the report to `path`, atomically.
     pub fn write(&self, path: &std::path::Path) -> Result<(), Box<dyn std::error::Error>> {
         let json = serde_json::to_string_pretty(self)?;
-        Ok(crate::output::write_atomic(path, json.as_bytes())?)
+        Ok(crate::output::files::write_atomic(path, json.as_bytes())?)
     }
 }
 

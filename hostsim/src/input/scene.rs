@@ -5,10 +5,10 @@
 //! against the scene file's folder. A scene is checked whole — every dataset loaded and every
 //! view built — before anything is rendered, so a bad scene writes nothing.
 
-use crate::builtin;
-use crate::dataset::Volume;
-use crate::formats::{self, raw::RawLayout, Endian, FileType, Format, LoadError};
-use crate::framing::Frame;
+use crate::input::builtin;
+use crate::input::dataset::Volume;
+use crate::input::formats::{self, raw::RawLayout, Endian, FileType, Format, LoadError};
+use crate::input::framing::Frame;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use voxcube_kernel::optics::shade::{Light, Shading, MAX_LIGHTS};
@@ -401,7 +401,7 @@ fn framed_view(
     if !v.camera.frames_by_default() {
         return Ok(view);
     }
-    match crate::framing::showing(volume, &view) {
+    match crate::input::framing::showing(volume, &view) {
         Some(frame) => build_view(
             v,
             &volume.grid,
@@ -429,7 +429,7 @@ fn orbit_views(v: &ViewToml, volume: &Volume, frames: u32) -> Result<Vec<View>, 
     let look_at = match (c.frames_by_default(), c.look_at) {
         (true, None) => {
             let first = build_view(v, &volume.grid, &CameraTweak::default())?;
-            crate::framing::showing_box(volume, &first).map(|(lo, hi)| (lo + hi) * 0.5)
+            crate::input::framing::showing_box(volume, &first).map(|(lo, hi)| (lo + hi) * 0.5)
         }
         _ => None,
     };

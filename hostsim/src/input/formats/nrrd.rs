@@ -7,7 +7,7 @@
 //! is an error that names it.
 
 use super::{check_length, decode, read, Endian, FileType, LoadError, LoadErrorKind};
-use crate::dataset::Volume;
+use crate::input::dataset::Volume;
 use std::path::{Path, PathBuf};
 use voxcube_kernel::Vec3;
 

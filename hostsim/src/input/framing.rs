@@ -7,7 +7,7 @@
 //! those cells oriented along the camera's axes (so a round object fills the image, not its
 //! axis-aligned box seen corner-on), in world units.
 
-use crate::dataset::{Volume, VolumeData};
+use crate::input::dataset::{Volume, VolumeData};
 use voxcube_kernel::trace::camera::Projection;
 use voxcube_kernel::trace::view::View;
 use voxcube_kernel::volume::grid::Model;
@@ -243,8 +243,8 @@ pub fn blank_reasons(volume: &Volume, view: &View) -> Vec<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dataset::plane_major_from_fn;
-    use crate::scene::Scene;
+    use crate::input::dataset::plane_major_from_fn;
+    use crate::input::scene::Scene;
     use voxcube_kernel::volume::grid::Grid;
 
     fn view_of(text: &str) -> View {

@@ -13,7 +13,7 @@
 //! holds before the samples are taken, and a gzip stream is decoded whole and checked.
 
 use super::{check_size, corrupt_gzip, decode, Endian, FileType, LoadError, LoadErrorKind};
-use crate::dataset::Volume;
+use crate::input::dataset::Volume;
 use std::io::Read;
 use std::path::Path;
 use voxcube_kernel::Vec3;

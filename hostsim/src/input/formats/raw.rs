@@ -2,7 +2,7 @@
 //! dimensions, sample type and byte order given by the scene.
 
 use super::{check_size, decode, read, Endian, FileType, LoadError, LoadErrorKind};
-use crate::dataset::Volume;
+use crate::input::dataset::Volume;
 use std::path::Path;
 use voxcube_kernel::volume::grid::GridError;
 use voxcube_kernel::Vec3;
@@ -92,9 +92,9 @@ mod tests {
             },
         )
         .unwrap();
-        assert_eq!(v.data, crate::dataset::VolumeData::U16(vec![256, 2]));
+        assert_eq!(v.data, crate::input::dataset::VolumeData::U16(vec![256, 2]));
         let v = parse(&[0xff, 0xff], &layout([1, 1, 1], FileType::I16, 0)).unwrap();
-        assert_eq!(v.data, crate::dataset::VolumeData::F32(vec![-1.0]));
+        assert_eq!(v.data, crate::input::dataset::VolumeData::F32(vec![-1.0]));
         let nan = f32::NAN.to_le_bytes();
         let bytes = [0.0f32.to_le_bytes(), nan].concat();
         let e = parse(&bytes, &layout([2, 1, 1], FileType::F32, 0))

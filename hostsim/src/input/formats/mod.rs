@@ -16,7 +16,7 @@ pub mod raw;
 mod vti_arrays;
 pub mod vtk;
 
-use crate::dataset::{to_plane_major, Volume, VolumeData};
+use crate::input::dataset::{to_plane_major, Volume, VolumeData};
 use std::fmt;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
