@@ -11,6 +11,7 @@
 //! The accuracy tiers are swept too, on the first composited view: exact and fast at Δt = 1/2
 //! and 1/5 against the same reference.
 
+use super::chart::{self, Line};
 use crate::input::scene::DatasetJob;
 use crate::memory::storage::SkipMode;
 use crate::profile::MachineProfile;
@@ -341,27 +342,16 @@ pub fn plot(path: &Path, points: &[Point]) -> Result<(), String> {
         .y_desc("PSNR (dB) vs dt 1/16")
         .draw()
         .map_err(|e| e.to_string())?;
-    for (model, color) in [("cell", BLUE), ("voxel", RED)] {
-        let line: Vec<(f64, f64)> = sweep
+    let lines = [("cell", BLUE), ("voxel", RED)].map(|(model, colour)| Line {
+        points: sweep
             .iter()
             .filter(|p| p.label.ends_with(model))
             .map(|p| (p.ncube_s, p.psnr))
-            .collect();
-        chart
-            .draw_series(LineSeries::new(line.clone(), color.stroke_width(2)))
-            .map_err(|e| e.to_string())?
-            .label(format!("{model} model, dt 1/2 to 1/8"))
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], color));
-        chart
-            .draw_series(line.into_iter().map(|p| Circle::new(p, 3, color.filled())))
-            .map_err(|e| e.to_string())?;
-    }
-    chart
-        .configure_series_labels()
-        .border_style(BLACK)
-        .background_style(WHITE)
-        .draw()
-        .map_err(|e| e.to_string())?;
+            .collect(),
+        colour,
+        label: format!("{model} model, dt 1/2 to 1/8"),
+    });
+    chart::draw(&mut chart, lines.into())?;
     tiers(&right, points)?;
     root.present().map_err(|e| e.to_string())
 }
@@ -393,27 +383,16 @@ fn tiers<DB: DrawingBackend>(
         .y_desc("PSNR (dB) vs exact dt 1/16")
         .draw()
         .map_err(|e| format!("{e:?}"))?;
-    for (tier, color) in [("exact", BLUE), ("fast", GREEN)] {
-        let line: Vec<(f64, f64)> = sweep
+    let lines = [("exact", BLUE), ("fast", GREEN)].map(|(tier, colour)| Line {
+        points: sweep
             .iter()
             .filter(|p| p.label.ends_with(tier))
             .map(|p| (p.wall_ms, p.psnr))
-            .collect();
-        chart
-            .draw_series(LineSeries::new(line.clone(), color.stroke_width(2)))
-            .map_err(|e| format!("{e:?}"))?
-            .label(format!("{tier} tier, dt 1/2 and 1/5"))
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], color));
-        chart
-            .draw_series(line.into_iter().map(|p| Circle::new(p, 3, color.filled())))
-            .map_err(|e| format!("{e:?}"))?;
-    }
-    chart
-        .configure_series_labels()
-        .border_style(BLACK)
-        .background_style(WHITE)
-        .draw()
-        .map_err(|e| format!("{e:?}"))
+            .collect(),
+        colour,
+        label: format!("{tier} tier, dt 1/2 and 1/5"),
+    });
+    chart::draw(&mut chart, lines.into())
 }
 
 #[cfg(test)]

@@ -7,9 +7,11 @@
 //! instructions, which does not move with the machine's load, is
 //! [`super::instructions`]'s.
 
-use crate::input::scene::{Scene, SceneError};
+use super::error::ExperimentError;
+use super::sod::{sod_source, COMPOSITE_TRANSFER, SOD_ISO, SURFACE_VIEW};
+use crate::input::scene::Scene;
 use crate::memory::storage::SkipMode;
-use crate::run::render::{render_on, Fabric, Machine, RenderError};
+use crate::run::render::{render_on, Fabric, Machine};
 use std::fmt::Write;
 use std::path::Path;
 use std::time::Duration;
@@ -22,25 +24,6 @@ pub const FAST_VIEW: &str = "composite-fast";
 /// the reads and the compositing cost alone, so the least any cheaper shading could bring the
 /// fast tier down to. Benchmarked at the paper's size only.
 pub const UNLIT_VIEW: &str = "composite-unlit";
-
-/// The paper's view as a shaded surface.
-const SURFACES_VIEW: &str = r#"
-[[datasets.views]]
-name = "surfaces"
-width = WIDTH
-height = HEIGHT
-dt = DT
-[datasets.views.camera]
-azimuth = 45.0
-width = SPAN
-[[datasets.views.surfaces]]
-iso = ISO
-color = [0.95, 0.78, 0.45]
-[[datasets.views.lights]]
-type = "directional"
-direction = [0.4, -0.5, 1.0]
-frame = "camera"
-"#;
 
 /// The paper's view composited, named NAME, in the accuracy tier TIER, shaded or not
 /// (SHADING).
@@ -56,21 +39,6 @@ shading = SHADING
 [datasets.views.camera]
 azimuth = 45.0
 width = SPAN
-"#;
-
-/// The transfer function of every benchmarked composited view (SOD's, scenes/sod.toml).
-pub const COMPOSITE_TRANSFER: &str = r#"[[datasets.views.transfer]]
-value = 10.0
-color = [0.2, 0.3, 0.8]
-opacity = 0.0
-[[datasets.views.transfer]]
-value = 60.0
-color = [0.9, 0.7, 0.3]
-opacity = 0.15
-[[datasets.views.transfer]]
-value = 200.0
-color = [1.0, 0.2, 0.1]
-opacity = 0.8
 "#;
 
 /// The views benchmarked at `size`: the paper's view as a shaded surface and composited, and
@@ -90,7 +58,8 @@ fn views(size: Size) -> String {
         String::new()
     };
     format!(
-        "{SURFACES_VIEW}{}{}{unlit}",
+        "{}{}{}{unlit}",
+        SURFACE_VIEW.replace("NAME", "surfaces"),
         composite("composite", "exact", true),
         composite(FAST_VIEW, "fast", true),
     )
@@ -116,10 +85,10 @@ fn molecule_scene(size: Size) -> String {
 /// The bench's scene of SOD, read from `sod` (the raw file with its 12-byte header), at
 /// `size`.
 pub(crate) fn sod_scene(size: Size, sod: &Path) -> String {
-    let path = sod.display().to_string().replace('\\', "/");
     format!(
-        "[[datasets]]\nname = \"sod\"\npath = \"{path}\"\nformat = \"raw\"\ndims = [97, 97, 116]\ntype = \"u8\"\nheader_bytes = 12\n{}",
-        sized_views(size).replace("ISO", "50.0")
+        "[[datasets]]\nname = \"sod\"\n{}\n{}",
+        sod_source(sod),
+        sized_views(size).replace("ISO", SOD_ISO)
     )
 }
 
@@ -167,20 +136,6 @@ impl Size {
             span: self.span,
         }
     }
-}
-
-/// Why the benchmark could not run.
-#[derive(Debug, thiserror::Error)]
-pub enum BenchError {
-    /// A benchmark scene did not load.
-    #[error("{0}")]
-    Scene(#[from] SceneError),
-    /// A render failed.
-    #[error("{0}")]
-    Render(#[from] RenderError),
-    /// A view of the scale sweep could not be built on its volume.
-    #[error("scale sweep: {0}")]
-    Scale(String),
 }
 
 /// One measured configuration.
@@ -318,7 +273,7 @@ pub fn run(
     sizes: &[Size],
     sod: &Path,
     out: &mut String,
-) -> Result<Vec<Row>, BenchError> {
+) -> Result<Vec<Row>, ExperimentError> {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get() as u32);
     let mut rows = Vec::new();
     for &size in sizes {

@@ -11,65 +11,9 @@ use crate::run::render::render;
 use std::fmt;
 use voxcube_kernel::node::flow;
 
-/// The scenes explored: shadow rays flowing against primary rays, nested transparency, point
-/// lights inside the volume (rays in both directions), compositing.
-pub const SCENES: &str = r#"
-[[datasets]]
-name = "m"
-builtin = "molecule"
-
-[[datasets.views]]
-name = "shadows-transparency"
-width = 12
-height = 10
-[[datasets.views.surfaces]]
-iso = 30.0
-transparency = 0.5
-[[datasets.views.surfaces]]
-iso = 90.0
-[[datasets.views.lights]]
-type = "directional"
-direction = [-0.7, -0.3, -0.6]
-shadows = true
-[[datasets.views.lights]]
-type = "directional"
-direction = [0.9, -0.2, 0.1]
-shadows = true
-
-[[datasets.views]]
-name = "inside-point-light"
-width = 12
-height = 10
-[datasets.views.camera]
-projection = "perspective"
-eye = [48.0, 50.0, 58.0]
-look_at = [20.0, 48.0, 40.0]
-fov = 120.0
-[[datasets.views.surfaces]]
-iso = 45.0
-transparency = 0.4
-[[datasets.views.lights]]
-type = "point"
-position = [60.0, 40.0, 60.0]
-shadows = true
-
-[[datasets.views]]
-name = "composite"
-width = 12
-height = 10
-mode = "composite"
-[datasets.views.camera]
-azimuth = 100.0
-elevation = 10.0
-[[datasets.views.transfer]]
-value = 5.0
-color = [0.2, 0.3, 0.9]
-opacity = 0.0
-[[datasets.views.transfer]]
-value = 120.0
-color = [1.0, 0.8, 0.4]
-opacity = 0.5
-"#;
+/// The scenes explored (`explore.toml`): shadow rays flowing against primary rays, nested
+/// transparency, point lights inside the volume (rays in both directions), compositing.
+pub const SCENES: &str = include_str!("explore.toml");
 
 /// Cube shapes explored: (clusters, nodes per cluster).
 pub const SHAPES: [(u32, u32); 9] = [

@@ -7,7 +7,8 @@
 //! finds for each node count); it minimises the sum of squared log-time errors, so a row
 //! 10% slow weighs what a row 10% fast does, whatever its size.
 
-use super::runs::{sequential, timed, PaperError};
+use super::error::ExperimentError;
+use super::runs::{sequential, timed};
 use crate::input::scene::DatasetJob;
 use crate::profile::MachineProfile;
 use std::collections::BTreeMap;
@@ -17,7 +18,7 @@ use voxcube_kernel::trace::view::View;
 pub const SIZES: [u32; 5] = [1, 2, 4, 8, 16];
 
 /// One shape's frame seconds, or why it has none.
-type Timed = Result<((u32, u32), f64), PaperError>;
+type Timed = Result<((u32, u32), f64), ExperimentError>;
 
 /// Frame seconds of every shape `(nodes, cluster size)` with `nodes` in `node_counts` and a
 /// size of [`SIZES`] dividing it, each run as [`timed`] runs the paper's, but one node, the
@@ -27,7 +28,7 @@ pub fn shapes(
     view: &View,
     profile: &MachineProfile,
     node_counts: &[u32],
-) -> Result<BTreeMap<(u32, u32), f64>, PaperError> {
+) -> Result<BTreeMap<(u32, u32), f64>, ExperimentError> {
     let todo: Vec<(u32, u32)> = node_counts
         .iter()
         .flat_map(|&p| {
@@ -60,8 +61,9 @@ pub fn shapes(
         handles
             .into_iter()
             .flat_map(|h| {
-                h.join()
-                    .unwrap_or_else(|_| vec![Err(PaperError::Write("a timed run panicked".into()))])
+                h.join().unwrap_or_else(|_| {
+                    vec![Err(ExperimentError::Missing("a timed run panicked".into()))]
+                })
             })
             .collect()
     });
@@ -126,7 +128,7 @@ pub fn table1(
     view: &View,
     profile: &MachineProfile,
     table: &[(u32, f64)],
-) -> Result<Vec<Row>, PaperError> {
+) -> Result<Vec<Row>, ExperimentError> {
     let nodes: Vec<u32> = table.iter().map(|r| r.0).collect();
     rows_of(&shapes(job, view, profile, &nodes)?, table)
 }
@@ -135,12 +137,12 @@ pub fn table1(
 fn rows_of(
     times: &BTreeMap<(u32, u32), f64>,
     table: &[(u32, f64)],
-) -> Result<Vec<Row>, PaperError> {
+) -> Result<Vec<Row>, ExperimentError> {
     table
         .iter()
         .map(|&(p, paper)| {
-            let (size, model) =
-                best(times, p).ok_or_else(|| PaperError::Write(format!("no shape of {p}")))?;
+            let (size, model) = best(times, p)
+                .ok_or_else(|| ExperimentError::Missing(format!("no shape of {p}")))?;
             Ok(Row {
                 nodes: p,
                 size,
@@ -172,10 +174,10 @@ pub fn fit(
     view: &View,
     base: &MachineProfile,
     table: &[(u32, f64)],
-) -> Result<Fit, PaperError> {
+) -> Result<Fit, ExperimentError> {
     let mut evaluations = 0;
     let mut scale = base.scale;
-    let mut at = |message_scale: f64, scale: &mut f64| -> Result<Fit, PaperError> {
+    let mut at = |message_scale: f64, scale: &mut f64| -> Result<Fit, ExperimentError> {
         let mut profile = MachineProfile {
             scale: *scale,
             message_scale,
@@ -217,7 +219,7 @@ pub fn fit(
     }
     let best_of = |tried: &[Fit]| tried.iter().min_by(|a, b| a.rms.total_cmp(&b.rms)).cloned();
     let Some(octave) = best_of(&tried) else {
-        return Err(PaperError::Write("nothing to fit".into()));
+        return Err(ExperimentError::Missing("nothing to fit".into()));
     };
     for f in [
         octave.profile.message_scale / std::f64::consts::SQRT_2,
@@ -241,27 +243,18 @@ mod tests {
     use super::*;
     use crate::input::scene::Scene;
 
-    /// The built-in molecule on a small image, so that every fit test runs in seconds.
+    /// The paper's view of the built-in molecule on a small image, so that every fit test
+    /// runs in seconds.
     fn small() -> DatasetJob {
-        let text = r#"
-[[datasets]]
-name = "molecule"
-builtin = "molecule"
-[[datasets.views]]
-name = "small"
-width = 48
-height = 32
-dt = 1.0
-[datasets.views.camera]
-azimuth = 45.0
-elevation = 0.0
-[[datasets.views.surfaces]]
-iso = 40.0
-[[datasets.views.lights]]
-type = "directional"
-direction = [0.4, -0.5, 1.0]
-"#;
-        Scene::parse(text, "<fit test>", std::path::Path::new("."))
+        let view = crate::experiments::sod::SURFACE_VIEW
+            .replace("NAME", "small")
+            .replace("WIDTH", "48")
+            .replace("HEIGHT", "32")
+            .replace("DT", "1.0")
+            .replace("SPAN", "175.0")
+            .replace("ISO", "40.0");
+        let text = format!("[[datasets]]\nname = \"molecule\"\nbuiltin = \"molecule\"\n{view}");
+        Scene::parse(&text, "<fit test>", std::path::Path::new("."))
             .and_then(Scene::load)
             .map(|mut jobs| jobs.remove(0))
             .unwrap_or_else(|e| panic!("{e}"))

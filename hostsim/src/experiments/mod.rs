@@ -8,6 +8,8 @@
 
 pub mod accuracy;
 pub mod bench;
+pub mod chart;
+pub mod error;
 pub mod explore;
 pub mod fit;
 pub mod instructions;
@@ -15,3 +17,4 @@ pub mod paper;
 pub mod peer;
 pub mod runs;
 pub mod scale;
+pub mod sod;

@@ -15,13 +15,19 @@
 //! of Table 3 every node starts on its uniform slab and shifts planes to its neighbours in
 //! slab-plane messages before rendering; the simulated time includes that shift.
 
-pub use super::runs::{sequential, timed, traced, PaperError, SOD_FILE};
+use super::chart::{self, Line};
+use super::error::ExperimentError;
+pub use super::runs::{sequential, timed, traced};
+pub use super::sod::SOD_FILE;
+use super::sod::{paper_surface_view, sod_source, SOD_ISO};
 use crate::fabric::sim;
 use crate::fabric::Category;
 use crate::fabric::RunConfig;
+use crate::fabric::RunError;
 use crate::input::scene::{DatasetJob, Scene};
 use crate::output::files::write_png;
 use crate::profile::MachineProfile;
+use crate::run::render::RenderError;
 use plotters::prelude::*;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -63,28 +69,6 @@ pub const TABLE4: [(&str, f64, f64, f64); 6] = [
     ("nwrite", 1.38, 0.83, 2.08),
 ];
 
-const SOD_SCENE: &str = r#"
-[[datasets]]
-name = "sod"
-PATH
-[[datasets.views]]
-name = "paper"
-width = 350
-height = 250
-dt = 0.5
-[datasets.views.camera]
-azimuth = 45.0
-elevation = 0.0
-width = 175.0
-[[datasets.views.surfaces]]
-iso = ISO
-color = [0.95, 0.78, 0.45]
-[[datasets.views.lights]]
-type = "directional"
-direction = [0.4, -0.5, 1.0]
-frame = "camera"
-"#;
-
 /// Where the experiments take their volume from.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Source<'a> {
@@ -96,7 +80,7 @@ pub enum Source<'a> {
 
 /// The dataset: SOD from `source` (a missing file is an error), or the built-in substitute
 /// when asked for (with a note).
-pub fn dataset(source: Source<'_>, notes: &mut String) -> Result<DatasetJob, PaperError> {
+pub fn dataset(source: Source<'_>, notes: &mut String) -> Result<DatasetJob, ExperimentError> {
     let source = match source {
         Source::Sod(path) => {
             let file = if path.is_dir() {
@@ -105,12 +89,9 @@ pub fn dataset(source: Source<'_>, notes: &mut String) -> Result<DatasetJob, Pap
                 path.to_path_buf()
             };
             if !file.is_file() {
-                return Err(PaperError::NoSod(path.to_path_buf()));
+                return Err(ExperimentError::NoSod(path.to_path_buf()));
             }
-            format!(
-                "path = \"{}\"\nformat = \"raw\"\ndims = [97, 97, 116]\ntype = \"u8\"\nheader_bytes = 12",
-                file.display().to_string().replace('\\', "/")
-            )
+            sod_source(&file)
         }
         Source::Substitute => {
             let _ = writeln!(
@@ -121,11 +102,14 @@ pub fn dataset(source: Source<'_>, notes: &mut String) -> Result<DatasetJob, Pap
         }
     };
     let iso = if source.starts_with("path") {
-        "50.0"
+        SOD_ISO
     } else {
         "40.0"
     };
-    let text = SOD_SCENE.replace("PATH", &source).replace("ISO", iso);
+    let text = format!("[[datasets]]\nname = \"sod\"\n{source}\n")
+        + &paper_surface_view()
+            .replace("NAME", "paper")
+            .replace("ISO", iso);
     Ok(Scene::parse(&text, "<paper>", Path::new("."))?
         .load()?
         .remove(0))
@@ -138,7 +122,7 @@ pub fn balance(
     view: &View,
     profile: &MachineProfile,
     size: u32,
-) -> Result<Vec<u32>, PaperError> {
+) -> Result<Vec<u32>, ExperimentError> {
     let nx = job.volume.grid.dims()[0];
     let b = crate::run::balance::balance(
         &job.volume,
@@ -147,8 +131,7 @@ pub fn balance(
         size,
         crate::memory::storage::SkipMode::OFF,
         nx,
-    )
-    .map_err(|e| PaperError::Write(e.to_string()))?;
+    )?;
     Ok(b.after)
 }
 
@@ -158,7 +141,7 @@ pub fn row_costs(
     job: &DatasetJob,
     view: &View,
     profile: &MachineProfile,
-) -> Result<Vec<f64>, PaperError> {
+) -> Result<Vec<f64>, ExperimentError> {
     let height = view.spec().height;
     let clusters = height.next_power_of_two();
     let run = timed(job, view, profile, clusters, 1, None)?;
@@ -206,23 +189,23 @@ pub fn slab_work(
     profile: &MachineProfile,
     size: u32,
     cuts: Option<Vec<u32>>,
-) -> Result<Vec<SlabWork>, PaperError> {
+) -> Result<Vec<SlabWork>, ExperimentError> {
     let nx = job.volume.grid.dims()[0];
     let planes: Vec<u32> = match &cuts {
         Some(cuts) => cuts.clone(),
         None => voxcube_kernel::node::partition::Partition::uniform(nx, size as usize)
-            .map_err(|e| PaperError::Write(e.to_string()))?
+            .map_err(RunError::from)?
             .cuts()
             .to_vec(),
     };
     if planes.len() != size as usize + 1 {
-        return Err(PaperError::Write(format!(
+        return Err(ExperimentError::Missing(format!(
             "{} cuts for a ring of {size}",
             planes.len()
         )));
     }
     let time = timed(job, view, profile, 1, size, cuts)?;
-    let parts = time.by_position(size).map_err(PaperError::Write)?;
+    let parts = time.by_position(size).map_err(ExperimentError::Missing)?;
     Ok(parts
         .iter()
         .zip(planes.windows(2))
@@ -256,7 +239,7 @@ pub fn table_4(
     job: &DatasetJob,
     view: &View,
     profile: &MachineProfile,
-) -> Result<(f64, Vec<Share>), PaperError> {
+) -> Result<(f64, Vec<Share>), ExperimentError> {
     let sixteen = timed(job, view, profile, 1, 16, None)?;
     let lines = [
         Category::Test,
@@ -296,10 +279,9 @@ pub fn run(
     dir: &Path,
     out: &mut String,
     fit: bool,
-) -> Result<(), PaperError> {
+) -> Result<(), ExperimentError> {
     let view = &job.views[0].view;
-    std::fs::create_dir_all(dir)
-        .map_err(|e| PaperError::Write(format!("{}: {e}", dir.display())))?;
+    std::fs::create_dir_all(dir).map_err(|e| output(dir, e))?;
     let fitted;
     let (profile, fitted_times) = if fit {
         let f = crate::experiments::fit::fit(job, view, profile, &TABLE1)?;
@@ -347,7 +329,7 @@ pub fn run(
     let t1 = times
         .get(&(1, 1))
         .copied()
-        .ok_or_else(|| PaperError::Write("no 1-node time".into()))?;
+        .ok_or_else(|| ExperimentError::Missing("no 1-node time".into()))?;
     let _ = writeln!(
         out,
         "Table 1: times (s), speedup and efficiency with increasing nodes (best cluster size); the fitted table"
@@ -546,14 +528,14 @@ pub fn run(
     let image = sim::run(
         &job.volume,
         view,
-        &RunConfig::cluster(1, 1).map_err(|e| PaperError::Write(e.to_string()))?,
+        &RunConfig::cluster(1, 1).map_err(RenderError::from)?,
     )?;
     let spec = view.spec();
     let bytes: Vec<u8> = image.pixels.iter().flatten().copied().collect();
-    write_png(&dir.join("sod-paper.png"), spec.width, spec.height, &bytes)
-        .map_err(|e| PaperError::Write(e.to_string()))?;
-    std::fs::write(dir.join("tables.txt"), out.as_bytes())
-        .map_err(|e| PaperError::Write(e.to_string()))?;
+    let png = dir.join("sod-paper.png");
+    write_png(&png, spec.width, spec.height, &bytes).map_err(|e| output(&png, e))?;
+    let tables = dir.join("tables.txt");
+    std::fs::write(&tables, out.as_bytes()).map_err(|e| output(&tables, e))?;
     let _ = writeln!(
         out,
         "\nwrote {}/tables.txt, speedup.svg, efficiency.svg, slabs.svg, sod-paper.png",
@@ -563,9 +545,13 @@ pub fn run(
 }
 
 /// Each slab's busy seconds in the ring of 16, uniform and balanced.
-fn plot_slabs(dir: &Path, uniform: &[SlabWork], balanced: &[SlabWork]) -> Result<(), PaperError> {
-    let err = |e: String| PaperError::Write(e);
+fn plot_slabs(
+    dir: &Path,
+    uniform: &[SlabWork],
+    balanced: &[SlabWork],
+) -> Result<(), ExperimentError> {
     let path = dir.join("slabs.svg");
+    let err = |e: String| output(&path, e);
     let root = SVGBackend::new(&path, (640, 420)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
     let top = uniform
@@ -590,41 +576,34 @@ fn plot_slabs(dir: &Path, uniform: &[SlabWork], balanced: &[SlabWork]) -> Result
         .y_desc("busy seconds")
         .draw()
         .map_err(|e| err(e.to_string()))?;
-    for (work, colour, label) in [
+    let lines = [
         (uniform, RED, "uniform slabs"),
         (balanced, BLUE, "balanced slabs"),
-    ] {
-        let points: Vec<(f64, f64)> = work
+    ]
+    .map(|(work, colour, label)| Line {
+        points: work
             .iter()
             .enumerate()
             .map(|(i, s)| (i as f64, s.busy))
-            .collect();
-        chart
-            .draw_series(LineSeries::new(points.clone(), colour.stroke_width(2)))
-            .map_err(|e| err(e.to_string()))?
-            .label(label)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], colour));
-        chart
-            .draw_series(
-                points
-                    .into_iter()
-                    .map(|p| Circle::new(p, 3, colour.filled())),
-            )
-            .map_err(|e| err(e.to_string()))?;
-    }
-    chart
-        .configure_series_labels()
-        .border_style(BLACK)
-        .background_style(WHITE)
-        .draw()
-        .map_err(|e| err(e.to_string()))?;
+            .collect(),
+        colour,
+        label: label.into(),
+    });
+    chart::draw(&mut chart, lines.into()).map_err(err)?;
     root.present().map_err(|e| err(e.to_string()))?;
     Ok(())
 }
 
+/// An output at `path` not written, and why.
+fn output(path: &Path, why: impl std::fmt::Display) -> ExperimentError {
+    ExperimentError::Output {
+        path: path.to_path_buf(),
+        message: why.to_string(),
+    }
+}
+
 /// Speedup and efficiency against nodes, voxcube beside the paper.
-fn plot(dir: &Path, series: &[(f64, f64, f64, f64, f64)]) -> Result<(), PaperError> {
-    let err = |e: String| PaperError::Write(e);
+fn plot(dir: &Path, series: &[(f64, f64, f64, f64, f64)]) -> Result<(), ExperimentError> {
     for (file, title, ours, paper, top) in [
         (
             "speedup.svg",
@@ -642,6 +621,7 @@ fn plot(dir: &Path, series: &[(f64, f64, f64, f64, f64)]) -> Result<(), PaperErr
         ),
     ] {
         let path = dir.join(file);
+        let err = |e: String| output(&path, e);
         let root = SVGBackend::new(&path, (640, 420)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
         let mut chart = ChartBuilder::on(&root)
@@ -662,36 +642,19 @@ fn plot(dir: &Path, series: &[(f64, f64, f64, f64, f64)]) -> Result<(), PaperErr
                 .map(move |r| (r.0, [r.0, r.1, r.2, r.3, r.4][i]))
                 .collect::<Vec<_>>()
         };
-        chart
-            .draw_series(LineSeries::new(pick(ours), BLUE.stroke_width(2)))
-            .map_err(|e| err(e.to_string()))?
-            .label("voxcube, simulated nCUBE 2")
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], BLUE));
-        chart
-            .draw_series(LineSeries::new(pick(paper), RED.stroke_width(2)))
-            .map_err(|e| err(e.to_string()))?
-            .label("paper, Table 1")
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], RED));
-        chart
-            .draw_series(
-                pick(ours)
-                    .into_iter()
-                    .map(|p| Circle::new(p, 3, BLUE.filled())),
-            )
-            .map_err(|e| err(e.to_string()))?;
-        chart
-            .draw_series(
-                pick(paper)
-                    .into_iter()
-                    .map(|p| Circle::new(p, 3, RED.filled())),
-            )
-            .map_err(|e| err(e.to_string()))?;
-        chart
-            .configure_series_labels()
-            .border_style(BLACK)
-            .background_style(WHITE)
-            .draw()
-            .map_err(|e| err(e.to_string()))?;
+        let lines = vec![
+            Line {
+                points: pick(ours),
+                colour: BLUE,
+                label: "voxcube, simulated nCUBE 2".into(),
+            },
+            Line {
+                points: pick(paper),
+                colour: RED,
+                label: "paper, Table 1".into(),
+            },
+        ];
+        chart::draw(&mut chart, lines).map_err(err)?;
         root.present().map_err(|e| err(e.to_string()))?;
     }
     Ok(())

@@ -5,32 +5,14 @@
 //!
 //! Invariant: every run models the paper's tracer, without empty-space skipping.
 
+use super::error::ExperimentError;
 use crate::fabric::sim;
+use crate::fabric::RunConfig;
 use crate::fabric::VirtualTime;
-use crate::fabric::{RunConfig, RunError};
-use crate::input::scene::{DatasetJob, SceneError};
+use crate::input::scene::DatasetJob;
 use crate::profile::MachineProfile;
+use crate::run::render::RenderError;
 use voxcube_kernel::trace::view::View;
-
-/// Why the experiments could not run.
-#[derive(Debug, thiserror::Error)]
-pub enum PaperError {
-    /// The scene did not load.
-    #[error("{0}")]
-    Scene(#[from] SceneError),
-    /// A simulated run failed.
-    #[error("{0}")]
-    Sim(#[from] RunError),
-    /// An output could not be written.
-    #[error("{0}")]
-    Write(String),
-    /// SOD is not where the command was told to read it.
-    #[error("{}: SOD not found: expected {SOD_FILE}, or a folder holding it (--substitute renders the built-in molecule instead)", .0.display())]
-    NoSod(std::path::PathBuf),
-}
-
-/// SOD's file name in the shared data folder.
-pub const SOD_FILE: &str = "sod-97x97x116.u8.binary";
 
 /// One timed run: the view on `clusters` clusters of `size`, optionally with slab `cuts`,
 /// which the nodes reach from uniform slabs by shifting planes (the shift's time included).
@@ -41,7 +23,7 @@ pub fn timed(
     clusters: u32,
     size: u32,
     cuts: Option<Vec<u32>>,
-) -> Result<VirtualTime, PaperError> {
+) -> Result<VirtualTime, ExperimentError> {
     timed_with(job, view, profile, (clusters, size), cuts, false)
 }
 
@@ -52,13 +34,13 @@ pub fn sequential(
     job: &DatasetJob,
     view: &View,
     profile: &MachineProfile,
-) -> Result<f64, PaperError> {
+) -> Result<f64, ExperimentError> {
     let run = crate::run::render::render_skipping(
         &job.volume,
         view,
         crate::memory::storage::SkipMode::OFF,
     )
-    .map_err(|e| PaperError::Write(e.to_string()))?;
+    .map_err(RenderError::from)?;
     Ok(crate::experiments::accuracy::one_node_seconds(
         &run.counters,
         view,
@@ -73,13 +55,13 @@ pub fn traced(
     profile: &MachineProfile,
     nodes: u32,
     size: u32,
-) -> Result<VirtualTime, PaperError> {
+) -> Result<VirtualTime, ExperimentError> {
     if size == 0
         || !nodes.is_multiple_of(size)
         || !nodes.is_power_of_two()
         || !size.is_power_of_two()
     {
-        return Err(PaperError::Write(format!(
+        return Err(ExperimentError::Asked(format!(
             "--trace {nodes}/{size}: nodes and cluster size are powers of two, the size dividing the nodes"
         )));
     }
@@ -100,9 +82,9 @@ fn timed_with(
     (clusters, size): (u32, u32),
     cuts: Option<Vec<u32>>,
     timeline: bool,
-) -> Result<VirtualTime, PaperError> {
+) -> Result<VirtualTime, ExperimentError> {
     let Ok(base) = RunConfig::machine(clusters, size, 1) else {
-        return Err(PaperError::Write(format!(
+        return Err(ExperimentError::Asked(format!(
             "no layout of {clusters} clusters of {size}"
         )));
     };
@@ -117,5 +99,5 @@ fn timed_with(
     };
     let run = sim::run(&job.volume, view, &cfg)?;
     run.time
-        .ok_or_else(|| PaperError::Write("a timed run returned no time".into()))
+        .ok_or_else(|| ExperimentError::Missing("a timed run returned no time".into()))
 }

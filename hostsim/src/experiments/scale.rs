@@ -4,7 +4,8 @@
 //! of one node per core (threads), each node a modern one (1 GiB); time per evaluated sample and per pixel show where the
 //! cost goes as the volume or the image grows.
 
-use super::bench::{BenchError, COMPOSITE_TRANSFER};
+use super::error::ExperimentError;
+use super::sod::COMPOSITE_TRANSFER;
 use crate::input::builtin;
 use crate::input::dataset::{plane_major_from_fn, Volume, VolumeData};
 use crate::input::scene::Scene;
@@ -105,12 +106,12 @@ width = {span:?}
 
 /// Measure every volume size and every image size, both tiers, on one node and on every
 /// core; `runs` renders of each (the median kept), interleaved across machines.
-pub fn run(runs: usize, out: &mut String) -> Result<Vec<ScaleRow>, BenchError> {
+pub fn run(runs: usize, out: &mut String) -> Result<Vec<ScaleRow>, ExperimentError> {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get() as u32);
     let cores = cores.next_power_of_two();
     // Today's nodes, not the nCUBE 2's 4 MiB: a 512³ volume is 128 MiB on one node.
     let modern = crate::memory::budget::Profile::builtin("modern")
-        .ok_or_else(|| BenchError::Scale("the shipped modern profile is missing".into()))?;
+        .ok_or_else(|| ExperimentError::Missing("the shipped modern profile is missing".into()))?;
     let on = |m: Machine| Machine {
         profile: modern,
         ..m
@@ -147,7 +148,7 @@ pub fn run(runs: usize, out: &mut String) -> Result<Vec<ScaleRow>, BenchError> {
         for v in jobs.iter().flat_map(|j| &j.views) {
             let spec = v.view.spec().clone();
             let built = voxcube_kernel::trace::view::View::new(spec, &volume.grid)
-                .map_err(|e| BenchError::Scale(e.to_string()))?;
+                .map_err(|e| ExperimentError::Asked(format!("scale sweep: {e}")))?;
             let mut times = vec![Vec::new(); machines.len()];
             let mut samples = vec![0; machines.len()];
             for _ in 0..runs.max(1) {

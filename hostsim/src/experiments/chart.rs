@@ -1,0 +1,53 @@
+//! The experiments' line charts: each series a line with a dot at every point, named in a
+//! legend, on whatever axes (linear or logarithmic) the chart was built with.
+
+use plotters::coord::ranged1d::Ranged;
+use plotters::coord::types::RangedCoordf64;
+use plotters::prelude::*;
+
+/// One series: its points, colour and legend label.
+#[derive(Clone, Debug)]
+pub struct Line {
+    /// (x, y) in the chart's units.
+    pub points: Vec<(f64, f64)>,
+    /// Line, dots and legend mark.
+    pub colour: RGBColor,
+    /// The legend's words.
+    pub label: String,
+}
+
+/// Draw `lines` on `chart`, then the legend.
+pub fn draw<'a, DB, X>(
+    chart: &mut ChartContext<'a, DB, Cartesian2d<X, RangedCoordf64>>,
+    lines: Vec<Line>,
+) -> Result<(), String>
+where
+    DB: DrawingBackend + 'a,
+    X: Ranged<ValueType = f64>,
+{
+    for Line {
+        points,
+        colour,
+        label,
+    } in lines
+    {
+        chart
+            .draw_series(LineSeries::new(points.clone(), colour.stroke_width(2)))
+            .map_err(|e| e.to_string())?
+            .label(label)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], colour));
+        chart
+            .draw_series(
+                points
+                    .into_iter()
+                    .map(|p| Circle::new(p, 3, colour.filled())),
+            )
+            .map_err(|e| e.to_string())?;
+    }
+    chart
+        .configure_series_labels()
+        .border_style(BLACK)
+        .background_style(WHITE)
+        .draw()
+        .map_err(|e| e.to_string())
+}
