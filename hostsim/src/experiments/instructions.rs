@@ -99,7 +99,7 @@ fn machine() -> Machine {
 }
 
 /// The counted side, run under valgrind: render the bench's SOD view `view` `frames` times on
-/// [`machine`] and say the last frame's counters as `samples N skipped N` (zeros without a
+/// `machine` and say the last frame's counters as `samples N skipped N` (zeros without a
 /// frame).
 pub fn count_frames(view: &str, frames: u32, sod: &Path) -> Result<String, String> {
     let jobs = sod_views(sod)?;

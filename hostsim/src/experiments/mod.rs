@@ -1,7 +1,10 @@
 //! The experiments: what the project measures about itself, apart from the host's runtime.
-//! `bench` (speed, against VTK in the same run, and in instructions), `paper` (the paper's tables in
-//! simulated nCUBE 2 time), `accuracy` (what accuracy costs in time) and `explore`
-//! (schedules explored on the simulator for deadlocks and invariants).
+//! The commands: [`bench`](mod@bench) (speed against VTK in the same run, [`peer`]; in
+//! instructions, [`instructions`]; as the work grows, [`scale`]), [`paper`] (the paper's
+//! tables in simulated nCUBE 2 time, from [`runs`], with the profile's constants [`fit`]),
+//! [`accuracy`] (what accuracy costs in time) and [`explore`] (schedules explored on the
+//! simulator for deadlocks and invariants). What they share: SOD and the paper's view
+//! ([`sod`]), one error ([`error`]) and line charts ([`chart`]).
 //!
 //! Invariant: an experiment only drives the runtime (scenes, fabrics, reports) through its
 //! public face; nothing in the runtime depends on an experiment.

@@ -2,7 +2,8 @@
 //! deterministic single-threaded reference; `threads` runs the same workers on OS threads;
 //! `mpi` (feature) runs them as MPI ranks. What a run is ([`config`]), how it fails
 //! ([`error`]), how its nodes are set up and its result made ([`harness`]), the host
-//! ([`host`]) and plane shifting ([`shift`]) are shared by all three.
+//! ([`host`]), plane shifting ([`shift`]) and the re-tracing of a lost cluster's rows
+//! ([`recovery`]) are shared by all three.
 //!
 //! Invariant: the image of a run depends on its view alone, never on its fabric.
 

@@ -7,8 +7,8 @@
 //! in flight, each receive buffer's use, the host's [`crate::fabric::host::Host::digest`],
 //! and which nodes may step (and, with a node set to stop, each node's steps so far) — and
 //! nothing that is only history (event counts, peaks, sequence numbers), so two schedules
-//! that reach the same state are explored once. The checks of
-//! [`super::checks`] run after every event, the end's at every end; a state with no event
+//! that reach the same state are explored once. The simulator's
+//! checks run after every event, the end's at every end; a state with no event
 //! possible and the host not done is a deadlock.
 
 use super::{checks, Sim};

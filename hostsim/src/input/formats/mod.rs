@@ -350,7 +350,7 @@ pub fn check_size(
 }
 
 /// [`check_size`] of data `actual` bytes long (a decoded stream's whole length, of which a
-/// reader kept no more than it needs: [`inflate_at_most`]).
+/// reader kept no more than it needs: `inflate_at_most`).
 pub fn check_length(
     actual: u64,
     header: u64,
