@@ -307,7 +307,8 @@ pub fn preflight(volume: &Volume, view: &View, machine: &Machine) -> Result<(), 
 /// ranges where a node could not hold them beside all that. They are accelerations, not
 /// needs: a machine that fits without them renders without them, the same pixels. Slabs
 /// `balanced` by the host may grow up to the cap balancing keeps them under
-/// ([`budget::max_owned_planes`]), so then that slab must fit. Every node and the host decide alike from the same inputs.
+/// ([`budget::max_owned_planes`]), so then that slab must fit. Every node and the host
+/// decide alike from the same inputs.
 pub fn node_skipping(volume: &Volume, view: &View, machine: &Machine, balanced: bool) -> SkipMode {
     let mode = machine.skipping;
     if machine.fabric == Fabric::Direct {
