@@ -162,7 +162,8 @@ fn sod_renders_identically_on_one_and_sixteen_nodes() {
 
 #[test]
 fn the_experiments_take_sod_as_its_folder_or_its_file() {
-    use voxcube::experiments::paper::{dataset, Source, SOD_FILE};
+    use voxcube::experiments::paper::{dataset, Source};
+    use voxcube::experiments::sod::SOD_FILE;
     let Some(data) = data_or_skip() else { return };
     let mut notes = String::new();
     let folder = dataset(Source::Sod(&data), &mut notes).expect("SOD's folder");
@@ -175,7 +176,7 @@ fn the_experiments_take_sod_as_its_folder_or_its_file() {
 #[test]
 fn the_side_that_bench_instructions_counts_renders_each_sod_view_it_names() {
     use voxcube::experiments::instructions::count_frames;
-    use voxcube::experiments::paper::SOD_FILE;
+    use voxcube::experiments::sod::SOD_FILE;
     let Some(data) = data_or_skip() else { return };
     let sod = data.join(SOD_FILE);
     // The counts are differences of runs that differ in their frames alone: without a frame

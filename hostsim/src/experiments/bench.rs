@@ -8,7 +8,7 @@
 //! [`super::instructions`]'s.
 
 use super::error::ExperimentError;
-use super::sod::{sod_source, COMPOSITE_TRANSFER, SOD_ISO, SURFACE_VIEW};
+use super::sod::{sized, sod_source, COMPOSITE_TRANSFER, SOD_ISO, SURFACE_VIEW};
 use crate::input::scene::Scene;
 use crate::memory::storage::SkipMode;
 use crate::run::render::{render_on, Fabric, Machine};
@@ -67,11 +67,8 @@ fn views(size: Size) -> String {
 
 /// The benchmarked views at `size`, their placeholders filled but the iso value's.
 fn sized_views(size: Size) -> String {
-    views(size)
-        .replace("SPAN", &format!("{:.1}", size.span))
-        .replace("WIDTH", &size.width.to_string())
-        .replace("HEIGHT", &size.height.to_string())
-        .replace("DT", &format!("{}", 1.0 / f64::from(size.dt_inverse)))
+    let dt = 1.0 / f64::from(size.dt_inverse);
+    sized(&views(size), size.width, size.height, dt, size.span)
 }
 
 /// The bench's scene of the default scene's molecule at `size`.

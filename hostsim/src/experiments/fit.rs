@@ -246,12 +246,9 @@ mod tests {
     /// The paper's view of the built-in molecule on a small image, so that every fit test
     /// runs in seconds.
     fn small() -> DatasetJob {
-        let view = crate::experiments::sod::SURFACE_VIEW
+        use crate::experiments::sod::{sized, SURFACE_VIEW};
+        let view = sized(SURFACE_VIEW, 48, 32, 1.0, 175.0)
             .replace("NAME", "small")
-            .replace("WIDTH", "48")
-            .replace("HEIGHT", "32")
-            .replace("DT", "1.0")
-            .replace("SPAN", "175.0")
             .replace("ISO", "40.0");
         let text = format!("[[datasets]]\nname = \"molecule\"\nbuiltin = \"molecule\"\n{view}");
         Scene::parse(&text, "<fit test>", std::path::Path::new("."))

@@ -18,8 +18,7 @@
 use super::chart::{self, Line};
 use super::error::ExperimentError;
 pub use super::runs::{sequential, timed, traced};
-pub use super::sod::SOD_FILE;
-use super::sod::{paper_surface_view, sod_source, SOD_ISO};
+use super::sod::{paper_surface_view, sod_source, SOD_FILE, SOD_ISO};
 use crate::fabric::sim;
 use crate::fabric::Category;
 use crate::fabric::RunConfig;
@@ -81,7 +80,7 @@ pub enum Source<'a> {
 /// The dataset: SOD from `source` (a missing file is an error), or the built-in substitute
 /// when asked for (with a note).
 pub fn dataset(source: Source<'_>, notes: &mut String) -> Result<DatasetJob, ExperimentError> {
-    let source = match source {
+    let (source, iso) = match source {
         Source::Sod(path) => {
             let file = if path.is_dir() {
                 path.join(SOD_FILE)
@@ -91,20 +90,16 @@ pub fn dataset(source: Source<'_>, notes: &mut String) -> Result<DatasetJob, Exp
             if !file.is_file() {
                 return Err(ExperimentError::NoSod(path.to_path_buf()));
             }
-            sod_source(&file)
+            (sod_source(&file), SOD_ISO)
         }
         Source::Substitute => {
             let _ = writeln!(
                 notes,
                 "--substitute: using the built-in molecule of SOD's size and character"
             );
-            "builtin = \"molecule\"".to_string()
+            // The default scene's iso value for the molecule.
+            ("builtin = \"molecule\"".to_string(), "40.0")
         }
-    };
-    let iso = if source.starts_with("path") {
-        SOD_ISO
-    } else {
-        "40.0"
     };
     let text = format!("[[datasets]]\nname = \"sod\"\n{source}\n")
         + &paper_surface_view()

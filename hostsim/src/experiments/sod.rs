@@ -41,14 +41,21 @@ direction = [0.4, -0.5, 1.0]
 frame = "camera"
 "#;
 
+/// `views` (with [`SURFACE_VIEW`]'s placeholders) at `width` × `height` pixels, step `dt`,
+/// `span` grid units across; the name and the iso value still to fill.
+pub fn sized(views: &str, width: u32, height: u32, dt: f64, span: f32) -> String {
+    // DT last: WIDTH holds it.
+    views
+        .replace("SPAN", &format!("{span:.1}"))
+        .replace("WIDTH", &width.to_string())
+        .replace("HEIGHT", &height.to_string())
+        .replace("DT", &format!("{dt:?}"))
+}
+
 /// The paper's view at the paper's size (350 × 250, Δt = ½, 175 grid units across), named
 /// NAME, iso value ISO still to fill.
 pub fn paper_surface_view() -> String {
-    SURFACE_VIEW
-        .replace("WIDTH", "350")
-        .replace("HEIGHT", "250")
-        .replace("DT", "0.5")
-        .replace("SPAN", "175.0")
+    sized(SURFACE_VIEW, 350, 250, 0.5, 175.0)
 }
 
 /// SOD's transfer function, for every composited view of it the experiments take.
