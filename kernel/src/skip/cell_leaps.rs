@@ -90,11 +90,6 @@ pub struct HeldLeaps<'a> {
 }
 
 impl<'a> HeldLeaps<'a> {
-    /// The map it reads.
-    pub fn leaps(&self) -> &CellLeaps<'a> {
-        &self.leaps
-    }
-
     /// [`CellLeaps::distance`] of a cell of the box it was found for
     /// ([`CellLeaps::holding`]). A cell outside the box reads some cell's distance or 0, never
     /// a panic: the box is the caller's to keep.

@@ -13,7 +13,7 @@
 use crate::counters::Counters;
 use crate::optics::classify::Classified;
 use crate::optics::transfer::{corrected_opacity, TransferFunction};
-use crate::skip::cell_leaps::{CellLeaps, HeldLeaps};
+use crate::skip::cell_leaps::HeldLeaps;
 use crate::skip::node_leaps::NodeLeaps;
 use crate::trace::interior::Interior;
 use crate::trace::lattice::Lattice;
@@ -296,7 +296,7 @@ fn samples<T: Sample, C: Classify, R: Reading<T>>(
                 let (x, y_end, z_end) = interior.cells();
                 let cells = cells.holding(x.clone(), y_end, z_end)?;
                 let test = match (leaps, skipper.node_leaps()) {
-                    (Some(leaps), Some(map)) => Test::AtIndex(AtIndex::new(map, leaps, &cells)),
+                    (Some(_), Some(map)) => Test::AtIndex(AtIndex::new(map, &cells)),
                     (Some(leaps), None) => Test::Held(leaps.holding(x, y_end, z_end)?),
                     (None, _) => Test::Every,
                 };
@@ -418,11 +418,10 @@ fn stepped_distances(dt: f32) -> u8 {
 }
 
 /// What a run through the interior asks of a sample's cell before reading it: its distance
-/// in a cell leap map, 0 where the cell may show; and the map, to leap by.
+/// in a cell leap map, 0 where the cell may show.
 trait CellTest {
     /// The distance of the cell whose low node is `lo`, at `index` in the run's storage.
     fn distance(&self, lo: [u32; 3], index: usize) -> u8;
-    fn leaps(&self) -> Option<&CellLeaps<'_>>;
 }
 
 /// How a run through the interior tells empty cells.
@@ -442,18 +441,16 @@ struct AtIndex<'a> {
     map: NodeLeaps<'a>,
     /// From a place in the run's storage to the same node's in the map (wrapping).
     offset: usize,
-    leaps: CellLeaps<'a>,
 }
 
 impl<'a> AtIndex<'a> {
-    fn new<U: Copy>(map: NodeLeaps<'a>, leaps: CellLeaps<'a>, cells: &HeldCells<'_, U>) -> Self {
+    fn new<U: Copy>(map: NodeLeaps<'a>, cells: &HeldCells<'_, U>) -> Self {
         let (first, plane) = cells.planes();
         // (first − map's first) planes, as a wrapping offset.
         let planes = i64::from(first) - i64::from(map.first());
         AtIndex {
             map,
             offset: (planes as isize as usize).wrapping_mul(plane),
-            leaps,
         }
     }
 }
@@ -462,11 +459,6 @@ impl CellTest for AtIndex<'_> {
     #[inline(always)]
     fn distance(&self, _: [u32; 3], index: usize) -> u8 {
         self.map.at(index.wrapping_add(self.offset))
-    }
-
-    #[inline(always)]
-    fn leaps(&self) -> Option<&CellLeaps<'_>> {
-        Some(&self.leaps)
     }
 }
 
@@ -478,21 +470,12 @@ impl CellTest for EveryCell {
     fn distance(&self, _: [u32; 3], _: usize) -> u8 {
         0
     }
-
-    fn leaps(&self) -> Option<&CellLeaps<'_>> {
-        None
-    }
 }
 
 impl CellTest for HeldLeaps<'_> {
     #[inline(always)]
     fn distance(&self, lo: [u32; 3], _: usize) -> u8 {
         HeldLeaps::distance(self, lo)
-    }
-
-    #[inline(always)]
-    fn leaps(&self) -> Option<&CellLeaps<'_>> {
-        Some(HeldLeaps::leaps(self))
     }
 }
 
@@ -545,13 +528,12 @@ fn run<T: Sample, C: Classify, R: Reading<T>, E: CellTest>(
             k += 1;
             continue;
         }
-        if let (1.., Some(leaps)) = (distance, inside.test.leaps()) {
-            // The cell leaps the general step would take from here, taken without leaving
-            // the run.
-            ray.k = k;
-            let last = skipper.leap_cells(slab, ray, leaps, cell, distance);
-            skip_to(view, ray, last, counters);
-            k = ray.k;
+        if distance > 0 {
+            // A leap over the cube of empty cells the map promises; the run reads where it
+            // lands.
+            let last = skipper.leap_inside(slab, ray, (k, inside.end), cell, distance);
+            counters.skipped += u64::from(last - k + 1);
+            k = last + 1;
             continue;
         }
         let Some(nodes) = inside.cells.at_index(index) else {

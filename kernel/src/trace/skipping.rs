@@ -147,23 +147,27 @@ impl<'s> Skipper<'s> {
         }
     }
 
-    /// The last sample of the cell leaps from `ray.k`, a cell-model sample in an owned plane,
-    /// in the cell whose low corner is `cell` (whole floats), at `distance` (at least 1) in
-    /// `leaps`, the map [`Skipper::per_cell`] gave: what [`Skipper::empty_run`] answers there.
-    // Not inlined: a leap's turn is rarer than a sample and needs many registers, which the
-    // run through the interior, inlined around it, then spills on every sample
+    /// The last sample from `k` on, at most `end`, that stays in the cube of empty cells the
+    /// cell leap map promises ahead of the cell whose low corner is `cell` (whole floats) at
+    /// `distance` (at least 1): one leap of a run through the slab's interior
+    /// ([`crate::trace::interior`]), whose samples up to `end` are all owned. Where it lands
+    /// is left to the run, which reads the landing's cell for its own sample anyway.
+    // Not inlined: a leap is rarer than a sample and needs many registers, which the run
+    // through the interior, inlined around it, would then spill on every sample
     // (docs/speed-log.md).
     #[inline(never)]
-    pub(crate) fn leap_cells<T: Sample>(
+    pub(crate) fn leap_inside<T: Sample>(
         &mut self,
         slab: &Slab<'_, T>,
         ray: &RayState,
-        leaps: &CellLeaps<'_>,
+        (k, end): (u32, u32),
         cell: Vec4,
         distance: u8,
     ) -> u32 {
         let exits = self.exits.get_or_insert_with(|| Exits::new(ray));
-        cell_leap(ray, slab, leaps, cell, distance, exits)
+        let d = f32::from(distance);
+        let far = cell + Vec4::select(exits.rising, Vec4::splat(d), Vec4::splat(1.0 - d));
+        last_short_of_before(ray, k, end, slab.grid(), far, exits)
     }
 
     /// The last sample of a run from `ray.k` (at `probe`, in an owned plane) in which no
@@ -404,13 +408,24 @@ impl OwnedFaces {
 /// samples' own arithmetic, halving on failure.
 #[inline]
 fn last_short_of(ray: &RayState, k: u32, grid: &Grid, far: Vec4, exits: &Exits) -> u32 {
+    last_short_of_before(ray, k, ray.lattice.last, grid, far, exits)
+}
+
+/// [`last_short_of`], at most sample `limit`.
+#[inline]
+fn last_short_of_before(
+    ray: &RayState,
+    k: u32,
+    limit: u32,
+    grid: &Grid,
+    far: Vec4,
+    exits: &Exits,
+) -> u32 {
     let in_box = |c: Vec4| {
         let inside = (exits.rising & c.cmplt(far)) | (!exits.rising & c.cmpge(far));
         inside.bitmask() & 0b111 == 0b111
     };
-    let mut n = exits
-        .steps(ray.lattice.t(k), far)
-        .min(ray.lattice.last - k.min(ray.lattice.last));
+    let mut n = exits.steps(ray.lattice.t(k), far).min(limit - k.min(limit));
     while n > 0 && !in_box(field::cell4(grid, ray.ray.at4(ray.lattice.t(k + n)))) {
         n /= 2;
     }
