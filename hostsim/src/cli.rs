@@ -122,6 +122,14 @@ pub enum Command {
         /// Folder for the table and the plot.
         #[arg(short, long, default_value = "out/accuracy")]
         out: PathBuf,
+        /// Instead: the time-error frontier beside VTK (when peers/setup.sh has installed
+        /// it): SOD composited and as a surface at 350x250, VTK and both tiers over a sweep of
+        /// dt on every core, each against its own renderer's converged image.
+        #[arg(long)]
+        frontier: bool,
+        /// Timed frames per image of the frontier (the median is reported).
+        #[arg(long, default_value_t = 5)]
+        runs: usize,
     },
     /// Explore schedules on the simulator: configurations (scenes with shadows and
     /// transparency, cube shapes, buffer sizes) × schedulers × seeds. Prints what was explored,
@@ -259,6 +267,27 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             data,
             substitute,
             out,
+            frontier: true,
+            runs,
+        } => {
+            let frontier = crate::experiments::frontier::sweep(source(&data, substitute), runs)?;
+            let table = crate::experiments::frontier::table(&frontier);
+            std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
+            std::fs::write(out.join("frontier.txt"), &table)
+                .map_err(|e| format!("{}: {e}", out.display()))?;
+            crate::experiments::frontier::plot(&out.join("frontier.svg"), &frontier)?;
+            stdout(&format!(
+                "{table}wrote {}/frontier.txt and frontier.svg\n",
+                out.display()
+            ))?;
+            Ok(())
+        }
+        Command::Accuracy {
+            data,
+            substitute,
+            out,
+            frontier: false,
+            ..
         } => {
             let mut notes = String::new();
             let job = crate::experiments::paper::dataset(source(&data, substitute), &mut notes)?;

@@ -326,22 +326,12 @@ pub fn plot(path: &Path, points: &[Point]) -> Result<(), String> {
     let root = SVGBackend::new(path, (1100, 420)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| e.to_string())?;
     let (left, right) = root.split_horizontally(640);
-    let mut chart = ChartBuilder::on(&left)
-        .caption(
-            "Accuracy against time on SOD (1 node, nCUBE 2)",
-            ("sans-serif", 18),
-        )
-        .margin(12)
-        .x_label_area_size(36)
-        .y_label_area_size(48)
-        .build_cartesian_2d(0f64..tmax * 1.1, 0f64..pmax * 1.1)
-        .map_err(|e| e.to_string())?;
-    chart
-        .configure_mesh()
-        .x_desc("simulated seconds")
-        .y_desc("PSNR (dB) vs dt 1/16")
-        .draw()
-        .map_err(|e| e.to_string())?;
+    let mut chart = chart::linear(
+        &left,
+        "Accuracy against time on SOD (1 node, nCUBE 2)",
+        ("simulated seconds", "PSNR (dB) vs dt 1/16"),
+        (tmax, pmax),
+    )?;
     let lines = [("cell", BLUE), ("voxel", RED)].map(|(model, colour)| Line {
         points: sweep
             .iter()
@@ -370,19 +360,12 @@ fn tiers<DB: DrawingBackend>(
     let (tmax, pmax) = sweep.iter().fold((1.0f64, 10.0f64), |(t, q), p| {
         (t.max(p.wall_ms), q.max(p.psnr))
     });
-    let mut chart = ChartBuilder::on(area)
-        .caption("Composited, by accuracy tier (1 node)", ("sans-serif", 18))
-        .margin(12)
-        .x_label_area_size(36)
-        .y_label_area_size(48)
-        .build_cartesian_2d(0f64..tmax * 1.1, 0f64..pmax * 1.1)
-        .map_err(|e| format!("{e:?}"))?;
-    chart
-        .configure_mesh()
-        .x_desc("wall ms, this machine")
-        .y_desc("PSNR (dB) vs exact dt 1/16")
-        .draw()
-        .map_err(|e| format!("{e:?}"))?;
+    let mut chart = chart::linear(
+        area,
+        "Composited, by accuracy tier (1 node)",
+        ("wall ms, this machine", "PSNR (dB) vs exact dt 1/16"),
+        (tmax, pmax),
+    )?;
     let lines = [("exact", BLUE), ("fast", GREEN)].map(|(tier, colour)| Line {
         points: sweep
             .iter()

@@ -8,7 +8,7 @@
 //! [`super::instructions`]'s.
 
 use super::error::ExperimentError;
-use super::sod::{sized, sod_source, COMPOSITE_TRANSFER, SOD_ISO, SURFACE_VIEW};
+use super::sod::{composite, sized, sod_source, SOD_ISO, SURFACE_VIEW};
 use crate::input::scene::Scene;
 use crate::memory::storage::SkipMode;
 use crate::run::render::{render_on, Fabric, Machine};
@@ -25,33 +25,10 @@ pub const FAST_VIEW: &str = "composite-fast";
 /// fast tier down to. Benchmarked at the paper's size only.
 pub const UNLIT_VIEW: &str = "composite-unlit";
 
-/// The paper's view composited, named NAME, in the accuracy tier TIER, shaded or not
-/// (SHADING).
-const COMPOSITE_VIEW: &str = r#"
-[[datasets.views]]
-name = "NAME"
-width = WIDTH
-height = HEIGHT
-dt = DT
-mode = "composite"
-accuracy = "TIER"
-shading = SHADING
-[datasets.views.camera]
-azimuth = 45.0
-width = SPAN
-"#;
-
 /// The views benchmarked at `size`: the paper's view as a shaded surface and composited, and
 /// composited in the fast tier (unlit too at the paper's size), each with its placeholders
 /// for the size still in.
 fn views(size: Size) -> String {
-    let composite = |name: &str, tier: &str, shading: bool| {
-        COMPOSITE_VIEW
-            .replace("NAME", name)
-            .replace("TIER", tier)
-            .replace("SHADING", &shading.to_string())
-            + COMPOSITE_TRANSFER
-    };
     let unlit = if size == Size::PAPER {
         composite(UNLIT_VIEW, "fast", false)
     } else {
@@ -366,7 +343,7 @@ pub fn table(rows: &[Row], runs: usize) -> String {
 pub fn versus_vtk(rows: &[Row], vtk: Option<super::peer::VtkTimes>) -> String {
     let Some(vtk) = vtk else {
         return format!(
-            "VTK: not measured (its peer is not installed: ../shared/peers/setup.sh makes {})\n",
+            "VTK: not measured (its peer is not installed: peers/setup.sh makes {})\n",
             super::peer::VENV_PYTHON
         );
     };

@@ -77,22 +77,46 @@ pub enum Source<'a> {
     Substitute,
 }
 
+impl Source<'_> {
+    /// SOD's file: the one named, or [`SOD_FILE`] in the folder named; `None` for the
+    /// substitute.
+    pub fn file(&self) -> Option<std::path::PathBuf> {
+        match self {
+            Source::Sod(path) if path.is_dir() => Some(path.join(SOD_FILE)),
+            Source::Sod(path) => Some(path.to_path_buf()),
+            Source::Substitute => None,
+        }
+    }
+}
+
 /// The dataset: SOD from `source` (a missing file is an error), or the built-in substitute
 /// when asked for (with a note).
 pub fn dataset(source: Source<'_>, notes: &mut String) -> Result<DatasetJob, ExperimentError> {
-    let (source, iso) = match source {
-        Source::Sod(path) => {
-            let file = if path.is_dir() {
-                path.join(SOD_FILE)
-            } else {
-                path.to_path_buf()
-            };
+    dataset_of(
+        source,
+        |iso| {
+            paper_surface_view()
+                .replace("NAME", "paper")
+                .replace("ISO", iso)
+        },
+        notes,
+    )
+}
+
+/// The dataset of [`dataset`] with the views `views` gives for the volume's iso value.
+pub fn dataset_of(
+    source: Source<'_>,
+    views: impl FnOnce(&str) -> String,
+    notes: &mut String,
+) -> Result<DatasetJob, ExperimentError> {
+    let (source, iso) = match (&source, source.file()) {
+        (Source::Sod(path), Some(file)) => {
             if !file.is_file() {
                 return Err(ExperimentError::NoSod(path.to_path_buf()));
             }
             (sod_source(&file), SOD_ISO)
         }
-        Source::Substitute => {
+        _ => {
             let _ = writeln!(
                 notes,
                 "--substitute: using the built-in molecule of SOD's size and character"
@@ -101,10 +125,7 @@ pub fn dataset(source: Source<'_>, notes: &mut String) -> Result<DatasetJob, Exp
             ("builtin = \"molecule\"".to_string(), "40.0")
         }
     };
-    let text = format!("[[datasets]]\nname = \"sod\"\n{source}\n")
-        + &paper_surface_view()
-            .replace("NAME", "paper")
-            .replace("ISO", iso);
+    let text = format!("[[datasets]]\nname = \"sod\"\n{source}\n") + &views(iso);
     Ok(Scene::parse(&text, "<paper>", Path::new("."))?
         .load()?
         .remove(0))

@@ -58,6 +58,33 @@ pub fn paper_surface_view() -> String {
     sized(SURFACE_VIEW, 350, 250, 0.5, 175.0)
 }
 
+/// The paper's view composited, named NAME, in the accuracy tier TIER, shaded or not
+/// (SHADING), with [`SURFACE_VIEW`]'s size placeholders and without lights (a scene's default
+/// light).
+const COMPOSITE_VIEW: &str = r#"
+[[datasets.views]]
+name = "NAME"
+width = WIDTH
+height = HEIGHT
+dt = DT
+mode = "composite"
+accuracy = "TIER"
+shading = SHADING
+[datasets.views.camera]
+azimuth = 45.0
+width = SPAN
+"#;
+
+/// The paper's view composited with [`COMPOSITE_TRANSFER`], named `name`, in accuracy tier
+/// `tier`, shaded or not, its size placeholders still to fill ([`sized`]).
+pub fn composite(name: &str, tier: &str, shading: bool) -> String {
+    COMPOSITE_VIEW
+        .replace("NAME", name)
+        .replace("TIER", tier)
+        .replace("SHADING", &shading.to_string())
+        + COMPOSITE_TRANSFER
+}
+
 /// SOD's transfer function, for every composited view of it the experiments take.
 pub const COMPOSITE_TRANSFER: &str = r#"[[datasets.views.transfer]]
 value = 10.0

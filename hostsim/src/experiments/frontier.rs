@@ -1,0 +1,601 @@
+//! `voxcube accuracy --frontier`: for the error a user accepts, which renderer and which step
+//! is fastest. SOD's paper view at 350×250, composited and as a surface, rendered in one run
+//! by VTK's CPU ray caster ([`super::peer`]) and by voxcube's two tiers over a sweep of Δt;
+//! each image timed on every core (the median of several frames after a first) and measured
+//! two ways: against its own renderer's converged image (Δt = 1/16; for voxcube, its tier's)
+//! and against voxcube's exact one.
+//!
+//! Invariant: the images of one mode differ in the renderer and Δt only: the same camera,
+//! size, transfer function or iso value, shading coefficients and light (VTK's headlight:
+//! voxcube's views take a directional light along the camera's forward axis).
+
+use super::accuracy::{compare, p99_error};
+use super::chart::{self, Line};
+use super::error::ExperimentError;
+use super::paper::{dataset_of, Source};
+use super::peer::{Frame, Peer, PeerMode, Request};
+use super::sod::{composite, sized, SURFACE_VIEW};
+use crate::input::scene::DatasetJob;
+use crate::run::render::{render_on, Fabric, Machine};
+use plotters::prelude::*;
+use std::fmt::Write as _;
+use std::path::Path;
+use std::time::Duration;
+use voxcube_kernel::optics::shade::Light;
+use voxcube_kernel::trace::view::{Accuracy, View};
+use voxcube_kernel::Vec3;
+
+/// The steps voxcube's tiers are rendered at, coarse to fine, in cell edges.
+pub const STEPS: [f32; 10] = [2.0, 1.75, 1.5, 1.375, 1.25, 1.0, 0.75, 0.5, 0.25, 0.125];
+
+/// The steps VTK is rendered at.
+pub const VTK_STEPS: [f32; 4] = [1.0, 0.5, 0.25, 0.125];
+
+/// The step of every renderer's converged image.
+pub const CONVERGED: f32 = 1.0 / 16.0;
+
+/// The step of VTK's image the headline compares against: the paper's.
+pub const VTK_HEADLINE_STEP: f32 = 0.5;
+
+/// The issue's target for the composited view: the headline's time at most this fraction of
+/// VTK's.
+pub const TARGET: f64 = 0.33;
+
+/// The 99th percentile over pixels of a pixel's largest channel difference, in 8-bit
+/// levels, within which an image no longer changes: a level is what rounding a converged
+/// colour can move. The percentile, not the maximum: a surface's silhouette keeps flipping a
+/// few pixels between hit and miss at every step.
+pub const UNCHANGED_LEVELS: u8 = 1;
+
+/// Which view.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    /// Composited with SOD's transfer function.
+    Composite,
+    /// The iso-surface.
+    Surface,
+}
+
+impl Mode {
+    fn name(self) -> &'static str {
+        match self {
+            Mode::Composite => "composite",
+            Mode::Surface => "surface",
+        }
+    }
+
+    fn peer(self) -> PeerMode {
+        match self {
+            Mode::Composite => PeerMode::Composite,
+            Mode::Surface => PeerMode::Surface,
+        }
+    }
+}
+
+/// Who rendered an image.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Renderer {
+    /// VTK's CPU ray caster.
+    Vtk,
+    /// voxcube in an accuracy tier.
+    Voxcube(Accuracy),
+}
+
+impl Renderer {
+    fn name(self) -> String {
+        match self {
+            Renderer::Vtk => "VTK".into(),
+            Renderer::Voxcube(tier) => format!("voxcube {}", tier.name()),
+        }
+    }
+}
+
+/// One image of the sweep.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Point {
+    /// Which view.
+    pub mode: Mode,
+    /// Who rendered it.
+    pub renderer: Renderer,
+    /// Its step, in cell edges.
+    pub dt: f32,
+    /// Median milliseconds per frame on every core.
+    pub ms: f64,
+    /// PSNR (dB) against its own renderer's converged image (infinite when identical).
+    pub own: f64,
+    /// The 99th percentile over pixels of a pixel's largest channel difference from that
+    /// image, 8-bit levels.
+    pub own_p99: u8,
+    /// The largest difference in any channel from that image, 8-bit levels.
+    pub own_max: u8,
+    /// PSNR (dB) against voxcube's exact converged image.
+    pub reference: f64,
+}
+
+/// The frontier's answer for one mode: VTK at the paper's step, and the fastest voxcube
+/// image that is at least as close to its own converged image.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Headline {
+    /// VTK at [`VTK_HEADLINE_STEP`].
+    pub vtk: Point,
+    /// The fastest voxcube point with `own` at least VTK's; `None` where none is.
+    pub best: Option<Point>,
+}
+
+impl Headline {
+    /// The best point's time over VTK's.
+    pub fn ratio(&self) -> Option<f64> {
+        self.best.map(|b| b.ms / self.vtk.ms)
+    }
+}
+
+/// The headline of `mode` among `points`: `None` without VTK's image at its step.
+pub fn headline(points: &[Point], mode: Mode) -> Option<Headline> {
+    let vtk = *points
+        .iter()
+        .find(|p| p.mode == mode && p.renderer == Renderer::Vtk && p.dt == VTK_HEADLINE_STEP)?;
+    let best = points
+        .iter()
+        .filter(|p| p.mode == mode && matches!(p.renderer, Renderer::Voxcube(_)))
+        .filter(|p| p.own >= vtk.own)
+        .min_by(|a, b| a.ms.total_cmp(&b.ms))
+        .copied();
+    Some(Headline { vtk, best })
+}
+
+/// The largest step of `renderer` in `mode` from which on every finer step's image is within
+/// [`UNCHANGED_LEVELS`] of the converged one (its 99th percentile); `None` where even the
+/// finest is not.
+pub fn unchanged_from(points: &[Point], mode: Mode, renderer: Renderer) -> Option<f32> {
+    let mut steps: Vec<&Point> = points
+        .iter()
+        .filter(|p| p.mode == mode && p.renderer == renderer)
+        .collect();
+    // Fine to coarse: the run of unchanged images from the finest on.
+    steps.sort_by(|a, b| a.dt.total_cmp(&b.dt));
+    steps
+        .iter()
+        .take_while(|p| p.own_p99 <= UNCHANGED_LEVELS)
+        .last()
+        .map(|p| p.dt)
+}
+
+/// The sweep's points and what it had to leave out.
+#[derive(Clone, Debug, Default)]
+pub struct Frontier {
+    /// Every image but the converged ones.
+    pub points: Vec<Point>,
+    /// What was left out, and why.
+    pub notes: String,
+}
+
+/// The views: SOD's paper view as a surface and composited at 350×250, lit by a headlight.
+fn job(source: Source<'_>, notes: &mut String) -> Result<DatasetJob, ExperimentError> {
+    let frame = Frame::PAPER;
+    let views = |iso: &str| {
+        sized(
+            &(SURFACE_VIEW.replace("NAME", Mode::Surface.name())
+                + &composite(Mode::Composite.name(), "exact", true)),
+            frame.width,
+            frame.height,
+            f64::from(frame.dt),
+            frame.span,
+        )
+        .replace("ISO", iso)
+    };
+    dataset_of(source, views, notes)
+}
+
+/// `view` at step `dt` in tier `tier`, lit by a headlight.
+fn variant(
+    view: &View,
+    job: &DatasetJob,
+    dt: f32,
+    tier: Accuracy,
+) -> Result<View, ExperimentError> {
+    let mut spec = view.spec().clone();
+    spec.dt = dt;
+    spec.accuracy = tier;
+    let headlight = Light::directional(spec.camera.forward(), Vec3::ONE, false)
+        .map_err(|e| ExperimentError::Asked(format!("a headlight: {e}")))?;
+    spec.lights.clear();
+    let _ = spec.lights.push(headlight);
+    View::new(spec, &job.volume.grid)
+        .map_err(|e| ExperimentError::Asked(format!("the view at dt {dt}: {e}")))
+}
+
+/// The median time and last image of `runs` renders of `view` on `machine`, after one more
+/// that builds what the volume keeps.
+fn timed(
+    job: &DatasetJob,
+    view: &View,
+    machine: &Machine,
+    runs: usize,
+) -> Result<(f64, Vec<[u8; 4]>), ExperimentError> {
+    let mut pixels = render_on(&job.volume, view, machine)?.pixels;
+    let mut times = Vec::new();
+    for _ in 0..runs.max(1) {
+        let r = render_on(&job.volume, view, machine)?;
+        times.push(r.wall);
+        pixels = r.pixels;
+    }
+    Ok((median_ms(times), pixels))
+}
+
+fn median_ms(mut times: Vec<Duration>) -> f64 {
+    times.sort();
+    times
+        .get(times.len() / 2)
+        .map_or(f64::NAN, |t| t.as_secs_f64() * 1e3)
+}
+
+/// Sweep both modes: voxcube's tiers at [`STEPS`] and VTK at [`VTK_STEPS`] where it is
+/// installed (and SOD read from its file), `runs` timed frames each.
+pub fn sweep(source: Source<'_>, runs: usize) -> Result<Frontier, ExperimentError> {
+    let mut frontier = Frontier::default();
+    let sod = source.file();
+    let job = job(source, &mut frontier.notes)?;
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get() as u32);
+    let cores = cores.max(1).next_power_of_two();
+    // The bench's best shape for SOD on every core: clusters of one node, each holding the
+    // fast tier's node field as VTK holds its tables.
+    let machine = Machine {
+        profile: crate::memory::budget::Profile::builtin("modern")
+            .unwrap_or_else(crate::memory::budget::Profile::ncube2),
+        ..Machine::new(Fabric::Threads, cores, cores, 1)
+    };
+    let peer = match &sod {
+        Some(file) => Peer::open(file).map_err(ExperimentError::Missing)?,
+        None => None,
+    };
+    if peer.is_none() {
+        let _ = writeln!(
+            frontier.notes,
+            "VTK: not rendered ({}): its curve is left out",
+            match sod {
+                Some(_) => format!(
+                    "not installed: peers/setup.sh makes {}",
+                    super::peer::VENV_PYTHON
+                ),
+                None => "the substitute is not SOD's file".into(),
+            }
+        );
+    }
+    for mode in [Mode::Composite, Mode::Surface] {
+        let base = job
+            .views
+            .iter()
+            .find(|v| v.name == mode.name())
+            .ok_or_else(|| ExperimentError::Missing(format!("the {} view", mode.name())))?;
+        let exact = variant(&base.view, &job, CONVERGED, Accuracy::Exact)?;
+        let reference = render_on(&job.volume, &exact, &machine)?.pixels;
+        for tier in [Accuracy::Exact, Accuracy::Fast] {
+            let converged = match tier {
+                Accuracy::Exact => reference.clone(),
+                Accuracy::Fast => {
+                    let view = variant(&base.view, &job, CONVERGED, tier)?;
+                    render_on(&job.volume, &view, &machine)?.pixels
+                }
+            };
+            for dt in STEPS {
+                let view = variant(&base.view, &job, dt, tier)?;
+                let (ms, pixels) = timed(&job, &view, &machine, runs)?;
+                frontier.points.push(point(
+                    mode,
+                    Renderer::Voxcube(tier),
+                    dt,
+                    ms,
+                    &pixels,
+                    Against {
+                        converged: &converged,
+                        reference: &reference,
+                    },
+                ));
+            }
+        }
+        if let Some(peer) = &peer {
+            let render = |dt: f32, runs: usize| {
+                let frame = Frame { dt, ..Frame::PAPER };
+                let request = Request {
+                    mode: mode.peer(),
+                    frame,
+                    runs,
+                };
+                let r = peer
+                    .render(request, true)
+                    .map_err(ExperimentError::Missing)?;
+                let pixels = r
+                    .pixels
+                    .ok_or_else(|| ExperimentError::Missing("VTK's image".into()))?;
+                Ok::<_, ExperimentError>((r.median.as_secs_f64() * 1e3, pixels))
+            };
+            let (_, converged) = render(CONVERGED, 1)?;
+            for dt in VTK_STEPS {
+                let (ms, pixels) = render(dt, runs)?;
+                frontier.points.push(point(
+                    mode,
+                    Renderer::Vtk,
+                    dt,
+                    ms,
+                    &pixels,
+                    Against {
+                        converged: &converged,
+                        reference: &reference,
+                    },
+                ));
+            }
+        }
+    }
+    Ok(frontier)
+}
+
+/// What an image is measured against: its own renderer's converged image and voxcube's exact
+/// one.
+#[derive(Clone, Copy)]
+struct Against<'a> {
+    converged: &'a [[u8; 4]],
+    reference: &'a [[u8; 4]],
+}
+
+/// The point of an image `pixels`.
+fn point(
+    mode: Mode,
+    renderer: Renderer,
+    dt: f32,
+    ms: f64,
+    pixels: &[[u8; 4]],
+    Against {
+        converged,
+        reference,
+    }: Against<'_>,
+) -> Point {
+    let (own, own_max) = compare(pixels, converged);
+    Point {
+        mode,
+        renderer,
+        dt,
+        ms,
+        own,
+        own_p99: p99_error(pixels, converged),
+        own_max,
+        reference: compare(pixels, reference).0,
+    }
+}
+
+fn db(psnr: f64) -> String {
+    match psnr.is_finite() {
+        true => format!("{psnr:.1}"),
+        false => "same".into(),
+    }
+}
+
+/// The tables, a mode each, then the headlines.
+pub fn table(frontier: &Frontier) -> String {
+    let mut out = frontier.notes.clone();
+    for mode in [Mode::Composite, Mode::Surface] {
+        let _ = writeln!(
+            out,
+            "-- {}, 350x250\n{:<16} {:>7} {:>9} {:>10} {:>9} {:>9} {:>12}",
+            mode.name(),
+            "renderer",
+            "dt",
+            "ms",
+            "PSNR own",
+            "p99 own",
+            "max own",
+            "PSNR exact"
+        );
+        for p in frontier.points.iter().filter(|p| p.mode == mode) {
+            let _ = writeln!(
+                out,
+                "{:<16} {:>7.4} {:>9.1} {:>10} {:>9} {:>9} {:>12}",
+                p.renderer.name(),
+                p.dt,
+                p.ms,
+                db(p.own),
+                p.own_p99,
+                p.own_max,
+                db(p.reference)
+            );
+        }
+        for renderer in [
+            Renderer::Voxcube(Accuracy::Exact),
+            Renderer::Voxcube(Accuracy::Fast),
+            Renderer::Vtk,
+        ] {
+            if frontier.points.iter().any(|p| p.renderer == renderer) {
+                let _ = writeln!(
+                    out,
+                    "{}: the image stops changing (99% of pixels within {UNCHANGED_LEVELS} level of dt 1/16) {}",
+                    renderer.name(),
+                    match unchanged_from(&frontier.points, mode, renderer) {
+                        Some(dt) => format!("from dt {dt} on"),
+                        None => "at no step swept".into(),
+                    }
+                );
+            }
+        }
+    }
+    out += "PSNR own: against the same renderer's (and tier's) image at dt 1/16; p99 own and \
+            max own: the 99th percentile over pixels and the largest of a pixel's largest \
+            channel difference from it, 8-bit levels; PSNR exact: against voxcube's exact \
+            tier at dt 1/16. Times: median ms per frame, every core, one run.\n";
+    for mode in [Mode::Composite, Mode::Surface] {
+        if let Some(h) = headline(&frontier.points, mode) {
+            let _ = writeln!(out, "{}", headline_line(mode, &h));
+        }
+    }
+    out
+}
+
+/// The sentence of `h`.
+fn headline_line(mode: Mode, h: &Headline) -> String {
+    let vtk = format!(
+        "VTK at dt {} is {} dB from its converged image in {:.1} ms",
+        h.vtk.dt,
+        db(h.vtk.own),
+        h.vtk.ms
+    );
+    match (h.best, h.ratio()) {
+        (Some(best), Some(ratio)) => format!(
+            "{}: {vtk}; {} at dt {} is {} dB from its own in {:.1} ms: {ratio:.2}x VTK's time{}",
+            mode.name(),
+            best.renderer.name(),
+            best.dt,
+            db(best.own),
+            best.ms,
+            match (mode, ratio <= TARGET) {
+                (Mode::Composite, true) => format!(" (target: at most {TARGET}x, met)"),
+                (Mode::Composite, false) => format!(" (target: at most {TARGET}x, not met)"),
+                (Mode::Surface, _) => String::new(),
+            }
+        ),
+        _ => format!(
+            "{}: {vtk}; no voxcube image swept is that close to its own{}",
+            mode.name(),
+            match mode {
+                Mode::Composite => " (target not met)",
+                Mode::Surface => "",
+            }
+        ),
+    }
+}
+
+/// Time against error (PSNR against each renderer's own converged image), a panel a mode, a
+/// line per renderer and tier through its steps.
+pub fn plot(path: &Path, frontier: &Frontier) -> Result<(), String> {
+    let root = SVGBackend::new(path, (1100, 440)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let (left, right) = root.split_horizontally(550);
+    for (area, mode) in [(&left, Mode::Composite), (&right, Mode::Surface)] {
+        let points: Vec<&Point> = frontier
+            .points
+            .iter()
+            .filter(|p| p.mode == mode && p.own.is_finite())
+            .collect();
+        let (tmax, pmax) = points
+            .iter()
+            .fold((1.0f64, 10.0f64), |(t, q), p| (t.max(p.ms), q.max(p.own)));
+        let mut chart = chart::linear(
+            area,
+            &format!("SOD {}, 350x250, every core", mode.name()),
+            ("ms per frame, one run", "PSNR (dB) vs its own dt 1/16"),
+            (tmax, pmax),
+        )?;
+        let lines = [
+            (Renderer::Voxcube(Accuracy::Exact), BLUE),
+            (Renderer::Voxcube(Accuracy::Fast), GREEN),
+            (Renderer::Vtk, RED),
+        ]
+        .map(|(renderer, colour)| Line {
+            points: points
+                .iter()
+                .filter(|p| p.renderer == renderer)
+                .map(|p| (p.ms, p.own))
+                .collect(),
+            colour,
+            label: renderer.name(),
+        });
+        chart::draw(&mut chart, lines.into())?;
+    }
+    root.present().map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn at(renderer: Renderer, dt: f32, ms: f64, own: f64, own_p99: u8) -> Point {
+        Point {
+            mode: Mode::Composite,
+            renderer,
+            dt,
+            ms,
+            own,
+            own_p99,
+            own_max: 255,
+            reference: own,
+        }
+    }
+
+    const FAST: Renderer = Renderer::Voxcube(Accuracy::Fast);
+    const EXACT: Renderer = Renderer::Voxcube(Accuracy::Exact);
+
+    #[test]
+    fn the_headline_is_the_fastest_voxcube_image_as_close_as_vtk_s_at_its_step() {
+        let points = [
+            at(Renderer::Vtk, 1.0, 40.0, 42.0, 9),
+            at(Renderer::Vtk, 0.5, 75.0, 43.0, 8),
+            at(FAST, 2.0, 20.0, 38.0, 30),
+            at(FAST, 1.25, 30.0, 44.0, 6),
+            at(EXACT, 1.25, 35.0, 44.0, 6),
+            at(FAST, 0.5, 60.0, 55.0, 2),
+        ];
+        let h = headline(&points, Mode::Composite).unwrap();
+        assert_eq!(h.vtk.ms, 75.0);
+        assert_eq!(h.best, Some(points[3]));
+        assert_eq!(h.ratio(), Some(0.4));
+        assert!(headline_line(Mode::Composite, &h)
+            .contains("0.40x VTK's time (target: at most 0.33x, not met)"));
+        // The target is the composited view's only.
+        assert!(!headline_line(Mode::Surface, &h).contains("target"));
+        // Negative control: a VTK closer than every voxcube image leaves no best, and says so.
+        let mut closer = points;
+        closer[1].own = 60.0;
+        let h = headline(&closer, Mode::Composite).unwrap();
+        assert_eq!(h.best, None);
+        assert!(headline_line(Mode::Composite, &h).contains("target not met"));
+        // Without VTK's image at its step there is no headline; the other mode has none.
+        assert_eq!(headline(&points[2..], Mode::Composite), None);
+        assert_eq!(headline(&points, Mode::Surface), None);
+    }
+
+    #[test]
+    fn an_image_stops_changing_where_every_finer_one_is_within_a_level() {
+        let points = [
+            at(FAST, 2.0, 1.0, 40.0, 9),
+            at(FAST, 1.0, 1.0, 50.0, 1),
+            at(FAST, 0.5, 1.0, 60.0, 3),
+            at(FAST, 0.25, 1.0, 70.0, 1),
+            at(FAST, 0.125, 1.0, 80.0, 0),
+        ];
+        // 1.0 is within a level, but 0.5 after it is not: the run from the finest ends at 0.25.
+        assert_eq!(unchanged_from(&points, Mode::Composite, FAST), Some(0.25));
+        assert_eq!(unchanged_from(&points, Mode::Composite, EXACT), None);
+        let mut coarse = points;
+        coarse[4].own_p99 = 2;
+        assert_eq!(unchanged_from(&coarse, Mode::Composite, FAST), None);
+    }
+
+    #[test]
+    fn the_views_differ_in_step_and_tier_only_and_take_a_headlight() {
+        let mut notes = String::new();
+        let job = job(Source::Substitute, &mut notes).unwrap();
+        assert!(notes.contains("--substitute"));
+        for mode in [Mode::Composite, Mode::Surface] {
+            let base = &job
+                .views
+                .iter()
+                .find(|v| v.name == mode.name())
+                .unwrap()
+                .view;
+            let a = variant(base, &job, 0.5, Accuracy::Exact).unwrap();
+            let b = variant(base, &job, 1.25, Accuracy::Fast).unwrap();
+            let (sa, sb) = (a.spec(), b.spec());
+            assert_eq!((sa.width, sa.height), (350, 250));
+            assert_eq!((sa.dt, sb.dt), (0.5, 1.25));
+            assert_eq!(
+                (sa.accuracy, sb.accuracy),
+                (Accuracy::Exact, Accuracy::Fast)
+            );
+            assert_eq!(sa.camera, sb.camera);
+            assert_eq!(sa.mode, sb.mode);
+            assert_eq!(sa.lights.len(), 1);
+            let toward = sa.lights[0].toward_everywhere().unwrap();
+            assert!((toward + sa.camera.forward()).length() < 1e-6, "{toward}");
+            // The scene's own light is not a headlight: the variant replaced it.
+            let own = base.spec().lights[0].toward_everywhere().unwrap();
+            assert!((own + sa.camera.forward()).length() > 0.1);
+        }
+    }
+}
