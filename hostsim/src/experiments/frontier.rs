@@ -277,21 +277,15 @@ pub fn sweep(source: Source<'_>, runs: usize) -> Result<Frontier, ExperimentErro
                     render_on(&job.volume, &view, &machine)?.pixels
                 }
             };
-            for dt in STEPS {
+            let against = Against {
+                converged: &converged,
+                reference: &reference,
+            };
+            let renderer = (mode, Renderer::Voxcube(tier));
+            measure(&mut frontier.points, renderer, &STEPS, against, |dt| {
                 let view = variant(&base.view, &job, dt, tier)?;
-                let (ms, pixels) = timed(&job, &view, &machine, runs)?;
-                frontier.points.push(point(
-                    mode,
-                    Renderer::Voxcube(tier),
-                    dt,
-                    ms,
-                    &pixels,
-                    Against {
-                        converged: &converged,
-                        reference: &reference,
-                    },
-                ));
-            }
+                timed(&job, &view, &machine, runs)
+            })?;
         }
         if let Some(peer) = &peer {
             let render = |dt: f32, runs: usize| {
@@ -310,20 +304,14 @@ pub fn sweep(source: Source<'_>, runs: usize) -> Result<Frontier, ExperimentErro
                 Ok::<_, ExperimentError>((r.median.as_secs_f64() * 1e3, pixels))
             };
             let (_, converged) = render(CONVERGED, 1)?;
-            for dt in VTK_STEPS {
-                let (ms, pixels) = render(dt, runs)?;
-                frontier.points.push(point(
-                    mode,
-                    Renderer::Vtk,
-                    dt,
-                    ms,
-                    &pixels,
-                    Against {
-                        converged: &converged,
-                        reference: &reference,
-                    },
-                ));
-            }
+            let against = Against {
+                converged: &converged,
+                reference: &reference,
+            };
+            let renderer = (mode, Renderer::Vtk);
+            measure(&mut frontier.points, renderer, &VTK_STEPS, against, |dt| {
+                render(dt, runs)
+            })?;
         }
     }
     Ok(frontier)
@@ -335,6 +323,22 @@ pub fn sweep(source: Source<'_>, runs: usize) -> Result<Frontier, ExperimentErro
 struct Against<'a> {
     converged: &'a [[u8; 4]],
     reference: &'a [[u8; 4]],
+}
+
+/// The points of `renderer`'s images of `mode` at `steps`, each `render`ed (its median ms and
+/// last image) and measured `against` the converged ones.
+fn measure(
+    points: &mut Vec<Point>,
+    (mode, renderer): (Mode, Renderer),
+    steps: &[f32],
+    against: Against<'_>,
+    mut render: impl FnMut(f32) -> Result<(f64, Vec<[u8; 4]>), ExperimentError>,
+) -> Result<(), ExperimentError> {
+    for &dt in steps {
+        let (ms, pixels) = render(dt)?;
+        points.push(point(mode, renderer, dt, ms, &pixels, against));
+    }
+    Ok(())
 }
 
 /// The point of an image `pixels`.
