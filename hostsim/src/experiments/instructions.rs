@@ -121,11 +121,10 @@ pub fn run(sod: &Path) -> Result<Vec<Count>, InstructionsError> {
     if !sod.is_file() {
         return Err(InstructionsError::NoSod(sod.to_path_buf()));
     }
-    let names: Vec<String> = sod_views(sod)
-        .map_err(InstructionsError::Bench)?
-        .iter()
-        .flat_map(|j| j.views.iter().map(|v| v.name.clone()))
-        .collect();
+    // Named without reading SOD: each counted child loads it itself.
+    let names = Scene::parse(&sod_scene(Size::PAPER, sod), "<bench>", Path::new("."))
+        .map_err(|e| InstructionsError::Bench(e.to_string()))?
+        .view_names();
     let exe = std::env::current_exe().map_err(InstructionsError::OwnPath)?;
     let scratch = tempfile::tempdir()
         .map_err(|e| InstructionsError::Scratch("a scratch folder".into(), e))?;

@@ -582,6 +582,15 @@ impl Scene {
         self
     }
 
+    /// Every view's name, in order, without loading a dataset (as [`Scene::load`] names
+    /// them, orbits aside).
+    pub fn view_names(&self) -> Vec<String> {
+        self.datasets
+            .iter()
+            .flat_map(|(d, _)| d.views.iter().enumerate().map(|(j, v)| view_name(v, j)))
+            .collect()
+    }
+
     /// Load every dataset and build every view; nothing is rendered yet.
     pub fn load(self) -> Result<Vec<DatasetJob>, SceneError> {
         self.load_orbits(None)
@@ -1190,4 +1199,53 @@ fn build_view(v: &ViewToml, grid: &Grid, tweak: &CameraTweak) -> Result<View, (S
         accuracy,
     };
     View::new(spec, grid).map_err(|e| (String::new(), e.to_string()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn views_are_named_as_loading_names_them_without_reading_a_dataset() {
+        let text = r#"
+[[datasets]]
+name = "m"
+builtin = "molecule"
+[[datasets.views]]
+name = "first"
+mode = "composite"
+[[datasets.views.transfer]]
+value = 50.0
+color = [1.0, 1.0, 1.0]
+opacity = 0.5
+[[datasets.views]]
+[[datasets.views.surfaces]]
+iso = 40.0
+[[datasets]]
+name = "absent"
+path = "no-such-volume.raw"
+format = "raw"
+dims = [4, 4, 4]
+type = "u8"
+[[datasets.views]]
+name = "last"
+[[datasets.views.surfaces]]
+iso = 1.0
+"#;
+        let scene = Scene::parse(text, "names.toml", Path::new(".")).unwrap();
+        assert_eq!(scene.view_names(), ["first", "view1", "last"]);
+        // Loading reads the second dataset's file, which is not there.
+        let e = scene.load().unwrap_err().to_string();
+        assert!(e.contains("no-such-volume.raw"), "{e}");
+        // Where every dataset loads, the names are the loaded views'.
+        let one = &text[..text.find("[[datasets]]\nname = \"absent\"").unwrap()];
+        let scene = Scene::parse(one, "names.toml", Path::new(".")).unwrap();
+        let names = scene.view_names();
+        let loaded: Vec<String> = scene.load().unwrap()[0]
+            .views
+            .iter()
+            .map(|v| v.name.clone())
+            .collect();
+        assert_eq!(names, loaded);
+    }
 }
