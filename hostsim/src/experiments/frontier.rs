@@ -229,9 +229,38 @@ fn median_ms(mut times: Vec<Duration>) -> f64 {
         .map_or(f64::NAN, |t| t.as_secs_f64() * 1e3)
 }
 
+/// The steps a sweep renders at.
+#[derive(Clone, Copy, Debug)]
+pub struct Steps<'a> {
+    /// voxcube's, each in both tiers.
+    pub voxcube: &'a [f32],
+    /// VTK's.
+    pub vtk: &'a [f32],
+    /// Every renderer's converged image.
+    pub converged: f32,
+}
+
+impl Steps<'static> {
+    /// The frontier's: [`STEPS`], [`VTK_STEPS`] and [`CONVERGED`].
+    pub const FRONTIER: Steps<'static> = Steps {
+        voxcube: &STEPS,
+        vtk: &VTK_STEPS,
+        converged: CONVERGED,
+    };
+}
+
 /// Sweep both modes: voxcube's tiers at [`STEPS`] and VTK at [`VTK_STEPS`] where it is
 /// installed (and SOD read from its file), `runs` timed frames each.
 pub fn sweep(source: Source<'_>, runs: usize) -> Result<Frontier, ExperimentError> {
+    sweep_over(source, runs, Steps::FRONTIER)
+}
+
+/// [`sweep`] at `steps`.
+pub fn sweep_over(
+    source: Source<'_>,
+    runs: usize,
+    steps: Steps<'_>,
+) -> Result<Frontier, ExperimentError> {
     let mut frontier = Frontier::default();
     let sod = source.file();
     let job = job(source, &mut frontier.notes)?;
@@ -267,13 +296,13 @@ pub fn sweep(source: Source<'_>, runs: usize) -> Result<Frontier, ExperimentErro
             .iter()
             .find(|v| v.name == mode.name())
             .ok_or_else(|| ExperimentError::Missing(format!("the {} view", mode.name())))?;
-        let exact = variant(&base.view, &job, CONVERGED, Accuracy::Exact)?;
+        let exact = variant(&base.view, &job, steps.converged, Accuracy::Exact)?;
         let reference = render_on(&job.volume, &exact, &machine)?.pixels;
         for tier in [Accuracy::Exact, Accuracy::Fast] {
             let converged = match tier {
                 Accuracy::Exact => reference.clone(),
                 Accuracy::Fast => {
-                    let view = variant(&base.view, &job, CONVERGED, tier)?;
+                    let view = variant(&base.view, &job, steps.converged, tier)?;
                     render_on(&job.volume, &view, &machine)?.pixels
                 }
             };
@@ -282,10 +311,16 @@ pub fn sweep(source: Source<'_>, runs: usize) -> Result<Frontier, ExperimentErro
                 reference: &reference,
             };
             let renderer = (mode, Renderer::Voxcube(tier));
-            measure(&mut frontier.points, renderer, &STEPS, against, |dt| {
-                let view = variant(&base.view, &job, dt, tier)?;
-                timed(&job, &view, &machine, runs)
-            })?;
+            measure(
+                &mut frontier.points,
+                renderer,
+                steps.voxcube,
+                against,
+                |dt| {
+                    let view = variant(&base.view, &job, dt, tier)?;
+                    timed(&job, &view, &machine, runs)
+                },
+            )?;
         }
         if let Some(peer) = &peer {
             let render = |dt: f32, runs: usize| {
@@ -303,13 +338,13 @@ pub fn sweep(source: Source<'_>, runs: usize) -> Result<Frontier, ExperimentErro
                     .ok_or_else(|| ExperimentError::Missing("VTK's image".into()))?;
                 Ok::<_, ExperimentError>((r.median.as_secs_f64() * 1e3, pixels))
             };
-            let (_, converged) = render(CONVERGED, 1)?;
+            let (_, converged) = render(steps.converged, 1)?;
             let against = Against {
                 converged: &converged,
                 reference: &reference,
             };
             let renderer = (mode, Renderer::Vtk);
-            measure(&mut frontier.points, renderer, &VTK_STEPS, against, |dt| {
+            measure(&mut frontier.points, renderer, steps.vtk, against, |dt| {
                 render(dt, runs)
             })?;
         }
@@ -569,6 +604,56 @@ mod tests {
         let mut coarse = points;
         coarse[4].own_p99 = 2;
         assert_eq!(unchanged_from(&coarse, Mode::Composite, FAST), None);
+    }
+
+    #[test]
+    fn a_sweep_measures_each_tier_against_its_own_converged_image() {
+        // The substitute (no SOD file: no VTK) at two steps, the finer one as "converged".
+        let steps = Steps {
+            voxcube: &[2.0, 1.0],
+            vtk: &VTK_STEPS,
+            converged: 1.0,
+        };
+        let frontier = sweep_over(Source::Substitute, 1, steps).unwrap();
+        assert!(
+            frontier.notes.contains("VTK: not rendered"),
+            "{}",
+            frontier.notes
+        );
+        assert_eq!(frontier.points.len(), 2 * 2 * 2, "{:?}", frontier.points);
+        assert!(frontier
+            .points
+            .iter()
+            .all(|p| p.renderer != Renderer::Vtk && p.ms > 0.0));
+        for mode in [Mode::Composite, Mode::Surface] {
+            for tier in [Accuracy::Exact, Accuracy::Fast] {
+                let at = |dt: f32| {
+                    *frontier
+                        .points
+                        .iter()
+                        .find(|p| {
+                            p.mode == mode && p.renderer == Renderer::Voxcube(tier) && p.dt == dt
+                        })
+                        .unwrap()
+                };
+                // The image at the converged step is that image, bit for bit; the coarser
+                // one is not (its negative control).
+                let (fine, coarse) = (at(1.0), at(2.0));
+                assert_eq!(
+                    (fine.own, fine.own_max, fine.own_p99),
+                    (f64::INFINITY, 0, 0)
+                );
+                assert!(coarse.own.is_finite() && coarse.own_max > 0, "{coarse:?}");
+                // Against voxcube's exact image: the exact tier's own is that image.
+                match tier {
+                    Accuracy::Exact => assert_eq!(fine.reference, f64::INFINITY),
+                    Accuracy::Fast => assert!(fine.reference.is_finite(), "{fine:?}"),
+                }
+            }
+        }
+        // Without VTK there is no headline, and the table says why.
+        assert_eq!(headline(&frontier.points, Mode::Composite), None);
+        assert!(table(&frontier).contains("VTK: not rendered"));
     }
 
     #[test]
