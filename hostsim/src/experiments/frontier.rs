@@ -29,7 +29,7 @@ use voxcube_kernel::Vec3;
 pub const STEPS: [f32; 10] = [2.0, 1.75, 1.5, 1.375, 1.25, 1.0, 0.75, 0.5, 0.25, 0.125];
 
 /// The steps VTK is rendered at.
-pub const VTK_STEPS: [f32; 4] = [1.0, 0.5, 0.25, 0.125];
+pub const VTK_STEPS: [f32; 5] = [2.0, 1.0, 0.5, 0.25, 0.125];
 
 /// The step of every renderer's converged image.
 pub const CONVERGED: f32 = 1.0 / 16.0;
