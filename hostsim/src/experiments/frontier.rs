@@ -1,6 +1,7 @@
 //! `voxcube accuracy --frontier`: for the error a user accepts, which renderer and which step
 //! is fastest. SOD's paper view at 350×250, composited and as a surface, rendered in one run
-//! by VTK's CPU ray caster ([`super::peer`]) and by voxcube's two tiers over a sweep of Δt;
+//! by VTK's CPU ray caster ([`super::peer`]) and by voxcube's two tiers over a sweep of Δt
+//! (on surfaces also the exact tier with its crossings unrefined, to show what refining buys);
 //! each image timed on every core (the median of several frames after a first) and measured
 //! two ways: against its own renderer's converged image (Δt = 1/16; for voxcube, its tier's)
 //! and against voxcube's exact one.
@@ -79,6 +80,9 @@ pub enum Renderer {
     Vtk,
     /// voxcube in an accuracy tier.
     Voxcube(Accuracy),
+    /// voxcube's exact tier with each surface crossing at its linear estimate, unrefined
+    /// (`refine_steps = 0`): what the refinement buys, surfaces only.
+    Unrefined,
 }
 
 impl Renderer {
@@ -86,6 +90,20 @@ impl Renderer {
         match self {
             Renderer::Vtk => "VTK".into(),
             Renderer::Voxcube(tier) => format!("voxcube {}", tier.name()),
+            Renderer::Unrefined => "voxcube unrefined".into(),
+        }
+    }
+
+    /// voxcube's renderers of `mode`: each tier, and on surfaces the unrefined crossing.
+    fn voxcube(mode: Mode) -> &'static [Renderer] {
+        const BOTH: [Renderer; 2] = [
+            Renderer::Voxcube(Accuracy::Exact),
+            Renderer::Voxcube(Accuracy::Fast),
+        ];
+        const SURFACE: [Renderer; 3] = [BOTH[0], BOTH[1], Renderer::Unrefined];
+        match mode {
+            Mode::Composite => &BOTH,
+            Mode::Surface => &SURFACE,
         }
     }
 }
@@ -136,7 +154,7 @@ pub fn headline(points: &[Point], mode: Mode) -> Option<Headline> {
         .find(|p| p.mode == mode && p.renderer == Renderer::Vtk && p.dt == VTK_HEADLINE_STEP)?;
     let best = points
         .iter()
-        .filter(|p| p.mode == mode && matches!(p.renderer, Renderer::Voxcube(_)))
+        .filter(|p| p.mode == mode && p.renderer != Renderer::Vtk)
         .filter(|p| p.own >= vtk.own)
         .min_by(|a, b| a.ms.total_cmp(&b.ms))
         .copied();
@@ -186,16 +204,27 @@ fn job(source: Source<'_>, notes: &mut String) -> Result<DatasetJob, ExperimentE
     dataset_of(source, views, notes)
 }
 
-/// `view` at step `dt` in tier `tier`, lit by a headlight.
+/// `view` at step `dt` as `renderer` (one of voxcube's) renders it, lit by a headlight.
 fn variant(
     view: &View,
     job: &DatasetJob,
     dt: f32,
-    tier: Accuracy,
+    renderer: Renderer,
 ) -> Result<View, ExperimentError> {
     let mut spec = view.spec().clone();
     spec.dt = dt;
-    spec.accuracy = tier;
+    match renderer {
+        Renderer::Voxcube(tier) => spec.accuracy = tier,
+        Renderer::Unrefined => {
+            spec.accuracy = Accuracy::Exact;
+            spec.refine_steps = 0;
+        }
+        Renderer::Vtk => {
+            return Err(ExperimentError::Asked(
+                "VTK's views are the peer script's".into(),
+            ))
+        }
+    }
     let headlight = Light::directional(spec.camera.forward(), Vec3::ONE, false)
         .map_err(|e| ExperimentError::Asked(format!("a headlight: {e}")))?;
     spec.lights.clear();
@@ -296,13 +325,14 @@ pub fn sweep_over(
             .iter()
             .find(|v| v.name == mode.name())
             .ok_or_else(|| ExperimentError::Missing(format!("the {} view", mode.name())))?;
-        let exact = variant(&base.view, &job, steps.converged, Accuracy::Exact)?;
-        let reference = render_on(&job.volume, &exact, &machine)?.pixels;
-        for tier in [Accuracy::Exact, Accuracy::Fast] {
-            let converged = match tier {
-                Accuracy::Exact => reference.clone(),
-                Accuracy::Fast => {
-                    let view = variant(&base.view, &job, steps.converged, tier)?;
+        let exact = Renderer::Voxcube(Accuracy::Exact);
+        let reference = variant(&base.view, &job, steps.converged, exact)?;
+        let reference = render_on(&job.volume, &reference, &machine)?.pixels;
+        for &voxcube in Renderer::voxcube(mode) {
+            let converged = match voxcube == exact {
+                true => reference.clone(),
+                false => {
+                    let view = variant(&base.view, &job, steps.converged, voxcube)?;
                     render_on(&job.volume, &view, &machine)?.pixels
                 }
             };
@@ -310,14 +340,14 @@ pub fn sweep_over(
                 converged: &converged,
                 reference: &reference,
             };
-            let renderer = (mode, Renderer::Voxcube(tier));
+            let renderer = (mode, voxcube);
             measure(
                 &mut frontier.points,
                 renderer,
                 steps.voxcube,
                 against,
                 |dt| {
-                    let view = variant(&base.view, &job, dt, tier)?;
+                    let view = variant(&base.view, &job, dt, voxcube)?;
                     timed(&job, &view, &machine, runs)
                 },
             )?;
@@ -414,7 +444,7 @@ pub fn table(frontier: &Frontier) -> String {
     for mode in [Mode::Composite, Mode::Surface] {
         let _ = writeln!(
             out,
-            "-- {}, 350x250\n{:<16} {:>7} {:>9} {:>10} {:>9} {:>9} {:>12}",
+            "-- {}, 350x250\n{:<18} {:>7} {:>9} {:>10} {:>9} {:>9} {:>12}",
             mode.name(),
             "renderer",
             "dt",
@@ -427,7 +457,7 @@ pub fn table(frontier: &Frontier) -> String {
         for p in frontier.points.iter().filter(|p| p.mode == mode) {
             let _ = writeln!(
                 out,
-                "{:<16} {:>7.4} {:>9.1} {:>10} {:>9} {:>9} {:>12}",
+                "{:<18} {:>7.4} {:>9.1} {:>10} {:>9} {:>9} {:>12}",
                 p.renderer.name(),
                 p.dt,
                 p.ms,
@@ -437,12 +467,12 @@ pub fn table(frontier: &Frontier) -> String {
                 db(p.reference)
             );
         }
-        for renderer in [
-            Renderer::Voxcube(Accuracy::Exact),
-            Renderer::Voxcube(Accuracy::Fast),
-            Renderer::Vtk,
-        ] {
-            if frontier.points.iter().any(|p| p.renderer == renderer) {
+        for &renderer in Renderer::voxcube(mode).iter().chain([&Renderer::Vtk]) {
+            if frontier
+                .points
+                .iter()
+                .any(|p| p.mode == mode && p.renderer == renderer)
+            {
                 let _ = writeln!(
                     out,
                     "{}: the image stops changing (99% of pixels within {UNCHANGED_LEVELS} level of dt 1/16) {}",
@@ -524,8 +554,11 @@ pub fn plot(path: &Path, frontier: &Frontier) -> Result<(), String> {
         let lines = [
             (Renderer::Voxcube(Accuracy::Exact), BLUE),
             (Renderer::Voxcube(Accuracy::Fast), GREEN),
+            (Renderer::Unrefined, MAGENTA),
             (Renderer::Vtk, RED),
         ]
+        .into_iter()
+        .filter(|(renderer, _)| points.iter().any(|p| p.renderer == *renderer))
         .map(|(renderer, colour)| Line {
             points: points
                 .iter()
@@ -534,8 +567,9 @@ pub fn plot(path: &Path, frontier: &Frontier) -> Result<(), String> {
                 .collect(),
             colour,
             label: renderer.name(),
-        });
-        chart::draw(&mut chart, lines.into())?;
+        })
+        .collect();
+        chart::draw(&mut chart, lines)?;
     }
     root.present().map_err(|e| e.to_string())
 }
@@ -620,20 +654,19 @@ mod tests {
             "{}",
             frontier.notes
         );
-        assert_eq!(frontier.points.len(), 2 * 2 * 2, "{:?}", frontier.points);
+        // Two steps of each tier in each mode, and of the unrefined crossing on surfaces.
+        assert_eq!(frontier.points.len(), 2 * (2 + 3), "{:?}", frontier.points);
         assert!(frontier
             .points
             .iter()
             .all(|p| p.renderer != Renderer::Vtk && p.ms > 0.0));
         for mode in [Mode::Composite, Mode::Surface] {
-            for tier in [Accuracy::Exact, Accuracy::Fast] {
+            for &renderer in Renderer::voxcube(mode) {
                 let at = |dt: f32| {
                     *frontier
                         .points
                         .iter()
-                        .find(|p| {
-                            p.mode == mode && p.renderer == Renderer::Voxcube(tier) && p.dt == dt
-                        })
+                        .find(|p| p.mode == mode && p.renderer == renderer && p.dt == dt)
                         .unwrap()
                 };
                 // The image at the converged step is that image, bit for bit; the coarser
@@ -645,9 +678,10 @@ mod tests {
                 );
                 assert!(coarse.own.is_finite() && coarse.own_max > 0, "{coarse:?}");
                 // Against voxcube's exact image: the exact tier's own is that image.
-                match tier {
-                    Accuracy::Exact => assert_eq!(fine.reference, f64::INFINITY),
-                    Accuracy::Fast => assert!(fine.reference.is_finite(), "{fine:?}"),
+                match renderer {
+                    EXACT => assert_eq!(fine.reference, f64::INFINITY),
+                    FAST => assert!(fine.reference.is_finite(), "{fine:?}"),
+                    _ => {}
                 }
             }
         }
@@ -668,8 +702,8 @@ mod tests {
                 .find(|v| v.name == mode.name())
                 .unwrap()
                 .view;
-            let a = variant(base, &job, 0.5, Accuracy::Exact).unwrap();
-            let b = variant(base, &job, 1.25, Accuracy::Fast).unwrap();
+            let a = variant(base, &job, 0.5, EXACT).unwrap();
+            let b = variant(base, &job, 1.25, FAST).unwrap();
             let (sa, sb) = (a.spec(), b.spec());
             assert_eq!((sa.width, sa.height), (350, 250));
             assert_eq!((sa.dt, sb.dt), (0.5, 1.25));
@@ -685,6 +719,14 @@ mod tests {
             // The scene's own light is not a headlight: the variant replaced it.
             let own = base.spec().lights[0].toward_everywhere().unwrap();
             assert!((own + sa.camera.forward()).length() > 0.1);
+            // The unrefined renderer is the exact tier without the crossing's refinement.
+            let u = variant(base, &job, 0.5, Renderer::Unrefined).unwrap();
+            assert_eq!(
+                (u.spec().accuracy, u.spec().refine_steps),
+                (Accuracy::Exact, 0)
+            );
+            assert!(sa.refine_steps > 0);
+            assert!(variant(base, &job, 0.5, Renderer::Vtk).is_err());
         }
     }
 }
