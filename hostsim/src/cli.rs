@@ -183,6 +183,25 @@ fn source(data: &std::path::Path, substitute: bool) -> crate::experiments::paper
     }
 }
 
+/// Write `text` to `NAME.txt` and `plot` to `NAME.svg` in the folder `out` (made if need be),
+/// then print `notes`, `text` and where both went.
+fn table_and_plot(
+    out: &std::path::Path,
+    name: &str,
+    (notes, text): (&str, &str),
+    plot: impl FnOnce(&std::path::Path) -> Result<(), String>,
+) -> Result<(), Box<dyn std::error::Error>> {
+    std::fs::create_dir_all(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    let txt = out.join(format!("{name}.txt"));
+    std::fs::write(&txt, text).map_err(|e| format!("{}: {e}", txt.display()))?;
+    plot(&out.join(format!("{name}.svg")))?;
+    stdout(&format!(
+        "{notes}{text}wrote {}/{name}.txt and {name}.svg\n",
+        out.display()
+    ))?;
+    Ok(())
+}
+
 /// Run the command line; the process exit code.
 pub fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
@@ -272,15 +291,9 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
         } => {
             let frontier = crate::experiments::frontier::sweep(source(&data, substitute), runs)?;
             let table = crate::experiments::frontier::table(&frontier);
-            std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
-            std::fs::write(out.join("frontier.txt"), &table)
-                .map_err(|e| format!("{}: {e}", out.display()))?;
-            crate::experiments::frontier::plot(&out.join("frontier.svg"), &frontier)?;
-            stdout(&format!(
-                "{table}wrote {}/frontier.txt and frontier.svg\n",
-                out.display()
-            ))?;
-            Ok(())
+            table_and_plot(&out, "frontier", ("", &table), |svg| {
+                crate::experiments::frontier::plot(svg, &frontier)
+            })
         }
         Command::Accuracy {
             data,
@@ -294,15 +307,9 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             let profile = crate::profile::MachineProfile::ncube2();
             let points = crate::experiments::accuracy::sweep(&job, &profile);
             let table = crate::experiments::accuracy::table(&points);
-            std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
-            std::fs::write(out.join("accuracy.txt"), &table)
-                .map_err(|e| format!("{}: {e}", out.display()))?;
-            crate::experiments::accuracy::plot(&out.join("accuracy.svg"), &points)?;
-            stdout(&format!(
-                "{notes}{table}wrote {}/accuracy.txt and accuracy.svg\n",
-                out.display()
-            ))?;
-            Ok(())
+            table_and_plot(&out, "accuracy", (&notes, &table), |svg| {
+                crate::experiments::accuracy::plot(svg, &points)
+            })
         }
         Command::Bench {
             count_frame: Some(view),

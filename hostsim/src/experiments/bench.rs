@@ -141,8 +141,26 @@ impl Row {
     }
 }
 
-fn median(v: Vec<Duration>) -> Duration {
+/// The median of `v` (the upper of the two middles of an even count; zero when empty).
+pub(super) fn median(v: Vec<Duration>) -> Duration {
     middle(v, Ord::cmp).unwrap_or_default()
+}
+
+/// This host's cores, as the power of two the machine shapes take.
+pub(super) fn cores() -> u32 {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get() as u32);
+    cores.max(1).next_power_of_two()
+}
+
+/// One cluster of one node per core (`cores`, a power of two) on threads, each node with this
+/// host's memory (the modern profile), as VTK has: room for the fast tier's node field
+/// beside the slab, which an nCUBE 2 node lacks. The best shape for SOD on every core.
+pub(super) fn every_core_modern(cores: u32) -> Machine {
+    Machine {
+        profile: crate::memory::budget::Profile::builtin("modern")
+            .unwrap_or_else(crate::memory::budget::Profile::ncube2),
+        ..Machine::new(Fabric::Threads, cores, cores, 1)
+    }
 }
 
 /// The middle of `v` in the order `by` (the upper of the two middles of an even count);
@@ -166,15 +184,9 @@ pub fn machines(cores: u32, size: Size) -> Vec<(String, Machine)> {
             format!("threads, {cores} clusters of 1"),
             Machine::new(Fabric::Threads, cores, cores, 1),
         ),
-        // The same on nodes with this host's memory (the modern profile), as VTK has: room
-        // for the fast tier's node field beside the slab, which an nCUBE 2 node lacks.
         (
             format!("threads, {cores} clusters of 1, modern nodes"),
-            Machine {
-                profile: crate::memory::budget::Profile::builtin("modern")
-                    .unwrap_or_else(crate::memory::budget::Profile::ncube2),
-                ..Machine::new(Fabric::Threads, cores, cores, 1)
-            },
+            every_core_modern(cores),
         ),
     ];
     if size == Size::PAPER {
@@ -248,7 +260,7 @@ pub fn run(
     sod: &Path,
     out: &mut String,
 ) -> Result<Vec<Row>, ExperimentError> {
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get() as u32);
+    let cores = cores();
     let mut rows = Vec::new();
     for &size in sizes {
         let mut scenes = vec![molecule_scene(size)];

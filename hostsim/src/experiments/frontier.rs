@@ -11,17 +11,17 @@
 //! voxcube's views take a directional light along the camera's forward axis).
 
 use super::accuracy::{compare, p99_error};
+use super::bench::{cores, every_core_modern, median};
 use super::chart::{self, Line};
 use super::error::ExperimentError;
 use super::paper::{dataset_of, Source};
 use super::peer::{Frame, Peer, PeerMode, Request};
 use super::sod::{composite, sized, SURFACE_VIEW};
 use crate::input::scene::DatasetJob;
-use crate::run::render::{render_on, Fabric, Machine};
+use crate::run::render::{render_on, Machine};
 use plotters::prelude::*;
 use std::fmt::Write as _;
 use std::path::Path;
-use std::time::Duration;
 use voxcube_kernel::optics::shade::Light;
 use voxcube_kernel::trace::view::{Accuracy, View};
 use voxcube_kernel::Vec3;
@@ -248,14 +248,7 @@ fn timed(
         times.push(r.wall);
         pixels = r.pixels;
     }
-    Ok((median_ms(times), pixels))
-}
-
-fn median_ms(mut times: Vec<Duration>) -> f64 {
-    times.sort();
-    times
-        .get(times.len() / 2)
-        .map_or(f64::NAN, |t| t.as_secs_f64() * 1e3)
+    Ok((median(times).as_secs_f64() * 1e3, pixels))
 }
 
 /// The steps a sweep renders at.
@@ -293,15 +286,8 @@ pub fn sweep_over(
     let mut frontier = Frontier::default();
     let sod = source.file();
     let job = job(source, &mut frontier.notes)?;
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get() as u32);
-    let cores = cores.max(1).next_power_of_two();
-    // The bench's best shape for SOD on every core: clusters of one node, each holding the
-    // fast tier's node field as VTK holds its tables.
-    let machine = Machine {
-        profile: crate::memory::budget::Profile::builtin("modern")
-            .unwrap_or_else(crate::memory::budget::Profile::ncube2),
-        ..Machine::new(Fabric::Threads, cores, cores, 1)
-    };
+    // The bench's best shape for SOD on every core.
+    let machine = every_core_modern(cores());
     let peer = match &sod {
         Some(file) => Peer::open(file).map_err(ExperimentError::Missing)?,
         None => None,

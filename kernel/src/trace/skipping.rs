@@ -165,8 +165,7 @@ impl<'s> Skipper<'s> {
         distance: u8,
     ) -> u32 {
         let exits = self.exits.get_or_insert_with(|| Exits::new(ray));
-        let d = f32::from(distance);
-        let far = cell + Vec4::select(exits.rising, Vec4::splat(d), Vec4::splat(1.0 - d));
+        let far = cube_far(cell, distance, exits);
         last_short_of_before(ray, k, end, slab.grid(), far, exits)
     }
 
@@ -453,11 +452,7 @@ fn cell_leap<T: Sample>(
     let owned = OwnedFaces::of(slab);
     let mut k = ray.k;
     loop {
-        // The cube's far faces: `distance` cells up from the cell's low face, or its lowest
-        // cell's low face, `distance - 1` cells down.
-        let d = f32::from(distance);
-        let far =
-            owned.clamp(cell + Vec4::select(exits.rising, Vec4::splat(d), Vec4::splat(1.0 - d)));
+        let far = owned.clamp(cube_far(cell, distance, exits));
         let last = last_short_of(ray, k, grid, far, exits);
         let next = match last.checked_add(1) {
             Some(next) if next <= ray.lattice.last => next,
@@ -473,6 +468,16 @@ fn cell_leap<T: Sample>(
             d => (k, cell, distance) = (next, landing, d),
         }
     }
+}
+
+/// The far faces of the cube of cells a cell leap map's `distance` (at least 1) promises empty
+/// ahead of the cell whose low corner is `cell`, for the octant `exits` moves in: `distance`
+/// cells up from the cell's low face on each axis the ray moves up, or its lowest cell's low
+/// face, `distance − 1` cells down, on every other.
+#[inline]
+fn cube_far(cell: Vec4, distance: u8, exits: &Exits) -> Vec4 {
+    let d = f32::from(distance);
+    cell + Vec4::select(exits.rising, Vec4::splat(d), Vec4::splat(1.0 - d))
 }
 
 /// The last sample from `ray.k` on (owned, at a parameter below `bound`) that is below
