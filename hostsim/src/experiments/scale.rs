@@ -7,50 +7,17 @@
 use super::error::ExperimentError;
 use super::sod::COMPOSITE_TRANSFER;
 use crate::input::builtin;
-use crate::input::dataset::{plane_major_from_fn, Volume, VolumeData};
+use crate::input::dataset::Volume;
 use crate::input::scene::Scene;
 use crate::run::render::{render_on, Fabric, Machine};
 use std::fmt::Write;
 use std::path::Path;
 use std::time::Duration;
-use voxcube_kernel::volume::grid::Grid;
-use voxcube_kernel::Vec3;
 
 /// Volume edges measured at the paper's image size.
 pub const VOLUMES: [u32; 3] = [128, 256, 512];
 /// Images measured on the 128³ volume.
 pub const IMAGES: [(u32, u32); 4] = [(350, 250), (700, 500), (1400, 1000), (2048, 1536)];
-
-/// The built-in molecule resampled trilinearly onto `n`³ samples (its 97×97×116 box
-/// stretched to a cube), rounded to u8: a volume of the molecule's character at any size.
-pub fn molecule_at(n: u32) -> Volume {
-    let m = builtin::molecule();
-    let [mx, my, mz] = m.grid.dims();
-    let VolumeData::U8(src) = &m.data else {
-        unreachable!("the molecule is u8")
-    };
-    let at = |x: usize, y: usize, z: usize| f32::from(src[(x * mz as usize + z) * my as usize + y]);
-    let scale = |d: u32| (d - 1) as f32 / (n.max(2) - 1) as f32;
-    let (sx, sy, sz) = (scale(mx), scale(my), scale(mz));
-    let data = plane_major_from_fn([n; 3], |x, y, z| {
-        let p = [x as f32 * sx, y as f32 * sy, z as f32 * sz];
-        let i = [0, 1, 2].map(|a| (p[a] as usize).min([mx, my, mz][a] as usize - 2));
-        let f = [0, 1, 2].map(|a| p[a] - i[a] as f32);
-        let mut v = 0.0;
-        for c in 0..8 {
-            let o = [c & 1, (c >> 1) & 1, (c >> 2) & 1];
-            let w: f32 = (0..3)
-                .map(|a| if o[a] == 1 { f[a] } else { 1.0 - f[a] })
-                .product();
-            v += w * at(i[0] + o[0], i[1] + o[1], i[2] + o[2]);
-        }
-        v.round().clamp(0.0, 255.0) as u8
-    });
-    Volume::new(
-        Grid::new([n; 3], Vec3::ONE).unwrap_or_else(|e| unreachable!("{e}")),
-        VolumeData::U8(data),
-    )
-}
 
 /// One measured frame.
 #[derive(Clone, Debug)]
@@ -132,7 +99,7 @@ pub fn run(runs: usize, out: &mut String) -> Result<Vec<ScaleRow>, ExperimentErr
     let mut volume: Option<Volume> = None;
     for (n, image) in work {
         if volume.as_ref().is_none_or(|v| v.grid.dims()[0] != n) {
-            volume = Some(molecule_at(n));
+            volume = Some(builtin::molecule_at(n));
         }
         let Some(volume) = volume.as_ref() else {
             continue;
@@ -226,25 +193,4 @@ pub fn table(rows: &[ScaleRow], runs: usize) -> String {
         }
     }
     out
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_resampled_molecule_keeps_the_molecule_s_corners_and_range() {
-        let m = builtin::molecule();
-        let small = molecule_at(97);
-        let VolumeData::U8(a) = &m.data else {
-            unreachable!()
-        };
-        let VolumeData::U8(b) = &small.data else {
-            unreachable!()
-        };
-        // The first X plane's first column maps onto itself (x and y scale by 1).
-        assert_eq!(a[0], b[0]);
-        assert_eq!(small.grid.dims(), [97; 3]);
-        assert!(small.stats().max > 100.0, "{}", small.stats());
-    }
 }

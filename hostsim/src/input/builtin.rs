@@ -5,6 +5,10 @@
 //! - `sphere`: a 64³ f32 signed distance to a sphere of radius 24 cells centred in the grid,
 //!   positive inside, for analytic tests of silhouettes (iso value 0).
 //!
+//! Each can also be generated at any edge `n` (a scene's `size`), so that a volume of any
+//! size renders without a download: the molecule resampled onto `n`³, the Marschner–Lobb
+//! function sampled on `n`³, the sphere on `n`³ with its radius scaled alike.
+//!
 //! Invariant: every volume is the same bits on every machine: a fixed seed, integer-exact
 //! arithmetic where possible, and libm (not the platform's maths library) for the rest.
 
@@ -16,12 +20,19 @@ use voxcube_kernel::Vec3;
 /// The names `builtin = "…"` accepts.
 pub const NAMES: [&str; 3] = ["molecule", "marschner-lobb", "sphere"];
 
-/// The built-in volume called `name`.
-pub fn volume(name: &str) -> Option<Volume> {
-    match name {
-        "molecule" => Some(molecule()),
-        "marschner-lobb" => Some(marschner_lobb()),
-        "sphere" => Some(sphere(64, 24.0)),
+/// The smallest `size`: a cell needs two samples a side.
+pub const MIN_SIZE: u32 = 2;
+
+/// The built-in volume called `name`, on `size`³ samples where given (at least [`MIN_SIZE`];
+/// the caller checks it against what memory it allows), else on its own grid.
+pub fn volume(name: &str, size: Option<u32>) -> Option<Volume> {
+    let size = size.map(|n| n.max(MIN_SIZE));
+    match (name, size) {
+        ("molecule", None) => Some(molecule()),
+        ("molecule", Some(n)) => Some(molecule_at(n)),
+        ("marschner-lobb", n) => Some(marschner_lobb(n.unwrap_or(41))),
+        ("sphere", None) => Some(sphere(64, 24.0)),
+        ("sphere", Some(n)) => Some(sphere(n, 0.375 * f64::from(n))),
         _ => None,
     }
 }
@@ -142,13 +153,62 @@ pub fn molecule() -> Volume {
     )
 }
 
-/// The Marschner–Lobb function (f_M = 6, α = 1/4) on `[-1, 1]³`, 41 samples per axis.
-pub fn marschner_lobb() -> Volume {
-    const N: u32 = 41;
+/// The molecule resampled trilinearly onto `n`³ samples (its 97×97×116 box stretched to a
+/// cube), rounded to u8: a volume of the molecule's character at any size. The interpolation
+/// is separable, along X, then Z, then Y (each a lerp in `f32`), so that a sample costs one
+/// lerp and a gigabyte takes seconds, not minutes.
+pub fn molecule_at(n: u32) -> Volume {
+    let m = molecule();
+    let [mx, my, mz] = m.grid.dims().map(|d| d as usize);
+    let VolumeData::U8(src) = &m.data else {
+        unreachable!("the molecule is u8")
+    };
+    // Per axis and output index: the source's lower node and the weight of the upper one.
+    let taps = |d: usize| -> Vec<(usize, f32)> {
+        let scale = (d - 1) as f32 / (n.max(MIN_SIZE) - 1) as f32;
+        (0..n)
+            .map(|i| {
+                let p = i as f32 * scale;
+                let lo = (p as usize).min(d - 2);
+                (lo, p - lo as f32)
+            })
+            .collect()
+    };
+    let (tx, ty, tz) = (taps(mx), taps(my), taps(mz));
+    let lerp = |a: f32, b: f32, w: f32| a + w * (b - a);
+    // Plane-major source: plane x, then z, then y fastest.
+    let plane = |x: usize| &src[x * mz * my..][..mz * my];
+    let nn = n as usize;
+    let mut data = Vec::with_capacity(nn * nn * nn);
+    let mut along_x = vec![0.0f32; mz * my];
+    let mut along_z = vec![0.0f32; my];
+    for &(x, wx) in &tx {
+        let (a, b) = (plane(x), plane(x + 1));
+        for (o, (&a, &b)) in along_x.iter_mut().zip(a.iter().zip(b)) {
+            *o = lerp(f32::from(a), f32::from(b), wx);
+        }
+        for &(z, wz) in &tz {
+            let (a, b) = (&along_x[z * my..][..my], &along_x[(z + 1) * my..][..my]);
+            for (o, (&a, &b)) in along_z.iter_mut().zip(a.iter().zip(b)) {
+                *o = lerp(a, b, wz);
+            }
+            data.extend(ty.iter().map(|&(y, wy)| {
+                let v = lerp(along_z[y], along_z[y + 1], wy);
+                v.round().clamp(0.0, 255.0) as u8
+            }));
+        }
+    }
+    volume_from([n; 3], VolumeData::U8(data))
+}
+
+/// The Marschner–Lobb function (f_M = 6, α = 1/4) on `[-1, 1]³`, `n` samples per axis (41 by
+/// default).
+pub fn marschner_lobb(n: u32) -> Volume {
+    let n = n.max(MIN_SIZE);
     let (fm, alpha) = (6.0f64, 0.25f64);
     let pi = core::f64::consts::PI;
-    let c = |i: u32| -1.0 + 2.0 * f64::from(i) / f64::from(N - 1);
-    let dims = [N; 3];
+    let c = |i: u32| -1.0 + 2.0 * f64::from(i) / f64::from(n - 1);
+    let dims = [n; 3];
     let data = plane_major_from_fn(dims, |x, y, z| {
         let (x, y, z) = (c(x), c(y), c(z));
         let r = libm::sqrt(x * x + y * y);
@@ -187,9 +247,52 @@ mod tests {
         assert_eq!((s.min, s.max), (0.0, 255.0));
         // SOD itself: min 0, max 255, mean 7.46.
         assert!(s.mean > 4.0 && s.mean < 12.0, "{s}");
-        assert_eq!(marschner_lobb().grid.dims(), [41; 3]);
+        assert_eq!(marschner_lobb(41).grid.dims(), [41; 3]);
         let sp = sphere(8, 2.0).stats();
         assert!(sp.max > 1.0 && sp.min < -3.0);
+    }
+
+    #[test]
+    fn every_builtin_takes_any_size() {
+        for name in NAMES {
+            let v = volume(name, Some(5)).unwrap_or_else(|| panic!("{name}"));
+            assert_eq!(v.grid.dims(), [5; 3], "{name}");
+        }
+        assert_eq!(volume("sphere", None), Some(sphere(64, 24.0)));
+        assert_eq!(
+            volume("molecule", Some(1)).map(|v| v.grid.dims()),
+            Some([2; 3])
+        );
+        assert_eq!(volume("nothing", Some(8)), None);
+    }
+
+    #[test]
+    fn the_resampled_molecule_is_the_molecule_where_its_nodes_fall_on_the_molecule_s() {
+        let m = molecule();
+        let VolumeData::U8(src) = &m.data else {
+            unreachable!()
+        };
+        // At 97 the X and Y axes map node onto node: plane x, row z' = 0, every y.
+        let small = molecule_at(97);
+        let VolumeData::U8(out) = &small.data else {
+            unreachable!()
+        };
+        for x in [0usize, 40, 96] {
+            assert_eq!(
+                out[x * 97 * 97..][..97],
+                src[x * 116 * 97..][..97],
+                "plane {x}"
+            );
+        }
+        // The first and last nodes of every axis are the molecule's corners.
+        let big = molecule_at(200);
+        let VolumeData::U8(b) = &big.data else {
+            unreachable!()
+        };
+        let last = |d: usize, nz: usize, ny: usize| (d * nz) * ny;
+        assert_eq!(b[last(199, 200, 200)], src[last(96, 116, 97)]);
+        assert_eq!(b[b.len() - 1], src[src.len() - 1]);
+        assert!(big.stats().max > 100.0, "{}", big.stats());
     }
 
     #[test]

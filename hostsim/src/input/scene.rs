@@ -9,6 +9,7 @@ use crate::input::builtin;
 use crate::input::dataset::Volume;
 use crate::input::formats::{self, raw::RawLayout, Endian, FileType, Format, LoadError};
 use crate::input::framing::Frame;
+use crate::input::framing::Showing;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use voxcube_kernel::optics::shade::{Light, Shading, MAX_LIGHTS};
@@ -93,6 +94,7 @@ enum EndianToml {
 struct DatasetToml {
     name: String,
     builtin: Option<String>,
+    size: Option<u32>,
     path: Option<PathBuf>,
     format: Option<Format>,
     dims: Option<[u32; 3]>,
@@ -340,8 +342,8 @@ struct LightToml {
 /// Where a dataset's samples come from.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Source {
-    /// A built-in volume by name.
-    Builtin(String),
+    /// A built-in volume by name, on `size`³ samples where the scene gives a size.
+    Builtin(String, Option<u32>),
     /// A raw file.
     Raw(PathBuf, RawLayout),
     /// A file whose header describes it (or a DICOM folder), in a known format, with the
@@ -385,12 +387,15 @@ pub struct OrbitFrame {
     pub frames: u32,
 }
 
-/// A view turned by `turn` degrees, its default camera framing what it can show.
+/// A view turned by `turn` degrees, its default camera framing what it can show: `showing`,
+/// summarised here the first time a view needs it (it depends on the view's classification,
+/// not its camera, so the frames of an orbit share one).
 fn framed_view(
     v: &ViewToml,
     volume: &Volume,
     turn: f32,
     look_at: Option<Vec3>,
+    showing: &mut Option<Showing>,
 ) -> Result<View, (String, String)> {
     let base = CameraTweak {
         turn,
@@ -401,7 +406,8 @@ fn framed_view(
     if !v.camera.frames_by_default() {
         return Ok(view);
     }
-    match crate::input::framing::showing(volume, &view) {
+    let showing = showing.get_or_insert_with(|| Showing::of(volume, &view));
+    match showing.frame(volume, &view) {
         Some(frame) => build_view(
             v,
             &volume.grid,
@@ -426,15 +432,17 @@ fn orbit_views(v: &ViewToml, volume: &Volume, frames: u32) -> Result<Vec<View>, 
     }
     let turn = |i: u32| 360.0 * i as f32 / frames as f32;
     let c = &v.camera;
+    let mut showing = None;
     let look_at = match (c.frames_by_default(), c.look_at) {
         (true, None) => {
             let first = build_view(v, &volume.grid, &CameraTweak::default())?;
-            crate::input::framing::showing_box(volume, &first).map(|(lo, hi)| (lo + hi) * 0.5)
+            let summary = showing.insert(Showing::of(volume, &first));
+            summary.world_box(volume).map(|(lo, hi)| (lo + hi) * 0.5)
         }
         _ => None,
     };
     let views = (0..frames)
-        .map(|i| framed_view(v, volume, turn(i), look_at))
+        .map(|i| framed_view(v, volume, turn(i), look_at, &mut showing))
         .collect::<Result<Vec<_>, _>>()?;
     let target = look_at.or(c.look_at.map(Vec3::from_array));
     let Some(target) = target.filter(|_| c.frames_by_default()) else {
@@ -629,7 +637,7 @@ impl Scene {
                 };
                 let name = view_name(v, j);
                 let frames = match orbit {
-                    None => vec![framed_view(v, &volume, 0.0, None).map_err(invalid)?],
+                    None => vec![framed_view(v, &volume, 0.0, None, &mut None).map_err(invalid)?],
                     Some(n) => orbit_views(v, &volume, n).map_err(invalid)?,
                 };
                 let count = frames.len() as u32;
@@ -672,7 +680,8 @@ fn view_name(v: &ViewToml, index: usize) -> String {
 
 fn describe(source: &Source) -> String {
     match source {
-        Source::Builtin(n) => format!("builtin:{n}"),
+        Source::Builtin(n, None) => format!("builtin:{n}"),
+        Source::Builtin(n, Some(size)) => format!("builtin:{n} ({size}³)"),
         Source::Raw(p, _) | Source::File(p, _, _) => p.display().to_string(),
     }
 }
@@ -731,8 +740,28 @@ fn source_of(d: &DatasetToml, base: &Path) -> Result<Source, (String, String)> {
                     ),
                 ));
             }
-            Ok(Source::Builtin(name.clone()))
+            if let Some(size) = d.size {
+                let n = u64::from(size);
+                if size < builtin::MIN_SIZE {
+                    return Err((
+                        "size".into(),
+                        format!(
+                            "size is {size}; a built-in needs at least {} samples a side",
+                            builtin::MIN_SIZE
+                        ),
+                    ));
+                }
+                if let Err(e) = formats::declared_samples(&[n, n, n]) {
+                    return Err(("size".into(), format!("size {size}: {e}")));
+                }
+            }
+            Ok(Source::Builtin(name.clone(), d.size))
         }
+        (None, Some(_)) if d.size.is_some() => Err((
+            "size".into(),
+            "applies to built-in volumes; a file's header (or a raw file's dims) gives its shape"
+                .into(),
+        )),
         (None, Some(p)) => {
             let path = base.join(p);
             let raw_keys = raw_only.iter().any(|(_, set)| *set);
@@ -817,7 +846,7 @@ enum SourceError {
 
 fn load_source(source: &Source) -> Result<Volume, SourceError> {
     match source {
-        Source::Builtin(name) => builtin::volume(name)
+        Source::Builtin(name, size) => builtin::volume(name, *size)
             .ok_or_else(|| SourceError::Builtin(format!("unknown built-in \"{name}\""))),
         Source::Raw(p, layout) => formats::raw::load(p, layout).map_err(SourceError::Load),
         Source::File(p, f, s) => formats::load(p, *f, *s).map_err(SourceError::Load),
