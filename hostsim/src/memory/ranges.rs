@@ -5,9 +5,10 @@
 //!
 //! A byte volume's cell masks and cell leap maps are a function of its cells' ranges and a
 //! view's verdicts on byte ranges (`voxcube_kernel::skip::cells::ByteVerdicts`), so the last
-//! ones a view built are kept here too, for the next view with the same verdicts: an orbit's
-//! next frame, a bench's next repetition, a view of the same transfer function from
-//! elsewhere.
+//! masks a view classified are kept here too, with a map for each octant views of them have
+//! taken, for the next view with the same verdicts: an orbit's next frame (its frames turn
+//! through the octants and come back to each), a bench's next repetition, a view of the
+//! same transfer function from elsewhere.
 //!
 //! Invariant: a build split over threads by block columns gives the same bits as one pass
 //! (each column's blocks and cells read its own nodes only); a build that fails holds no
@@ -30,7 +31,7 @@ pub struct SlabRanges<T> {
     pub blocks: Arc<Vec<Range>>,
     /// Each block's cells' ranges.
     pub cells: Vec<BlockCells<T>>,
-    /// The last masks and cell leap maps classified from them, for byte samples.
+    /// The last masks classified from them and their cell leap maps, for byte samples.
     kept: Mutex<Option<Classified>>,
 }
 
@@ -41,8 +42,9 @@ pub struct Classified {
     pub verdicts: ByteVerdicts,
     /// The masks, one per block.
     pub masks: Arc<Vec<CellMask>>,
-    /// The cell leap maps built from them, if any.
-    pub maps: Option<KeptMaps>,
+    /// The cell leap maps built from them, one set per set of octants views have taken
+    /// (an orthographic view takes one octant: at most eight sets).
+    pub maps: Vec<KeptMaps>,
 }
 
 /// Cell leap maps kept with the masks they were built from.

@@ -347,8 +347,9 @@ impl Skipping {
         };
         let per_map = len * voxcube_kernel::skip::cell_leaps::PER_BLOCK;
         let kept_maps = kept
-            .and_then(|kept| kept.maps)
-            .filter(|kept| kept.octants == cell_octants);
+            .as_ref()
+            .and_then(|kept| kept.maps.iter().find(|m| m.octants == cell_octants))
+            .cloned();
         let building = match kept_maps {
             Some(_) => 0,
             None => cell_octants,
@@ -448,14 +449,21 @@ impl Skipping {
                 _ => (Arc::default(), 0, Arc::default()),
             };
         if let Some(verdicts) = verdicts {
-            ranges.keep(Classified {
-                verdicts,
-                masks: Arc::clone(&cells),
-                maps: (cell_octants != 0).then(|| KeptMaps {
+            // Beside the maps kept for these verdicts: an orbit's frames turn through the
+            // octants and come back to each, and every frame of one octant reads one map.
+            let mut maps = kept.map(|kept| kept.maps).unwrap_or_default();
+            let new = cell_octants != 0 && maps.iter().all(|m| m.octants != cell_octants);
+            if new && maps.len() < voxcube_kernel::skip::octant::OCTANTS {
+                maps.push(KeptMaps {
                     octants: cell_octants,
                     maps: Arc::clone(&cell_leaps),
                     nodes: Arc::clone(&node_leaps),
-                }),
+                });
+            }
+            ranges.keep(Classified {
+                verdicts,
+                masks: Arc::clone(&cells),
+                maps,
             });
         }
         if !depths_built.iter().all(|&b| b) {
@@ -710,5 +718,65 @@ impl<'d, T: voxcube_kernel::volume::sample::Sample + Sync> NodeStorage<'d, T> {
             self.ghost,
             &self.storage[usize::from(node)],
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::input::dataset::VolumeData;
+    use crate::input::scene::Scene;
+
+    /// The default scene's molecule composited from `azimuth`, framed as the paper framed
+    /// SOD.
+    fn view_from(azimuth: f32) -> (crate::input::dataset::Volume, View) {
+        let text = format!(
+            "[[datasets]]\nname = \"m\"\nbuiltin = \"molecule\"\n[[datasets.views]]\nmode = \"composite\"\n[datasets.views.camera]\nazimuth = {azimuth:?}\nwidth = 175.0\n{}",
+            crate::experiments::sod::COMPOSITE_TRANSFER
+        );
+        let mut jobs = Scene::parse(&text, "t.toml", std::path::Path::new("."))
+            .and_then(Scene::load)
+            .unwrap_or_else(|e| panic!("{e}"));
+        let job = jobs.remove(0);
+        let view = job.views.into_iter().next().map(|v| v.view);
+        (job.volume, view.unwrap_or_else(|| panic!("a view")))
+    }
+
+    #[test]
+    fn an_orbit_s_frames_share_one_map_per_octant() {
+        let (volume, first) = view_from(45.0);
+        let (_, turned) = view_from(135.0);
+        let VolumeData::U8(data) = &volume.data else {
+            unreachable!("the molecule is bytes")
+        };
+        let slab = voxcube_kernel::volume::slab::Slab::whole(volume.grid, data)
+            .unwrap_or_else(|e| panic!("{e}"));
+        let ranges = SlabRanges::build(&slab, true, 1);
+        let octant = |v: &View| cell_leap_octants(v, SkipMode::ALL);
+        assert!(octant(&first) != 0 && octant(&turned) != 0);
+        assert_ne!(
+            octant(&first),
+            octant(&turned),
+            "the turn changes the octant"
+        );
+        let a = Skipping::build(&slab, &ranges, &first, SkipMode::ALL);
+        let b = Skipping::build(&slab, &ranges, &turned, SkipMode::ALL);
+        let again = Skipping::build(&slab, &ranges, &first, SkipMode::ALL);
+        let back = Skipping::build(&slab, &ranges, &turned, SkipMode::ALL);
+        assert!(Arc::ptr_eq(&a.cells, &b.cells), "one classification");
+        assert!(!a.cell_leaps.is_empty() && !Arc::ptr_eq(&a.cell_leaps, &b.cell_leaps));
+        // Back in an octant seen before: its map, not a new one, and the same bits as a map
+        // built afresh.
+        assert!(Arc::ptr_eq(&a.cell_leaps, &again.cell_leaps));
+        assert!(Arc::ptr_eq(&a.node_leaps, &again.node_leaps));
+        assert!(Arc::ptr_eq(&b.cell_leaps, &back.cell_leaps));
+        let fresh = Skipping::build(
+            &slab,
+            &SlabRanges::build(&slab, true, 1),
+            &first,
+            SkipMode::ALL,
+        );
+        assert_eq!(fresh.cell_leaps, a.cell_leaps);
+        assert_eq!(fresh.node_leaps, a.node_leaps);
     }
 }

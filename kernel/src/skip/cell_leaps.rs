@@ -17,7 +17,7 @@
 //! says. The map is laid out row by row, X fastest, over the cells of the blocks' columns:
 //! a byte per cell, 64 per block.
 
-use crate::skip::blocks::{Blocks, BlocksError, BLOCK};
+use crate::skip::blocks::{Blocks, BlocksError, CellMask, BLOCK};
 use crate::skip::octant::Octant;
 
 /// Bytes of one octant's map per block: a byte per cell.
@@ -61,6 +61,19 @@ impl<'a> CellLeaps<'a> {
             width: cols * BLOCK,
             height: ny * BLOCK,
         })
+    }
+
+    /// The distances of the cells of row `(y, z)` (X from the map's first), as
+    /// [`CellLeaps::distance`] reads them: empty outside the map.
+    fn row(&self, y: u32, z: u32) -> &'a [u8] {
+        if y >= self.height {
+            return &[];
+        }
+        let start = (z as usize * self.height as usize + y as usize) * self.width as usize;
+        let end = start
+            .saturating_add(self.width as usize)
+            .min(self.map.len());
+        self.map.get(start..end).unwrap_or(&[])
     }
 
     /// The octant whose rays read this map (the blocks' [`Blocks::toward`] when it was found).
@@ -124,23 +137,63 @@ impl<'a> CellLeaps<'a> {
 /// Fill `out` (`planes.len()` planes of `grid`'s nodes) with `leaps`' distances laid out as
 /// [`crate::skip::node_leaps::NodeLeaps`] reads them: each cell's at its low node's place, 0
 /// elsewhere.
+///
+/// A transpose (the map runs X fastest, the nodes Y fastest), taken a square of [`TILE`]
+/// cells of X by [`TILE`] of Y at a time through a buffer on the stack: each side is read and
+/// written a run of [`TILE`] bytes at a time. Cell by cell, one side misses the cache on
+/// every cell of a volume that leaves the caches, and a plane's power-of-two length sends a
+/// whole column of writes to one cache set.
 pub fn fill_node_layout(
     leaps: &CellLeaps<'_>,
     grid: &crate::volume::grid::Grid,
     planes: core::ops::Range<u32>,
     out: &mut [u8],
 ) -> Result<(), BlocksError> {
+    fill_node_tiles(leaps, grid, planes, out, TILE)
+}
+
+/// Cells along X and along Y that [`fill_node_layout`] moves at a time: 4 KiB of stack.
+pub const TILE: usize = 64;
+
+/// [`fill_node_layout`] in squares of `tile` (at most [`TILE`]) cells a side.
+fn fill_node_tiles(
+    leaps: &CellLeaps<'_>,
+    grid: &crate::volume::grid::Grid,
+    planes: core::ops::Range<u32>,
+    out: &mut [u8],
+    tile: usize,
+) -> Result<(), BlocksError> {
     let [_, ny, nz] = grid.dims();
-    BlocksError::check_storage(planes.len() * grid.plane_len(), out.len())?;
-    let mut places = out.chunks_exact_mut(ny as usize);
-    for x in planes {
-        for z in 0..nz {
-            let Some(row) = places.next() else {
-                return Ok(());
-            };
-            for (y, place) in (0..).zip(row.iter_mut()) {
-                let cell = y + 1 < ny && z + 1 < nz;
-                *place = if cell { leaps.distance([x, y, z]) } else { 0 };
+    let plane = grid.plane_len();
+    BlocksError::check_storage(planes.len() * plane, out.len())?;
+    let tile = tile.clamp(1, TILE);
+    let mut square = [[0u8; TILE]; TILE];
+    for z in 0..nz {
+        for x0 in planes.clone().step_by(tile) {
+            let xs = x0..planes.end.min(x0.saturating_add(tile as u32));
+            for y0 in (0..ny).step_by(tile) {
+                let ys = y0..ny.min(y0.saturating_add(tile as u32));
+                for (y, line) in ys.clone().zip(square.iter_mut()) {
+                    let row = match y + 1 < ny && z + 1 < nz {
+                        true => leaps.row(y, z),
+                        false => &[],
+                    };
+                    for (x, d) in xs.clone().zip(line.iter_mut()) {
+                        *d = row
+                            .get(x.wrapping_sub(leaps.x0) as usize)
+                            .copied()
+                            .unwrap_or(0);
+                    }
+                }
+                for (i, x) in xs.clone().enumerate() {
+                    let at = (x - planes.start) as usize * plane + (z * ny + y0) as usize;
+                    let Some(run) = out.get_mut(at..at + ys.len()) else {
+                        continue;
+                    };
+                    for (o, line) in run.iter_mut().zip(&square) {
+                        *o = line[i];
+                    }
+                }
             }
         }
     }
@@ -153,6 +206,9 @@ pub fn fill_node_layout(
 pub fn build(blocks: &Blocks<'_>, octant: Octant, out: &mut [u8]) -> Result<(), BlocksError> {
     build_planes(blocks, octant, 0..planes(blocks), out)
 }
+
+/// Masks of a row of blocks the build gathers on the stack: 2 KiB, a row of 1,024 cells.
+const GATHERED: usize = 256;
 
 /// Planes of cells (along Z) of a map of `blocks`.
 pub fn planes(blocks: &Blocks<'_>) -> usize {
@@ -245,15 +301,25 @@ pub fn build_planes(
     BlocksError::check_storage(cols as usize * ny * nz, masks.len())?;
     let dims = [cols as usize * b, ny * b, planes.len()];
     // The blocks are stored X columns slowest, then Z, then Y: a row's blocks are `ny · nz`
-    // apart, and its cells in each are one row of four bits of the block's mask.
+    // apart, and its cells in each are one row of four bits of the block's mask. The four
+    // rows of cells through a row of blocks come one after the other, so the row's masks are
+    // gathered once for them (up to [`GATHERED`] a row; past that, read in place): read in
+    // place, each is a cache miss on a volume that leaves the caches.
+    let mut gathered = [0 as CellMask; GATHERED];
+    let mut gathered_row = None;
     let obstacles = |row: &mut [u8], y: usize, z: usize| {
         let z = planes.start + z;
         let first = (z / b) * ny + y / b;
         let shift = b * (y % b + b * (z % b));
-        for (cells, mask) in row
-            .chunks_mut(b)
-            .zip(masks.iter().skip(first).step_by(ny * nz))
-        {
+        let in_place = masks.iter().skip(first).step_by(ny * nz);
+        if gathered_row != Some(first) {
+            for (g, &mask) in gathered.iter_mut().zip(in_place.clone()) {
+                *g = mask;
+            }
+            gathered_row = Some(first);
+        }
+        let row_masks = gathered.iter().chain(in_place.skip(GATHERED));
+        for (cells, mask) in row.chunks_mut(b).zip(row_masks) {
             let bits = mask >> shift;
             if bits & 0xf == 0 {
                 continue;
@@ -279,7 +345,7 @@ fn ahead(
     d: &mut [u8],
     dims: [usize; 3],
     octant: Octant,
-    obstacles: impl Fn(&mut [u8], usize, usize),
+    mut obstacles: impl FnMut(&mut [u8], usize, usize),
 ) {
     let [w, h, depth] = dims;
     let order = |n: usize, down: bool| (0..n).map(move |i| if down { i } else { n - 1 - i });
@@ -517,6 +583,46 @@ mod tests {
     }
 
     #[test]
+    fn a_map_reads_each_cell_s_own_mask_bit_in_rows_wider_than_the_gathered_masks() {
+        // 258 block columns: a row of blocks longer than the masks gathered on the stack.
+        const COLS: usize = GATHERED + 2;
+        const BLOCKS: usize = COLS * 2 * 2;
+        let grid = crate::volume::grid::Grid::new([4 * COLS as u32 + 1, 9, 9], glam::Vec3::ONE)
+            .unwrap_or_else(|e| panic!("{e}"));
+        let ranges = [crate::skip::blocks::Range::UNKNOWN; BLOCKS];
+        let mut next = crate::testing::xorshift(0x5eed);
+        let mut word = || u64::from(next()) << 32 | u64::from(next());
+        // Sparse obstacles (a quarter of the cells), so that distances vary.
+        let masks: [CellMask; BLOCKS] = core::array::from_fn(|_| word() & word());
+        let plain =
+            Blocks::new(&grid, 0..grid.dims()[0], &ranges).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(plain.shape(), (COLS as u32, 2, 2));
+        let blocks = plain.with_cells(&masks).unwrap_or_else(|e| panic!("{e}"));
+        let dims = [COLS * 4, 8, 8];
+        let bit = |x: usize, y: usize, z: usize| {
+            let block = ((x / 4) * 2 + z / 4) * 2 + y / 4;
+            masks[block] >> (x % 4 + 4 * (y % 4 + 4 * (z % 4))) & 1 == 1
+        };
+        for octant in [0, 3, 5, 6] {
+            let octant = Octant::from_index(octant);
+            let mut built = [0u8; BLOCKS * PER_BLOCK];
+            build(&blocks, octant, &mut built).unwrap_or_else(|e| panic!("{e}"));
+            let mut expected = [0u8; BLOCKS * PER_BLOCK];
+            ahead(&mut expected, dims, octant, |row, y, z| {
+                for (x, cell) in row.iter_mut().enumerate() {
+                    if bit(x, y, z) {
+                        *cell = 0;
+                    }
+                }
+            });
+            assert_eq!(built, expected, "{octant:?}");
+            // Obstacles past the gathered masks count.
+            let far = (4 * GATHERED..dims[0]).any(|x| built[(7 * 8 + 7) * dims[0] + x] == 0);
+            assert!(far || (4 * GATHERED..dims[0]).all(|x| !bit(x, 7, 7)));
+        }
+    }
+
+    #[test]
     fn far_from_every_obstacle_the_distance_is_capped() {
         let dims = [300, 1, 1];
         let mut d = [0u8; 300];
@@ -578,6 +684,12 @@ mod held_tests {
         let mut out = [0xffu8; 11 * 9 * 10];
         fill_node_layout(&map, &grid, planes.clone(), &mut out).unwrap();
         assert!(fill_node_layout(&map, &grid, planes.clone(), &mut out[1..]).is_err());
+        // Whatever the tiles, the same layout.
+        for tile in [1, 3, 5] {
+            let mut tiled = [0x5au8; 11 * 9 * 10];
+            fill_node_tiles(&map, &grid, planes.clone(), &mut tiled, tile).unwrap();
+            assert_eq!(tiled, out, "tiles of {tile}");
+        }
         // Read as a slab's storage of planes 2.. reads it: one offset away.
         let storage = crate::volume::cells::Cells::new(&[0u8; 12 * 9 * 10], 2..14, ny, nz);
         let cells = storage.holding(3..13, ny - 1, nz - 1).unwrap();
