@@ -380,6 +380,33 @@ mod tests {
     }
 
     #[test]
+    fn a_gigabyte_volume_is_refused_on_one_modern_node_naming_the_cluster_that_fits() {
+        // 1024³ bytes: the volume alone is the modern node's whole gibibyte.
+        let grid = Grid::new([1024; 3], Vec3::ONE).unwrap();
+        let profile = Profile::builtin("modern").unwrap();
+        let buffer = |s: u32| {
+            voxcube_kernel::node::flow::buffer_bytes(s as usize, crate::fabric::DEFAULT_I_MAX)
+        };
+        let needs = ViewNeeds {
+            ghost: 1,
+            maps: 1,
+            cell_maps: 0,
+            depths: 0,
+            node_bytes: 0,
+            cell_ranges: 0,
+        };
+        let err = check(profile, &grid, 1, 1, needs, &buffer).unwrap_err();
+        let msg = err.to_string();
+        assert!(
+            msg.contains("a node of a cluster of 1 needs")
+                && msg.contains("the modern has 1073741824 bytes per node")
+                && msg.contains("smallest cluster that fits has 2 nodes"),
+            "{msg}"
+        );
+        assert!(check(profile, &grid, 1, 2, needs, &buffer).is_ok());
+    }
+
+    #[test]
     fn a_big_volume_needs_a_bigger_cluster() {
         let grid = Grid::new([208, 208, 208], Vec3::ONE).unwrap();
         let buffer = |_| 16 * 1024;

@@ -254,6 +254,15 @@ pub fn preflight(volume: &Volume, view: &View, machine: &Machine) -> Result<(), 
                 machine.nodes
             )));
         }
+        // One node in process is still a node of the machine: it must fit it like any other.
+        budget::check(
+            machine.profile,
+            &volume.grid,
+            volume.data.kind().bytes(),
+            1,
+            budget::ViewNeeds::of(view),
+            &|s| flow::buffer_bytes(s as usize, crate::fabric::DEFAULT_I_MAX),
+        )?;
         return Ok(());
     }
     if machine.clusters == 0
