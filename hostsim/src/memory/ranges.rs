@@ -5,10 +5,10 @@
 //!
 //! A byte volume's cell masks and cell leap maps are a function of its cells' ranges and a
 //! view's verdicts on byte ranges (`voxcube_kernel::skip::cells::ByteVerdicts`), so the last
-//! masks a view classified are kept here too, with a map for each octant views of them have
-//! taken, for the next view with the same verdicts: an orbit's next frame (its frames turn
-//! through the octants and come back to each), a bench's next repetition, a view of the
-//! same transfer function from elsewhere.
+//! masks a view classified are kept here too, with a cell leap map and a block leap map for
+//! each octant views of them have taken, for the next view with the same verdicts: an
+//! orbit's next frame (its frames turn through the octants and come back to each), a bench's
+//! next repetition, a view of the same transfer function from elsewhere.
 //!
 //! Invariant: a build split over threads by block columns gives the same bits as one pass
 //! (each column's blocks and cells read its own nodes only); a build that fails holds no
@@ -45,6 +45,19 @@ pub struct Classified {
     /// The cell leap maps built from them, one set per set of octants views have taken
     /// (an orthographic view takes one octant: at most eight sets).
     pub maps: Vec<KeptMaps>,
+    /// The blocks' leap maps for the same verdicts, one per octant ([`Octant::index`]) views
+    /// have taken.
+    ///
+    /// [`Octant::index`]: voxcube_kernel::skip::octant::Octant::index
+    pub block_maps: Vec<(usize, Arc<Vec<u8>>)>,
+}
+
+impl Classified {
+    /// The blocks' leap map kept for octant `octant` ([`Classified::block_maps`]), if any.
+    pub fn block_map(&self, octant: usize) -> Option<Arc<Vec<u8>>> {
+        let (_, map) = self.block_maps.iter().find(|(o, _)| *o == octant)?;
+        Some(Arc::clone(map))
+    }
 }
 
 /// Cell leap maps kept with the masks they were built from.

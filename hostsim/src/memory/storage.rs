@@ -384,8 +384,16 @@ impl Skipping {
             }
         }
         let depth_jobs = jobs.len();
+        // A leap map, like the masks, depends on the blocks' verdicts alone: one kept for these
+        // verdicts and an octant is copied, not built again.
         let chosen = (0..voxcube_kernel::skip::octant::OCTANTS).filter(|o| octants >> o & 1 == 1);
         for (map, octant) in leaps.chunks_mut(len).zip(chosen) {
+            let held = kept.as_ref().and_then(|k| k.block_map(octant));
+            if let Some(held) = held.filter(|held| held.len() == map.len()) {
+                map.copy_from_slice(&held);
+                jobs.push(Box::new(|| true));
+                continue;
+            }
             let (blocks, octant) = (
                 &blocks,
                 voxcube_kernel::skip::octant::Octant::from_index(octant),
@@ -451,7 +459,9 @@ impl Skipping {
         if let Some(verdicts) = verdicts {
             // Beside the maps kept for these verdicts: an orbit's frames turn through the
             // octants and come back to each, and every frame of one octant reads one map.
-            let mut maps = kept.map(|kept| kept.maps).unwrap_or_default();
+            let (mut maps, mut block_maps) = kept
+                .map(|kept| (kept.maps, kept.block_maps))
+                .unwrap_or_default();
             let new = cell_octants != 0 && maps.iter().all(|m| m.octants != cell_octants);
             if new && maps.len() < voxcube_kernel::skip::octant::OCTANTS {
                 maps.push(KeptMaps {
@@ -460,10 +470,18 @@ impl Skipping {
                     nodes: Arc::clone(&node_leaps),
                 });
             }
+            let chosen =
+                (0..voxcube_kernel::skip::octant::OCTANTS).filter(|o| octants >> o & 1 == 1);
+            for (map, octant) in leaps.chunks(len.max(1)).zip(chosen) {
+                if block_maps.iter().all(|(o, _)| *o != octant) {
+                    block_maps.push((octant, Arc::new(map.to_vec())));
+                }
+            }
             ranges.keep(Classified {
                 verdicts,
                 masks: Arc::clone(&cells),
                 maps,
+                block_maps,
             });
         }
         if !depths_built.iter().all(|&b| b) {
@@ -778,5 +796,14 @@ mod tests {
         );
         assert_eq!(fresh.cell_leaps, a.cell_leaps);
         assert_eq!(fresh.node_leaps, a.node_leaps);
+        // The block leap maps too: one kept per octant, copied into a view of it.
+        let verdicts = voxcube_kernel::skip::cells::ByteVerdicts::of(&first);
+        let kept = ranges.kept(&verdicts).unwrap_or_else(|| panic!("kept"));
+        assert_eq!(kept.block_maps.len(), 2);
+        assert!(!a.leaps.is_empty());
+        assert_eq!(again.leaps, a.leaps);
+        assert_eq!(fresh.leaps, a.leaps);
+        assert_eq!(back.leaps, b.leaps);
+        assert_ne!(a.leaps, b.leaps);
     }
 }
