@@ -158,6 +158,7 @@ pub fn molecule() -> Volume {
 /// is separable, along X, then Z, then Y (each a lerp in `f32`), so that a sample costs one
 /// lerp and a gigabyte takes seconds, not minutes.
 pub fn molecule_at(n: u32) -> Volume {
+    let n = n.max(MIN_SIZE);
     let m = molecule();
     let [mx, my, mz] = m.grid.dims().map(|d| d as usize);
     let VolumeData::U8(src) = &m.data else {
@@ -165,7 +166,7 @@ pub fn molecule_at(n: u32) -> Volume {
     };
     // Per axis and output index: the source's lower node and the weight of the upper one.
     let taps = |d: usize| -> Vec<(usize, f32)> {
-        let scale = (d - 1) as f32 / (n.max(MIN_SIZE) - 1) as f32;
+        let scale = (d - 1) as f32 / (n - 1) as f32;
         (0..n)
             .map(|i| {
                 let p = i as f32 * scale;

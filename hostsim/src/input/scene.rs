@@ -8,8 +8,7 @@
 use crate::input::builtin;
 use crate::input::dataset::Volume;
 use crate::input::formats::{self, raw::RawLayout, Endian, FileType, Format, LoadError};
-use crate::input::framing::Frame;
-use crate::input::framing::Showing;
+use crate::input::framing::{Frame, Showing};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use voxcube_kernel::optics::shade::{Light, Shading, MAX_LIGHTS};

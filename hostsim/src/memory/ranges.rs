@@ -31,7 +31,8 @@ pub struct SlabRanges<T> {
     pub blocks: Arc<Vec<Range>>,
     /// Each block's cells' ranges.
     pub cells: Vec<BlockCells<T>>,
-    /// The last masks classified from them and their cell leap maps, for byte samples.
+    /// The last masks classified from them, with their cell and block leap maps, for byte
+    /// samples.
     kept: Mutex<Option<Classified>>,
 }
 

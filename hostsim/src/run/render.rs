@@ -244,9 +244,20 @@ fn render_direct(
 
 /// Check that `view` of `volume` can render on `machine`, before anything renders: the
 /// machine's shape, enough X planes for the slabs, a receive buffer that lets a ray start,
-/// and every node within the profile's memory. The direct fabric is the host's own reference
-/// render, not a node of the machine, and is not budgeted.
+/// and every node within the profile's memory, the direct fabric's one node too (only the
+/// library's reference render, [`render`], is not budgeted).
 pub fn preflight(volume: &Volume, view: &View, machine: &Machine) -> Result<(), RenderError> {
+    let default_buffer = |s: u32| flow::buffer_bytes(s as usize, crate::fabric::DEFAULT_I_MAX);
+    let fits = |size: u32, buffer_for: &dyn Fn(u32) -> usize| {
+        budget::check(
+            machine.profile,
+            &volume.grid,
+            volume.data.kind().bytes(),
+            size,
+            budget::ViewNeeds::of(view),
+            buffer_for,
+        )
+    };
     if machine.fabric == Fabric::Direct {
         if machine.nodes != 1 {
             return Err(RenderError::Machine(format!(
@@ -254,15 +265,7 @@ pub fn preflight(volume: &Volume, view: &View, machine: &Machine) -> Result<(), 
                 machine.nodes
             )));
         }
-        // One node in process is still a node of the machine: it must fit it like any other.
-        budget::check(
-            machine.profile,
-            &volume.grid,
-            volume.data.kind().bytes(),
-            1,
-            budget::ViewNeeds::of(view),
-            &|s| flow::buffer_bytes(s as usize, crate::fabric::DEFAULT_I_MAX),
-        )?;
+        fits(1, &default_buffer)?;
         return Ok(());
     }
     if machine.clusters == 0
@@ -293,18 +296,9 @@ pub fn preflight(volume: &Volume, view: &View, machine: &Machine) -> Result<(), 
             min_bytes: flow::buffer_bytes(size as usize, needed),
         }));
     }
-    let buffer_for = |s: u32| match machine.buffer_bytes {
-        Some(b) => b,
-        None => flow::buffer_bytes(s as usize, crate::fabric::DEFAULT_I_MAX),
-    };
-    budget::check(
-        machine.profile,
-        &volume.grid,
-        volume.data.kind().bytes(),
-        size,
-        budget::ViewNeeds::of(view),
-        &buffer_for,
-    )?;
+    fits(size, &|s| {
+        machine.buffer_bytes.unwrap_or_else(|| default_buffer(s))
+    })?;
     Ok(())
 }
 

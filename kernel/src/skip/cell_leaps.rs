@@ -186,7 +186,8 @@ fn fill_node_tiles(
                     }
                 }
                 for (i, x) in xs.clone().enumerate() {
-                    let at = (x - planes.start) as usize * plane + (z * ny + y0) as usize;
+                    let row = z as usize * ny as usize + y0 as usize;
+                    let at = (x - planes.start) as usize * plane + row;
                     let Some(run) = out.get_mut(at..at + ys.len()) else {
                         continue;
                     };
@@ -206,9 +207,6 @@ fn fill_node_tiles(
 pub fn build(blocks: &Blocks<'_>, octant: Octant, out: &mut [u8]) -> Result<(), BlocksError> {
     build_planes(blocks, octant, 0..planes(blocks), out)
 }
-
-/// Masks of a row of blocks the build gathers on the stack: 2 KiB, a row of 1,024 cells.
-const GATHERED: usize = 256;
 
 /// Planes of cells (along Z) of a map of `blocks`.
 pub fn planes(blocks: &Blocks<'_>) -> usize {
@@ -276,6 +274,9 @@ pub fn part(i: usize, n: usize, planes: usize, octant: Octant) -> core::ops::Ran
         }
     }
 }
+
+/// Masks of a row of blocks the build gathers on the stack: 2 KiB, a row of 1,024 cells.
+const GATHERED: usize = 256;
 
 /// [`build`]'s planes `planes` alone (`out` holds them, one after the other), as if no cell
 /// lay beyond them: each distance is [`build`]'s where at least [`MAX_DISTANCE`] planes lie
