@@ -66,10 +66,14 @@ pub enum Command {
         #[arg(long, default_value = "../shared/data/sod-97x97x116.u8.binary")]
         sod: PathBuf,
         /// Instead: how the cost grows with the work, both tiers, on one node and every core:
-        /// the molecule resampled to 128³, 256³, 512³ at 350x250, and 128³ at images up to
-        /// 2048x1536 (time per evaluated sample and per pixel).
+        /// the molecule resampled to 128³, 256³, 512³ at 350x250 (beside VTK where it is
+        /// installed), and 128³ at images up to 2048x1536 (time per evaluated sample and per
+        /// pixel); writes scale.txt and scale.svg to --out.
         #[arg(long)]
         scale: bool,
+        /// With --scale: the folder for its table and plot.
+        #[arg(short, long, default_value = "out/bench")]
+        out: PathBuf,
         /// Instead: instructions per frame, per lattice sample and per evaluated sample of each
         /// SOD view at 350x250 on one node, counted by callgrind (needs valgrind): figures that
         /// do not move with the machine's load.
@@ -329,15 +333,19 @@ pub fn run(cli: Cli) -> Result<(), Box<dyn std::error::Error>> {
             Ok(())
         }
         Command::Bench {
-            runs, scale: true, ..
+            runs,
+            scale: true,
+            out,
+            ..
         } => {
+            // Before the sweep's minutes, not after them.
+            std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
             let mut notes = String::new();
-            let rows = crate::experiments::scale::run(runs, &mut notes)?;
-            stdout(&format!(
-                "{notes}{}",
-                crate::experiments::scale::table(&rows, runs)
-            ))?;
-            Ok(())
+            let scale = crate::experiments::scale::run(runs, &mut notes)?;
+            let table = crate::experiments::scale::table(&scale, runs);
+            table_and_plot(&out, "scale", (&notes, &table), |svg| {
+                crate::experiments::scale::plot(svg, &scale)
+            })
         }
         Command::Bench {
             runs, small, sod, ..

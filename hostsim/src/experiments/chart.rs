@@ -41,10 +41,23 @@ pub fn linear<'a, DB: DrawingBackend + 'a>(
     Ok(chart)
 }
 
-/// Draw `lines` on `chart`, then the legend.
+/// Draw `lines` on `chart`, then the legend at the middle of its right side.
 pub fn draw<'a, DB, X>(
     chart: &mut ChartContext<'a, DB, Cartesian2d<X, RangedCoordf64>>,
     lines: Vec<Line>,
+) -> Result<(), String>
+where
+    DB: DrawingBackend + 'a,
+    X: Ranged<ValueType = f64>,
+{
+    draw_at(chart, lines, SeriesLabelPosition::MiddleRight)
+}
+
+/// Draw `lines` on `chart`, then the legend at `legend`: where the lines leave room.
+pub fn draw_at<'a, DB, X>(
+    chart: &mut ChartContext<'a, DB, Cartesian2d<X, RangedCoordf64>>,
+    lines: Vec<Line>,
+    legend: SeriesLabelPosition,
 ) -> Result<(), String>
 where
     DB: DrawingBackend + 'a,
@@ -71,6 +84,7 @@ where
     }
     chart
         .configure_series_labels()
+        .position(legend)
         .border_style(BLACK)
         .background_style(WHITE)
         .draw()

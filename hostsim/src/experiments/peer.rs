@@ -4,8 +4,9 @@
 //! virtualenv `peers/setup.sh` installs. Ratios between the two are only meaningful from one
 //! run: the machine's speed drifts with its other tenants.
 //!
-//! Invariant: a [`Peer`] holds SOD's samples without their header and the script in a scratch
-//! folder of its own, removed with it.
+//! Invariant: a [`Peer`] holds one volume's samples (SOD's without their header, or any byte
+//! volume X fastest, with its dimensions) and the script in a scratch folder of its own,
+//! removed with it.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -16,6 +17,9 @@ pub const VENV_PYTHON: &str = "/tmp/peers/venv/bin/python";
 
 /// The peer script, as `peers/vtk_peer.py` holds it.
 const SCRIPT: &str = include_str!("../../../peers/vtk_peer.py");
+
+/// SOD's nodes along X, Y and Z.
+const SOD_DIMS: [u32; 3] = [97, 97, 116];
 
 /// SOD's samples after its 12-byte header.
 const SOD_SAMPLES: usize = 97 * 97 * 116;
@@ -94,10 +98,12 @@ pub struct PeerRender {
     pub pixels: Option<Vec<[u8; 4]>>,
 }
 
-/// VTK ready to render SOD: the script and SOD's samples in a scratch folder.
+/// VTK ready to render a volume: the script and the volume's samples in a scratch folder.
 #[derive(Debug)]
 pub struct Peer {
     folder: tempfile::TempDir,
+    /// The volume's nodes along X, Y and Z.
+    dims: [u32; 3],
 }
 
 impl Peer {
@@ -112,19 +118,38 @@ impl Peer {
             .get(bytes.len().saturating_sub(SOD_SAMPLES)..)
             .filter(|b| b.len() == SOD_SAMPLES)
             .ok_or_else(|| format!("{}: not SOD's {SOD_SAMPLES} samples", sod.display()))?;
+        Peer::of_samples(body, SOD_DIMS)
+    }
+
+    /// VTK for a byte volume of `dims` nodes whose `samples` run X fastest, then Y, then Z;
+    /// `Ok(None)` when the virtualenv is not installed.
+    pub fn of_samples(samples: &[u8], dims: [u32; 3]) -> Result<Option<Peer>, String> {
+        if !Path::new(VENV_PYTHON).is_file() {
+            return Ok(None);
+        }
+        let nodes = dims.iter().map(|&d| d as usize).product::<usize>();
+        if samples.len() != nodes {
+            return Err(format!(
+                "{} samples for VTK, {}x{}x{} = {nodes} expected",
+                samples.len(),
+                dims[0],
+                dims[1],
+                dims[2]
+            ));
+        }
         let folder = tempfile::Builder::new()
             .prefix("voxcube-peer-")
             .tempdir()
             .map_err(|e| format!("a scratch folder for VTK: {e}"))?;
-        let peer = Peer { folder };
-        for (path, bytes) in [(peer.raw(), body), (peer.script(), SCRIPT.as_bytes())] {
+        let peer = Peer { folder, dims };
+        for (path, bytes) in [(peer.raw(), samples), (peer.script(), SCRIPT.as_bytes())] {
             std::fs::write(&path, bytes).map_err(|e| format!("{}: {e}", path.display()))?;
         }
         Ok(Some(peer))
     }
 
     fn raw(&self) -> PathBuf {
-        self.folder.path().join("sod.raw")
+        self.folder.path().join("volume.raw")
     }
 
     fn script(&self) -> PathBuf {
@@ -140,6 +165,8 @@ impl Peer {
             .arg(self.script())
             .arg("--raw")
             .arg(self.raw())
+            .arg("--dims")
+            .args(self.dims.map(|d| d.to_string()))
             .args(["--mode", mode.name(), "--threads", "2", "--reps"])
             .arg(runs.max(1).to_string())
             .arg("--size")
@@ -261,6 +288,19 @@ mod tests {
         assert_eq!(numbers(default_of("size")), vec![350.0, 250.0]);
         assert_eq!(numbers(default_of("dt")), vec![Frame::PAPER.dt]);
         assert_eq!(numbers(default_of("span")), vec![Frame::PAPER.span]);
+        assert_eq!(numbers(default_of("dims")), SOD_DIMS.map(|d| d as f32));
+    }
+
+    #[test]
+    fn samples_that_do_not_fill_their_dimensions_are_refused_before_vtk_runs() {
+        let samples = [0u8; 2 * 3 * 4];
+        if Path::new(VENV_PYTHON).is_file() {
+            let e = Peer::of_samples(&samples, [2, 3, 5]).unwrap_err();
+            assert!(e.contains("24 samples") && e.contains("2x3x5 = 30"), "{e}");
+            assert!(Peer::of_samples(&samples, [2, 3, 4]).unwrap().is_some());
+        } else {
+            assert!(Peer::of_samples(&samples, [2, 3, 5]).unwrap().is_none());
+        }
     }
 
     #[test]

@@ -6,14 +6,19 @@
 //! view's first frame is timed apart from the median of those after it: it builds what the
 //! volume keeps for later frames (the exact view, first of a volume, its value ranges,
 //! masks and cell leap map; the fast view after it, its node field), so it shows what a
-//! single frame of a new volume costs, and the median what a further one does.
+//! single frame of a new volume costs, and the median what a further one does. Beside them,
+//! in the same run, VTK's CPU ray caster on each volume of the sweep, framed the same
+//! ([`super::peer`]), where it is installed.
 
+use super::chart::{self, Line};
 use super::error::ExperimentError;
+use super::peer::{Frame, Peer, PeerMode, Request};
 use super::sod::COMPOSITE_TRANSFER;
 use crate::input::builtin;
-use crate::input::dataset::Volume;
+use crate::input::dataset::{to_file_order, Volume, VolumeData};
 use crate::input::scene::Scene;
 use crate::run::render::{render_on, Fabric, Machine};
+use plotters::prelude::*;
 use std::fmt::Write;
 use std::path::Path;
 use std::time::Duration;
@@ -44,6 +49,29 @@ pub struct ScaleRow {
     pub samples: u64,
 }
 
+/// VTK's composited frame of one volume of the sweep, in the same run.
+#[derive(Clone, Debug)]
+pub struct VtkRow {
+    /// Volume edge, samples.
+    pub volume: u32,
+    /// Median wall time of its renders after a first one (which builds its gradients).
+    pub median: Duration,
+    /// PSNR (dB) of VTK's image against voxcube's fast tier's: the same framing, two
+    /// renderers' lighting and sampling.
+    pub psnr: f64,
+}
+
+/// What the sweep measured: voxcube's rows, VTK's where it ran, and why it did not.
+#[derive(Clone, Debug)]
+pub struct Scale {
+    /// voxcube's frames.
+    pub rows: Vec<ScaleRow>,
+    /// VTK's, one per volume at the paper's image size.
+    pub vtk: Vec<VtkRow>,
+    /// Set when VTK was not run.
+    pub vtk_missing: Option<String>,
+}
+
 impl ScaleRow {
     fn ns_per_sample(&self) -> f64 {
         self.median.as_secs_f64() * 1e9 / self.samples.max(1) as f64
@@ -62,7 +90,7 @@ fn view(tier: &str, (width, height): (u32, u32), n: u32) -> String {
     let far = 2.0 * n as f32;
     let side = far * core::f32::consts::FRAC_1_SQRT_2;
     let eye = [c + side, c, c + side];
-    let span = 1.65 * n as f32;
+    let span = span(n);
     format!(
         r#"[[datasets.views]]
 name = "{tier}"
@@ -79,9 +107,50 @@ width = {span:?}
     )
 }
 
+/// World units across the image for an `n`³ volume: its diagonal seen from 45° (`n·√2`) fills
+/// about 86% of it.
+fn span(n: u32) -> f32 {
+    1.65 * n as f32
+}
+
+/// VTK's median frame of `volume` (an `n`³ byte volume) framed as [`view`] frames it at the
+/// paper's image size, `runs` renders after a first, and its image's PSNR against `ours`.
+fn vtk_on(
+    volume: &Volume,
+    n: u32,
+    runs: usize,
+    ours: &[[u8; 4]],
+) -> Result<Option<VtkRow>, String> {
+    let VolumeData::U8(samples) = &volume.data else {
+        return Err("the scale sweep's volume is not bytes".into());
+    };
+    let dims = volume.grid.dims();
+    let Some(peer) = Peer::of_samples(&to_file_order(samples, dims), dims)? else {
+        return Ok(None);
+    };
+    let (width, height) = IMAGES[0];
+    let frame = Frame {
+        width,
+        height,
+        dt: 0.5,
+        span: span(n),
+    };
+    let mode = PeerMode::Composite;
+    let r = peer.render(Request { mode, frame, runs }, true)?;
+    let psnr = r
+        .pixels
+        .as_deref()
+        .map_or(f64::NAN, |p| super::accuracy::compare(p, ours).0);
+    Ok(Some(VtkRow {
+        volume: n,
+        median: r.median,
+        psnr,
+    }))
+}
+
 /// Measure every volume size and every image size, both tiers, on one node and on every
 /// core; `runs` renders of each (the median kept), interleaved across machines.
-pub fn run(runs: usize, out: &mut String) -> Result<Vec<ScaleRow>, ExperimentError> {
+pub fn run(runs: usize, out: &mut String) -> Result<Scale, ExperimentError> {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get() as u32);
     let cores = cores.next_power_of_two();
     // Today's nodes, not the nCUBE 2's 4 MiB: a 512³ volume is 128 MiB on one node.
@@ -104,6 +173,13 @@ pub fn run(runs: usize, out: &mut String) -> Result<Vec<ScaleRow>, ExperimentErr
     let mut work: Vec<(u32, (u32, u32))> = VOLUMES.iter().map(|&n| (n, IMAGES[0])).collect();
     work.extend(IMAGES[1..].iter().map(|&i| (VOLUMES[0], i)));
     let mut rows = Vec::new();
+    let mut vtk = Vec::new();
+    let vtk_missing = (!Path::new(super::peer::VENV_PYTHON).is_file()).then(|| {
+        format!(
+            "VTK is not installed ({} missing; peers/setup.sh installs it): its rows are left out",
+            super::peer::VENV_PYTHON
+        )
+    });
     let mut volume: Option<Volume> = None;
     for (n, image) in work {
         if volume.as_ref().is_none_or(|v| v.grid.dims()[0] != n) {
@@ -130,11 +206,24 @@ pub fn run(runs: usize, out: &mut String) -> Result<Vec<ScaleRow>, ExperimentErr
             for (_, machine) in &machines {
                 first.push(render_on(volume, &built, machine)?.wall);
             }
+            let mut pixels = Vec::new();
             for _ in 0..runs.max(1) {
                 for (m, (_, machine)) in machines.iter().enumerate() {
                     let r = render_on(volume, &built, machine)?;
                     times[m].push(r.wall);
                     samples[m] = r.counters.samples;
+                    pixels = r.pixels;
+                }
+            }
+            if v.name == "fast" && image == IMAGES[0] && vtk_missing.is_none() {
+                let row = vtk_on(volume, n, runs, &pixels).map_err(ExperimentError::Missing)?;
+                if let Some(row) = row {
+                    let _ = writeln!(
+                        out,
+                        "measured {n}³ VTK: {:.1} ms",
+                        row.median.as_secs_f64() * 1e3
+                    );
+                    vtk.push(row);
                 }
             }
             let measured = machines.iter().zip(times).zip(samples).zip(first);
@@ -163,12 +252,18 @@ pub fn run(runs: usize, out: &mut String) -> Result<Vec<ScaleRow>, ExperimentErr
             }
         }
     }
-    Ok(rows)
+    Ok(Scale {
+        rows,
+        vtk,
+        vtk_missing,
+    })
 }
 
 /// The table: each row's time, samples, time per sample and per pixel, and its growth over
-/// the first row of the same tier, machine and sweep.
-pub fn table(rows: &[ScaleRow], runs: usize) -> String {
+/// the first row of the same tier, machine and sweep; then VTK's frame of each volume beside
+/// voxcube's on every core.
+pub fn table(scale: &Scale, runs: usize) -> String {
+    let rows = &scale.rows;
     let mut out = format!(
         "How the cost grows (composited molecule resampled to n³, dt 1/2, the cube across 86% of the width; medians of {runs} frames after the first, which builds what the volume keeps):\n{:<7} {:<10} {:<6} {:<24} {:>10} {:>10} {:>10} {:>10} {:>10} {:>9} {:>9}\n",
         "volume", "image", "tier", "machine", "first ms", "ms", "samples", "ns/sample", "us/pixel", "time x", "samples x"
@@ -207,5 +302,180 @@ pub fn table(rows: &[ScaleRow], runs: usize) -> String {
             );
         }
     }
+    out.push_str(&beside_vtk(scale));
     out
+}
+
+/// voxcube on every core (threads) against VTK on two threads, per volume at the paper's
+/// image size, and each one's growth over its 128³ frame.
+fn beside_vtk(scale: &Scale) -> String {
+    if let Some(why) = &scale.vtk_missing {
+        return format!("-- beside VTK: {why}\n");
+    }
+    let mut out = format!(
+        "-- beside VTK (vtkFixedPointVolumeRayCastMapper, 2 threads, the same view and run) at {}x{}\n{:<7} {:>10} {:>9} {:>10} {:>10} {:>10} {:>10} {:>12}\n",
+        IMAGES[0].0, IMAGES[0].1, "volume", "VTK ms", "VTK x", "fast ms", "fast/VTK", "exact ms", "exact/VTK", "PSNR vs VTK"
+    );
+    let first = scale.vtk.first().map(|f| f.median.as_secs_f64());
+    for v in &scale.vtk {
+        let ours = |tier: &str| {
+            scale
+                .rows
+                .iter()
+                .find(|r| {
+                    r.volume == v.volume
+                        && r.image == IMAGES[0]
+                        && r.tier == tier
+                        && r.config.starts_with("threads")
+                })
+                .map_or(f64::NAN, |r| r.median.as_secs_f64())
+        };
+        let vtk = v.median.as_secs_f64();
+        let (fast, exact) = (ours("fast"), ours("exact"));
+        let _ = writeln!(
+            out,
+            "{:<7} {:>10.1} {:>9.2} {:>10.1} {:>10.2} {:>10.1} {:>10.2} {:>9.1} dB",
+            format!("{}³", v.volume),
+            vtk * 1e3,
+            first.map_or(f64::NAN, |f| vtk / f),
+            fast * 1e3,
+            fast / vtk,
+            exact * 1e3,
+            exact / vtk,
+            v.psnr
+        );
+    }
+    out
+}
+
+/// Two panels over the volume sweep at the paper's image size: each renderer's milliseconds
+/// per frame, and voxcube's nanoseconds per evaluated sample (VTK counts no samples).
+pub fn plot(path: &Path, scale: &Scale) -> Result<(), String> {
+    let root = SVGBackend::new(path, (1100, 440)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let (left, right) = root.split_horizontally(550);
+    let swept: Vec<&ScaleRow> = scale.rows.iter().filter(|r| r.image == IMAGES[0]).collect();
+    let series = |tier: &str, threads: bool, y: &dyn Fn(&ScaleRow) -> f64| -> Vec<(f64, f64)> {
+        swept
+            .iter()
+            .filter(|r| r.tier == tier && r.config.starts_with("threads") == threads)
+            .map(|r| (f64::from(r.volume), y(r)))
+            .collect()
+    };
+    let ms = |r: &ScaleRow| r.median.as_secs_f64() * 1e3;
+    let ns = |r: &ScaleRow| r.ns_per_sample();
+    let edge = f64::from(VOLUMES[VOLUMES.len() - 1]);
+    for (area, caption, unit, y) in [
+        (
+            &left,
+            "ms per frame (a further frame)",
+            "ms",
+            &ms as &dyn Fn(&ScaleRow) -> f64,
+        ),
+        (&right, "ns per evaluated sample (voxcube)", "ns", &ns),
+    ] {
+        let mut lines = vec![
+            ("fast, every core", "fast", true, GREEN),
+            ("exact, every core", "exact", true, BLUE),
+            ("fast, one node", "fast", false, CYAN),
+            ("exact, one node", "exact", false, MAGENTA),
+        ]
+        .into_iter()
+        .map(|(label, tier, threads, colour)| Line {
+            points: series(tier, threads, y),
+            colour,
+            label: format!("voxcube {label}"),
+        })
+        .collect::<Vec<_>>();
+        if unit == "ms" && !scale.vtk.is_empty() {
+            lines.push(Line {
+                points: scale
+                    .vtk
+                    .iter()
+                    .map(|v| (f64::from(v.volume), v.median.as_secs_f64() * 1e3))
+                    .collect(),
+                colour: RED,
+                label: "VTK, 2 threads".into(),
+            });
+        }
+        let top = lines
+            .iter()
+            .flat_map(|l| l.points.iter().map(|p| p.1))
+            .filter(|y| y.is_finite())
+            .fold(1.0f64, f64::max);
+        let mut chart = chart::linear(
+            area,
+            &format!("{caption}, {}x{}", IMAGES[0].0, IMAGES[0].1),
+            ("volume edge n (n³ samples)", unit),
+            (edge, top),
+        )?;
+        // The lines rise to the right: the upper left is free.
+        chart::draw_at(&mut chart, lines, SeriesLabelPosition::UpperLeft)?;
+    }
+    root.present().map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(volume: u32, tier: &'static str, config: &str, ms: u64) -> ScaleRow {
+        ScaleRow {
+            volume,
+            image: IMAGES[0],
+            tier,
+            config: config.into(),
+            median: Duration::from_millis(ms),
+            first: Duration::from_millis(ms),
+            samples: 1000,
+        }
+    }
+
+    #[test]
+    fn vtk_is_compared_with_every_core_at_the_same_volume_and_grows_from_its_first() {
+        let scale = Scale {
+            rows: vec![
+                row(128, "fast", "direct, 1 node", 90),
+                row(128, "fast", "threads, 2 clusters of 1", 50),
+                row(128, "exact", "threads, 2 clusters of 1", 100),
+                row(256, "fast", "threads, 2 clusters of 1", 60),
+                row(256, "exact", "threads, 2 clusters of 1", 240),
+            ],
+            vtk: vec![
+                VtkRow {
+                    volume: 128,
+                    median: Duration::from_millis(100),
+                    psnr: 30.0,
+                },
+                VtkRow {
+                    volume: 256,
+                    median: Duration::from_millis(300),
+                    psnr: 31.0,
+                },
+            ],
+            vtk_missing: None,
+        };
+        let text = beside_vtk(&scale);
+        let line = |n: &str| {
+            text.lines()
+                .find(|l| l.starts_with(n))
+                .map(|l| l.split_whitespace().collect::<Vec<_>>())
+                .unwrap_or_default()
+        };
+        // volume, VTK ms, VTK x, fast ms, fast/VTK, exact ms, exact/VTK, PSNR, dB
+        assert_eq!(
+            line("128³"),
+            ["128³", "100.0", "1.00", "50.0", "0.50", "100.0", "1.00", "30.0", "dB"]
+        );
+        assert_eq!(
+            line("256³"),
+            ["256³", "300.0", "3.00", "60.0", "0.20", "240.0", "0.80", "31.0", "dB"]
+        );
+        let missing = Scale {
+            vtk: vec![],
+            vtk_missing: Some("VTK is not installed".into()),
+            ..scale
+        };
+        assert!(beside_vtk(&missing).contains("VTK is not installed"));
+    }
 }

@@ -162,6 +162,21 @@ pub fn to_plane_major<T: Copy + Default>(file_order: &[T], dims: [u32; 3]) -> Ve
     out
 }
 
+/// Reorder plane-major samples back to file order (X fastest, then Y, then Z): the inverse
+/// of [`to_plane_major`], for a peer renderer that reads raw files.
+pub fn to_file_order<T: Copy + Default>(plane_major: &[T], dims: [u32; 3]) -> Vec<T> {
+    let [nx, ny, nz] = dims.map(|d| d as usize);
+    let mut out = vec![T::default(); plane_major.len()];
+    for x in 0..nx {
+        let plane = &plane_major[x * nz * ny..][..nz * ny];
+        for (zy, &v) in plane.iter().enumerate() {
+            let (z, y) = (zy / ny, zy % ny);
+            out[(z * ny + y) * nx + x] = v;
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -177,5 +192,14 @@ mod tests {
             plane_major_from_fn([2, 2, 2], |x, y, z| (x + 2 * y + 4 * z) as u8),
             pm
         );
+    }
+
+    #[test]
+    fn file_order_undoes_plane_major_on_uneven_dims() {
+        let dims = [3, 4, 5];
+        let file: Vec<u16> = (0..60).collect();
+        let pm = to_plane_major(&file, dims);
+        assert_ne!(pm, file);
+        assert_eq!(to_file_order(&pm, dims), file);
     }
 }
