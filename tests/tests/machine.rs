@@ -197,3 +197,32 @@ fn the_threads_fabric_matches_on_any_number_of_threads() {
         }
     }
 }
+
+#[test]
+fn every_in_process_fabric_says_how_much_of_its_wall_time_was_set_up() {
+    let n = 24u32;
+    let volume = volume_u8([n; 3], Vec3::ONE, |x, y, z| {
+        ((x * 7 + y * 3 + z) % 200) as u8
+    });
+    let c = Vec3::splat(11.5);
+    let cam = ortho(c + Vec3::new(1.0, 0.5, 0.7) * 60.0, c, Vec3::Y, 40.0);
+    let v = view(
+        spec(cam, 16, 12, Model::Cell, 0.5, surfaces(&[(120.0, 0.0)])),
+        &volume,
+    );
+    for machine in [
+        Machine::new(Fabric::Direct, 1, 1, 1),
+        Machine::new(Fabric::Sim, 2, 1, 1),
+        Machine::new(Fabric::Threads, 2, 2, 1),
+    ] {
+        let run = render_on(&volume, &v, &machine).expect("renders");
+        let setup = run
+            .setup
+            .unwrap_or_else(|| panic!("{machine:?}: no set-up time"));
+        assert!(
+            setup <= run.wall,
+            "{machine:?}: {setup:?} of {:?}",
+            run.wall
+        );
+    }
+}

@@ -45,6 +45,10 @@ pub struct ScaleRow {
     /// every later one (its value ranges, the fast tier's node field, the view's masks and
     /// cell leap map) where no view before it did.
     pub first: Duration,
+    /// Of the median frame, the set-up before any ray was traced: the view's skipping
+    /// structures (what a further frame of the same view builds again: its depth bounds, the
+    /// leap maps it copies or builds).
+    pub setup: Duration,
     /// Lattice samples evaluated.
     pub samples: u64,
 }
@@ -200,7 +204,7 @@ pub fn run(runs: usize, out: &mut String) -> Result<Scale, ExperimentError> {
             let spec = v.view.spec().clone();
             let built = voxcube_kernel::trace::view::View::new(spec, &volume.grid)
                 .map_err(|e| ExperimentError::Asked(format!("scale sweep: {e}")))?;
-            let mut times = vec![Vec::new(); machines.len()];
+            let mut times: Vec<Vec<(Duration, Duration)>> = vec![Vec::new(); machines.len()];
             let mut samples = vec![0; machines.len()];
             let mut first = Vec::new();
             for (_, machine) in &machines {
@@ -210,7 +214,7 @@ pub fn run(runs: usize, out: &mut String) -> Result<Scale, ExperimentError> {
             for _ in 0..runs.max(1) {
                 for (m, (_, machine)) in machines.iter().enumerate() {
                     let r = render_on(volume, &built, machine)?;
-                    times[m].push(r.wall);
+                    times[m].push((r.wall, r.setup.unwrap_or_default()));
                     samples[m] = r.counters.samples;
                     pixels = r.pixels;
                 }
@@ -229,13 +233,15 @@ pub fn run(runs: usize, out: &mut String) -> Result<Scale, ExperimentError> {
             let measured = machines.iter().zip(times).zip(samples).zip(first);
             for ((((config, _), mut t), samples), first) in measured {
                 t.sort();
+                let (median, setup) = t[t.len() / 2];
                 let row = ScaleRow {
                     volume: n,
                     image,
                     tier: if v.name == "fast" { "fast" } else { "exact" },
                     config: config.clone(),
-                    median: t[t.len() / 2],
+                    median,
                     first,
+                    setup,
                     samples,
                 };
                 let _ = writeln!(
@@ -265,8 +271,8 @@ pub fn run(runs: usize, out: &mut String) -> Result<Scale, ExperimentError> {
 pub fn table(scale: &Scale, runs: usize) -> String {
     let rows = &scale.rows;
     let mut out = format!(
-        "How the cost grows (composited molecule resampled to n³, dt 1/2, the cube across 86% of the width; medians of {runs} frames after the first, which builds what the volume keeps):\n{:<7} {:<10} {:<6} {:<24} {:>10} {:>10} {:>10} {:>10} {:>10} {:>9} {:>9}\n",
-        "volume", "image", "tier", "machine", "first ms", "ms", "samples", "ns/sample", "us/pixel", "time x", "samples x"
+        "How the cost grows (composited molecule resampled to n³, dt 1/2, the cube across 86% of the width; medians of {runs} frames after the first, which builds what the volume keeps; set-up: of the median frame, before any ray):\n{:<7} {:<10} {:<6} {:<24} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10} {:>9} {:>9}\n",
+        "volume", "image", "tier", "machine", "first ms", "ms", "set-up ms", "samples", "ns/sample", "us/pixel", "time x", "samples x"
     );
     for sweep in ["volume", "image"] {
         let _ = writeln!(out, "-- growing the {sweep}");
@@ -287,13 +293,14 @@ pub fn table(scale: &Scale, runs: usize) -> String {
             });
             let _ = writeln!(
                 out,
-                "{:<7} {:<10} {:<6} {:<24} {:>10.1} {:>10.1} {:>10} {:>10.2} {:>10.3} {:>9.2} {:>9.2}",
+                "{:<7} {:<10} {:<6} {:<24} {:>10.1} {:>10.1} {:>10.1} {:>10} {:>10.2} {:>10.3} {:>9.2} {:>9.2}",
                 format!("{}³", r.volume),
                 format!("{}x{}", r.image.0, r.image.1),
                 r.tier,
                 r.config,
                 r.first.as_secs_f64() * 1e3,
                 r.median.as_secs_f64() * 1e3,
+                r.setup.as_secs_f64() * 1e3,
                 r.samples,
                 r.ns_per_sample(),
                 r.us_per_pixel(),
@@ -427,6 +434,7 @@ mod tests {
             config: config.into(),
             median: Duration::from_millis(ms),
             first: Duration::from_millis(ms),
+            setup: Duration::ZERO,
             samples: 1000,
         }
     }

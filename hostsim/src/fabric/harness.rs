@@ -115,6 +115,10 @@ pub struct Plan<'v> {
     pub layout: Layout,
     /// When the run began (for its wall time).
     pub start: Instant,
+    /// How long [`Plan::load`] took, once it has run here: the nodes' storage and the view's
+    /// skipping structures (and the volume's value ranges and node field where no run before
+    /// built them). MPI's host plans but never loads: its ranks build their own.
+    loaded_in: std::cell::Cell<Option<Duration>>,
 }
 
 impl<'v> Plan<'v> {
@@ -134,6 +138,7 @@ impl<'v> Plan<'v> {
             ghost,
             layout: cfg.layout,
             start,
+            loaded_in: std::cell::Cell::new(None),
         })
     }
 
@@ -154,6 +159,7 @@ impl<'v> Plan<'v> {
         threads: usize,
         shift: impl FnOnce(&ShiftJob<'_>) -> Result<(Vec<Vec<T>>, ShiftReport), RunError>,
     ) -> Result<(NodeStorage<'d, T>, Option<ShiftReport>), RunError> {
+        let began = Instant::now();
         let grid = &volume.grid;
         let (shifted, report) = match (&cfg.cuts, cfg.shift) {
             (Some(_), true) => {
@@ -179,6 +185,7 @@ impl<'v> Plan<'v> {
             shifted,
         )
         .with_skipping(&self.view, cfg.skipping, threads, &volume.built);
+        self.loaded_in.set(Some(began.elapsed()));
         Ok((storage, report))
     }
 
@@ -247,6 +254,7 @@ impl<'v> Plan<'v> {
             buffer_capacity: self.capacity,
             i_max: self.flow.i_max,
             wall: self.start.elapsed(),
+            setup: self.loaded_in.get(),
             time: None,
             shift,
             recovery: None,

@@ -266,6 +266,10 @@ pub struct Distributed {
     pub i_max: u16,
     /// Wall-clock time.
     pub wall: Duration,
+    /// Of the wall time, what the host spent building every node's storage and the view's
+    /// skipping structures before any node traced (its plane shift included), where the host
+    /// built them; `None` where each rank builds its own (MPI).
+    pub setup: Option<Duration>,
     /// Virtual time, for timed simulated runs.
     pub time: Option<VirtualTime>,
     /// The plane shift before rendering, when the nodes moved to balanced cuts by message.

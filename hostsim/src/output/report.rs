@@ -153,6 +153,10 @@ pub struct ViewReport {
     pub nan_pixels: u64,
     /// Wall time of the render, milliseconds.
     pub wall_ms: f64,
+    /// Of it, the set-up before any ray was traced (the view's skipping structures; the
+    /// volume's value ranges and node field the first time), milliseconds; absent on MPI,
+    /// whose ranks each build their own.
+    pub setup_ms: Option<f64>,
     /// SHA-256 of the RGBA8 pixel buffer.
     pub pixels_sha256: String,
     /// Static load balancing, when the view asked for it.
@@ -288,6 +292,7 @@ impl ViewReport {
             traffic,
             nan_pixels: c.non_finite_pixels,
             wall_ms: rendered.wall.as_secs_f64() * 1e3,
+            setup_ms: rendered.setup.map(|d| d.as_secs_f64() * 1e3),
             pixels_sha256: crate::output::files::pixels_sha256(&rendered.bytes()),
             balance: None,
             recovery: rendered

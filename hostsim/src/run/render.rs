@@ -188,6 +188,10 @@ pub struct Rendered {
     pub counters: Counters,
     /// Wall-clock time.
     pub wall: Duration,
+    /// Of the wall time, the set-up before any ray was traced: the slab's skipping
+    /// structures for the view, and the volume's value ranges and node field the first time
+    /// (`None` where the fabric's ranks each build their own: MPI).
+    pub setup: Option<Duration>,
     /// The distributed run, when there was one.
     pub distributed: Option<Distributed>,
 }
@@ -202,6 +206,7 @@ impl Rendered {
             pixels: run.pixels.clone(),
             counters: run.counters(),
             wall: run.wall,
+            setup: run.setup,
             distributed: Some(run),
         }
     }
@@ -457,6 +462,7 @@ fn render_typed<T: Sample + Sync>(
         1,
     );
     let slab = field.apply(skipping.apply(slab));
+    let setup = start.elapsed();
     let mut counters = Counters::default();
     let n = view.pixel_count();
     let mut pixels = Vec::with_capacity(n as usize);
@@ -476,6 +482,7 @@ fn render_typed<T: Sample + Sync>(
         pixels,
         counters,
         wall: start.elapsed(),
+        setup: Some(setup),
         distributed: None,
     })
 }
