@@ -100,8 +100,14 @@ pub(crate) fn of_block<T: Sample>(slab: &Slab<'_, T>, b: [u32; 3]) -> Option<Blo
             let row = slab.row(first[0] + x, first[2] + z)?;
             let start = first[1] as usize;
             let values = row.get(start..start + len[1])?;
-            for (y, node) in line.iter_mut().enumerate() {
-                *node = values.get(y.min(len[1] - 1)).copied().unwrap_or_default();
+            match <&[T; NODES]>::try_from(values) {
+                // A whole row of the block's nodes: one copy.
+                Ok(whole) => *line = *whole,
+                Err(_) => {
+                    for (y, node) in line.iter_mut().enumerate() {
+                        *node = values.get(y.min(len[1] - 1)).copied().unwrap_or_default();
+                    }
+                }
             }
         }
     }
@@ -115,6 +121,21 @@ pub(crate) fn of_block<T: Sample>(slab: &Slab<'_, T>, b: [u32; 3]) -> Option<Blo
         unknown,
         ..BlockCells::default()
     };
+    if cells == [EDGE; 3] {
+        // Every cell present (nearly every block of a large volume): bounds the compiler
+        // knows, and no mask built bit by bit.
+        block.present = ALL;
+        for x in 0..EDGE {
+            for z in 0..EDGE {
+                for y in 0..EDGE {
+                    let i = x + EDGE * (y + EDGE * z);
+                    block.lo[i] = lo[x][z][y].lesser(lo[x][z][y + 1]);
+                    block.hi[i] = hi[x][z][y].greater(hi[x][z][y + 1]);
+                }
+            }
+        }
+        return Some(block);
+    }
     for x in 0..cells[0] {
         for z in 0..cells[2] {
             for y in 0..cells[1] {
@@ -153,4 +174,65 @@ fn corner_extremes<T: Sample>(
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::volume::grid::Grid;
+    use glam::Vec3;
+
+    /// Each block's cells against their eight corners read one by one: present exactly where
+    /// the cell lies in the grid, its range the least and greatest corner, the rest as a
+    /// block of which nothing is known says. Uneven dimensions, so that blocks at the grid's
+    /// end are partial along each axis in turn, and a grid of whole blocks.
+    #[test]
+    fn every_cell_s_range_is_the_least_and_greatest_of_its_corners() {
+        let mut next = crate::testing::xorshift(0x5eed_ce11);
+        for dims in [[9u32, 10, 11], [13, 8, 6], [17, 17, 17], [5, 2, 9]] {
+            let n = dims.iter().product::<u32>() as usize;
+            let mut all = [0u8; 17 * 17 * 17];
+            all.iter_mut().for_each(|v| *v = next() as u8);
+            let data = &all[..n];
+            let grid = Grid::new(dims, Vec3::ONE).unwrap();
+            let slab = Slab::whole(grid, data).unwrap();
+            let node = |x: u32, y: u32, z: u32| {
+                let [x, y, z] = [x, y, z].map(|v| v as usize);
+                data[(x * dims[2] as usize + z) * dims[1] as usize + y]
+            };
+            let blocks = dims.map(|d| d.saturating_sub(1).max(1).div_ceil(BLOCK));
+            for bx in 0..blocks[0] {
+                for by in 0..blocks[1] {
+                    for bz in 0..blocks[2] {
+                        let got = of_block(&slab, [bx, by, bz]).unwrap();
+                        assert_eq!(got.unknown, 0);
+                        for i in 0..PER_BLOCK as u32 {
+                            let c = [i % BLOCK, i / BLOCK % BLOCK, i / (BLOCK * BLOCK)];
+                            let lo = [bx, by, bz].map(|b| b * BLOCK);
+                            let at: [u32; 3] = core::array::from_fn(|a| lo[a] + c[a]);
+                            let inside = (0..3).all(|a| at[a] < dims[a].saturating_sub(1).max(1));
+                            assert_eq!(got.present >> i & 1 == 1, inside, "{dims:?} {at:?}");
+                            let (mut want_lo, mut want_hi) = (u8::MAX, u8::MIN);
+                            for d in 0..8u32 {
+                                let p: [u32; 3] = core::array::from_fn(|a| {
+                                    (at[a] + (d >> a & 1)).min(dims[a] - 1)
+                                });
+                                want_lo = want_lo.min(node(p[0], p[1], p[2]));
+                                want_hi = want_hi.max(node(p[0], p[1], p[2]));
+                            }
+                            if !inside {
+                                (want_lo, want_hi) = (0, 0);
+                            }
+                            let i = i as usize;
+                            assert_eq!(
+                                (got.lo[i], got.hi[i]),
+                                (want_lo, want_hi),
+                                "{dims:?} {at:?}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
 }
