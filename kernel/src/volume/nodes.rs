@@ -107,17 +107,62 @@ pub fn fill<T: Sample>(
             // Not taken: every row read is stored (checked above).
             return Err(NodesError::NotStored { read, stored });
         };
-        let f = |row: &[T], y: usize| row[y].to_f32();
-        let last = ny as usize - 1;
-        for (y, lanes) in out.iter_mut().enumerate() {
-            let v = f(here, y);
-            let dx = f(ahead, y) - f(behind, y);
-            let dy = f(here, (y + 1).min(last)) - f(here, y.saturating_sub(1));
-            let dz = f(above, y) - f(below, y);
-            *lanes = T::Node::pack(Vec4::new(v, dx, dy, dz));
-        }
+        let n = ny as usize;
+        let (Some(here), Some(ahead), Some(behind), Some(above), Some(below)) = (
+            here.get(..n),
+            ahead.get(..n),
+            behind.get(..n),
+            above.get(..n),
+            below.get(..n),
+        ) else {
+            return Err(NodesError::NotStored { read, stored });
+        };
+        fill_row(out, here, (ahead, behind), (above, below));
     }
     Ok(())
+}
+
+/// One row of lanes from its row of nodes `here` and the rows beside it along X and along Z
+/// (all as long as `out`), a neighbour past the row's end clamped to its end node as [`node`]
+/// clamps it. The nodes inside the row take their Y neighbours from a window of three, with
+/// no clamp and no bounds check: the same values, subtracted in the same order.
+#[inline]
+fn fill_row<T: Sample>(
+    out: &mut [T::Node],
+    here: &[T],
+    (ahead, behind): (&[T], &[T]),
+    (above, below): (&[T], &[T]),
+) {
+    let f = |row: &[T], y: usize| row.get(y).map_or(0.0, |v| v.to_f32());
+    let lanes = |v: f32, dx: f32, dy: f32, dz: f32| T::Node::pack(Vec4::new(v, dx, dy, dz));
+    let Some(last) = out.len().checked_sub(1) else {
+        return;
+    };
+    // The row's two ends, whose Y neighbour is clamped.
+    for y in [0, last] {
+        let v = f(here, y);
+        let dx = f(ahead, y) - f(behind, y);
+        let dy = f(here, (y + 1).min(last)) - f(here, y.saturating_sub(1));
+        let dz = f(above, y) - f(below, y);
+        if let Some(slot) = out.get_mut(y) {
+            *slot = lanes(v, dx, dy, dz);
+        }
+    }
+    let inside = out.get_mut(1..last).unwrap_or_default();
+    fn beside<T>(row: &[T]) -> &[T] {
+        row.get(1..).unwrap_or_default()
+    }
+    let rows = here
+        .windows(3)
+        .zip(beside(ahead).iter().zip(beside(behind)))
+        .zip(beside(above).iter().zip(beside(below)));
+    for (slot, ((h, (a, b)), (u, d))) in inside.iter_mut().zip(rows) {
+        let v = h[1].to_f32();
+        let dx = a.to_f32() - b.to_f32();
+        let dy = h[2].to_f32() - h[0].to_f32();
+        let dz = u.to_f32() - d.to_f32();
+        *slot = lanes(v, dx, dy, dz);
+    }
 }
 
 /// The value and gradient at `site` (cell model) by the node field: one trilinear
@@ -365,6 +410,29 @@ mod tests {
         let part = Slab::new(grid, 3..5, 2, &bytes[plane..7 * plane]).unwrap();
         assert_eq!(planes_for(&grid, part.owned()), 2..6);
         check(&part);
+    }
+
+    #[test]
+    fn rows_of_one_two_and_three_nodes_clamp_their_ends_as_a_node_does() {
+        let (bytes, _) = hashed_bytes();
+        for ny in [1u32, 2, 3] {
+            let grid = Grid::new([4, ny, 3], Vec3::ONE).unwrap();
+            let data = &bytes[..grid.plane_len() * 4];
+            let slab = Slab::whole(grid, data).unwrap();
+            let (storage, planes) = whole_field(&slab);
+            let mut c = Counters::default();
+            let mut i = 0;
+            for x in planes {
+                for z in 0..3 {
+                    for y in 0..ny {
+                        let want = node(&slab, [x, y, z], &mut c);
+                        assert_eq!(bits(storage[i].unpack()), bits(want), "{ny}: {x} {y} {z}");
+                        i += 1;
+                    }
+                }
+            }
+            assert_eq!(i, grid.plane_len() * 4);
+        }
     }
 
     fn check<T: Sample>(slab: &Slab<'_, T>) {
