@@ -11,7 +11,7 @@
 use crate::counters::Counters;
 use crate::volume::field::{self, Site};
 use crate::volume::grid::Grid;
-use crate::volume::lanes::{Lanes, NodesError};
+use crate::volume::lanes::NodesError;
 use crate::volume::sample::Sample;
 use crate::volume::slab::{Slab, Window};
 use core::ops::Range;
@@ -133,19 +133,20 @@ fn fill_row<T: Sample>(
     (ahead, behind): (&[T], &[T]),
     (above, below): (&[T], &[T]),
 ) {
-    let f = |row: &[T], y: usize| row.get(y).map_or(0.0, |v| v.to_f32());
-    let lanes = |v: f32, dx: f32, dy: f32, dz: f32| T::Node::pack(Vec4::new(v, dx, dy, dz));
+    let f = |row: &[T], y: usize| row.get(y).copied().unwrap_or_default();
     let Some(last) = out.len().checked_sub(1) else {
         return;
     };
     // The row's two ends, whose Y neighbour is clamped.
     for y in [0, last] {
-        let v = f(here, y);
-        let dx = f(ahead, y) - f(behind, y);
-        let dy = f(here, (y + 1).min(last)) - f(here, y.saturating_sub(1));
-        let dz = f(above, y) - f(below, y);
+        let lanes = T::node_lanes(
+            f(here, y),
+            [f(ahead, y), f(behind, y)],
+            [f(here, (y + 1).min(last)), f(here, y.saturating_sub(1))],
+            [f(above, y), f(below, y)],
+        );
         if let Some(slot) = out.get_mut(y) {
-            *slot = lanes(v, dx, dy, dz);
+            *slot = lanes;
         }
     }
     let inside = out.get_mut(1..last).unwrap_or_default();
@@ -156,12 +157,8 @@ fn fill_row<T: Sample>(
         .windows(3)
         .zip(beside(ahead).iter().zip(beside(behind)))
         .zip(beside(above).iter().zip(beside(below)));
-    for (slot, ((h, (a, b)), (u, d))) in inside.iter_mut().zip(rows) {
-        let v = h[1].to_f32();
-        let dx = a.to_f32() - b.to_f32();
-        let dy = h[2].to_f32() - h[0].to_f32();
-        let dz = u.to_f32() - d.to_f32();
-        *slot = lanes(v, dx, dy, dz);
+    for (slot, ((h, (&a, &b)), (&u, &d))) in inside.iter_mut().zip(rows) {
+        *slot = T::node_lanes(h[1], [a, b], [h[2], h[0]], [u, d]);
     }
 }
 
@@ -275,7 +272,7 @@ mod tests {
     use super::*;
     use crate::volume::field::locate;
     use crate::volume::grid::Model;
-    use crate::volume::lanes::Nodes;
+    use crate::volume::lanes::{Lanes, Nodes};
 
     fn bits(v: Vec4) -> [u32; 4] {
         v.to_array().map(f32::to_bits)

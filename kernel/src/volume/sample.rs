@@ -54,6 +54,16 @@ pub trait Sample: Copy + Default + Send + Sync + 'static {
     /// How the fast tier's node field stores a node of this kind
     /// ([`crate::volume::lanes`]): a type that holds its value and differences exactly.
     type Node: crate::volume::lanes::Lanes;
+    /// The lanes of a node of value `here` whose neighbours are `x`, `y` and `z` (ahead,
+    /// behind) along each axis: [`crate::volume::lanes::Lanes::pack`] of the value and the
+    /// three differences, each taken in `f32`. A kind may compute them otherwise only where
+    /// that gives the same lanes in every bit.
+    #[inline(always)]
+    fn node_lanes(here: Self, x: [Self; 2], y: [Self; 2], z: [Self; 2]) -> Self::Node {
+        use crate::volume::lanes::Lanes;
+        let d = |[ahead, behind]: [Self; 2]| ahead.to_f32() - behind.to_f32();
+        Self::Node::pack(glam::Vec4::new(here.to_f32(), d(x), d(y), d(z)))
+    }
 }
 
 /// The three sample types differ only in their kind and their order: every conversion is
@@ -61,10 +71,11 @@ pub trait Sample: Copy + Default + Send + Sync + 'static {
 /// `f32`), and so is every comparison (`Ord` for the integers, `f32::min` and `f32::max`,
 /// which the tracer uses on converted values too).
 macro_rules! sample {
-    ($t:ty, $kind:ident, $lesser:path, $greater:path, $node:ty) => {
+    ($t:ty, $kind:ident, $lesser:path, $greater:path, $node:ty $(, $lanes:item)?) => {
         impl Sample for $t {
             const KIND: SampleKind = SampleKind::$kind;
             type Node = $node;
+            $($lanes)?
             #[inline]
             fn to_f32(self) -> f32 {
                 f32::from(self)
@@ -92,7 +103,20 @@ macro_rules! sample {
 
 // A byte node's value and differences lie in [-255, 255]: exact in i16, half the bytes of f32.
 // A u16 node's differences need 17 bits, and f32's are f32: both keep four f32 lanes.
-sample!(u8, U8, core::cmp::min, core::cmp::max, [i16; 4]);
+sample!(
+    u8,
+    U8,
+    core::cmp::min,
+    core::cmp::max,
+    [i16; 4],
+    // In whole numbers: a byte's value and differences are exact in f32 and in i16 alike, so
+    // these are the lanes the default computes, without a conversion per neighbour.
+    #[inline(always)]
+    fn node_lanes(here: u8, x: [u8; 2], y: [u8; 2], z: [u8; 2]) -> [i16; 4] {
+        let d = |[ahead, behind]: [u8; 2]| i16::from(ahead) - i16::from(behind);
+        [i16::from(here), d(x), d(y), d(z)]
+    }
+);
 sample!(u16, U16, core::cmp::min, core::cmp::max, [f32; 4]);
 sample!(f32, F32, f32::min, f32::max, [f32; 4]);
 
@@ -116,6 +140,25 @@ impl Range {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_byte_node_s_lanes_in_whole_numbers_are_the_default_s_in_every_bit() {
+        // The default, spelled out for bytes: each lane through f32 and `pack`.
+        let by_floats = |h: u8, x: [u8; 2], y: [u8; 2], z: [u8; 2]| {
+            use crate::volume::lanes::Lanes;
+            let d = |[a, b]: [u8; 2]| f32::from(a) - f32::from(b);
+            <[i16; 4]>::pack(glam::Vec4::new(f32::from(h), d(x), d(y), d(z)))
+        };
+        // Every pair of neighbours, in each lane in turn, beside every value.
+        for a in 0..=255u8 {
+            for b in 0..=255u8 {
+                let (p, q) = ([a, b], [b, a]);
+                for (h, x, y, z) in [(a, p, q, p), (b, q, p, q), (a, [a, a], p, q)] {
+                    assert_eq!(u8::node_lanes(h, x, y, z), by_floats(h, x, y, z), "{a} {b}");
+                }
+            }
+        }
+    }
 
     #[test]
     fn bytes_round_trip_and_wrong_lengths_are_refused() {
