@@ -915,6 +915,26 @@ fn nodes_hold_cell_leap_maps_only_where_they_fit() {
     assert!(samples_below(&under) && !samples_below(&over));
     assert_eq!(cell_leap_octants(&under, SkipMode::ALL), 0);
     assert_eq!(cell_leap_octants(&over, SkipMode::ALL).count_ones(), 1);
+    // Composited, a cell must hold one sample: not at 40×30 (0.9 a cell), at 48×36 (1.28);
+    // without depth bounds the first keeps its map too.
+    let composited = |w: u32, h: u32| {
+        let spec = voxcube_tests::spec(
+            cam(40.0),
+            w,
+            h,
+            Model::Cell,
+            0.5,
+            voxcube_tests::constant_transfer(0.2),
+        );
+        voxcube_tests::view(spec, &small)
+    };
+    let (thin, dense) = (composited(40, 30), composited(48, 36));
+    let per_cell = |v: &View| voxcube::memory::storage::samples_per_cell(v).expect("parallel");
+    let least = voxcube::memory::storage::COMPOSITE_MAP_SAMPLES_PER_CELL;
+    assert!(per_cell(&thin) < least && per_cell(&dense) >= least);
+    assert_eq!(cell_leap_octants(&thin, SkipMode::ALL), 0);
+    assert_eq!(cell_leap_octants(&dense, SkipMode::ALL).count_ones(), 1);
+    assert_eq!(cell_leap_octants(&thin, machine.skipping).count_ones(), 1);
     let eye = Vec3::splat(20.0);
     let inside = voxcube_tests::perspective(eye, eye + Vec3::new(1.0, 0.3, 0.2), Vec3::Y, 100.0);
     let spread = blob_view(inside, &small);

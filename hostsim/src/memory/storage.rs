@@ -173,11 +173,11 @@ pub fn depth_bytes(view: &View, mode: SkipMode, clusters: u16) -> usize {
 /// that octant, of whatever kind, leaps by the map. None without cell masks, which they
 /// are built from, and none when the primary rays take several octants: each map costs a
 /// pass over every cell, and each octant's rays are then only a share of the image.
-/// None either for surfaces where depth bounds pass the primary rays over the cells before
-/// their first that shows and a cell holds fewer than [`MAP_SAMPLES_PER_CELL`] of their
-/// samples ([`samples_per_cell`]): most such rays end at a crossing soon after their bound,
-/// and the map's pass costs more than the turns it saves. Composited rays go on through the
-/// volume after their bound, and keep their maps.
+/// None either where depth bounds pass the primary rays over the cells before their first
+/// that shows and a cell holds fewer of their samples ([`samples_per_cell`]) than the map's
+/// pass over every cell repays: for surfaces [`MAP_SAMPLES_PER_CELL`] (most such rays end at
+/// a crossing soon after their bound), for composited views, whose rays go on through the
+/// volume after it, [`COMPOSITE_MAP_SAMPLES_PER_CELL`].
 pub fn cell_leap_octants(view: &View, mode: SkipMode) -> u8 {
     let by_cell = view.spec().model == voxcube_kernel::volume::grid::Model::Cell;
     let primary = voxcube_kernel::skip::leaps::primary_octants(view);
@@ -185,9 +185,11 @@ pub fn cell_leap_octants(view: &View, mode: SkipMode) -> u8 {
         view.spec().mode,
         voxcube_kernel::trace::view::Mode::Surfaces(_)
     );
-    let sparse = surfaces
-        && has_depths(view, mode)
-        && samples_per_cell(view).is_some_and(|n| n < MAP_SAMPLES_PER_CELL);
+    let least = match surfaces {
+        true => MAP_SAMPLES_PER_CELL,
+        false => COMPOSITE_MAP_SAMPLES_PER_CELL,
+    };
+    let sparse = has_depths(view, mode) && samples_per_cell(view).is_some_and(|n| n < least);
     match mode.skip && mode.cells && mode.cell_leaps && by_cell && primary.count_ones() == 1 {
         true if !sparse => primary,
         _ => 0,
@@ -199,6 +201,14 @@ pub fn cell_leap_octants(view: &View, mode: SkipMode) -> u8 {
 /// on SOD over image sizes (docs/speed-log.md), the two are about even at 16 a cell; the
 /// paper's view holds 8.
 pub const MAP_SAMPLES_PER_CELL: f64 = 16.0;
+
+/// The samples a cell must hold, on average, for a composited view with depth bounds to take
+/// cell leap maps. A map's pass over every cell costs the same whatever the image, while what
+/// it saves a frame follows the samples: on the molecule resampled to 512³ at 350×250 (0.34
+/// samples a cell) a map saved 20–40 ms of a 300–360 ms frame and took 1.0–1.2 s to build,
+/// some thirty frames' savings, so an orbit, which turns through four octants, lost by it; at
+/// 256³ (1.37 a cell) it saved 55 ms of 215 for about 0.1 s (docs/speed-log.md).
+pub const COMPOSITE_MAP_SAMPLES_PER_CELL: f64 = 1.0;
 
 /// How many of a parallel view's lattice samples a cell holds on average, over the rays
 /// that cross it: a cell's world volume over the world area of a pixel times the step.
