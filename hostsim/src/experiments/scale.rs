@@ -39,6 +39,8 @@ pub struct ScaleRow {
     pub tier: &'static str,
     /// Fabric and shape.
     pub config: String,
+    /// Whether it ran on a cluster of one node per core (threads) rather than one node.
+    pub every_core: bool,
     /// Median wall time of the frames after the first.
     pub median: Duration,
     /// Wall time of the first frame of the view, which builds what the volume keeps for
@@ -231,7 +233,7 @@ pub fn run(runs: usize, out: &mut String) -> Result<Scale, ExperimentError> {
                 }
             }
             let measured = machines.iter().zip(times).zip(samples).zip(first);
-            for ((((config, _), mut t), samples), first) in measured {
+            for ((((config, machine), mut t), samples), first) in measured {
                 t.sort();
                 let (median, setup) = t[t.len() / 2];
                 let row = ScaleRow {
@@ -239,6 +241,7 @@ pub fn run(runs: usize, out: &mut String) -> Result<Scale, ExperimentError> {
                     image,
                     tier: if v.name == "fast" { "fast" } else { "exact" },
                     config: config.clone(),
+                    every_core: machine.fabric == Fabric::Threads,
                     median,
                     first,
                     setup,
@@ -330,10 +333,7 @@ fn beside_vtk(scale: &Scale) -> String {
                 .rows
                 .iter()
                 .find(|r| {
-                    r.volume == v.volume
-                        && r.image == IMAGES[0]
-                        && r.tier == tier
-                        && r.config.starts_with("threads")
+                    r.volume == v.volume && r.image == IMAGES[0] && r.tier == tier && r.every_core
                 })
                 .map_or(f64::NAN, |r| r.median.as_secs_f64())
         };
@@ -362,10 +362,10 @@ pub fn plot(path: &Path, scale: &Scale) -> Result<(), String> {
     root.fill(&WHITE).map_err(|e| e.to_string())?;
     let (left, right) = root.split_horizontally(550);
     let swept: Vec<&ScaleRow> = scale.rows.iter().filter(|r| r.image == IMAGES[0]).collect();
-    let series = |tier: &str, threads: bool, y: &dyn Fn(&ScaleRow) -> f64| -> Vec<(f64, f64)> {
+    let series = |tier: &str, every_core: bool, y: &dyn Fn(&ScaleRow) -> f64| -> Vec<(f64, f64)> {
         swept
             .iter()
-            .filter(|r| r.tier == tier && r.config.starts_with("threads") == threads)
+            .filter(|r| r.tier == tier && r.every_core == every_core)
             .map(|r| (f64::from(r.volume), y(r)))
             .collect()
     };
@@ -388,8 +388,8 @@ pub fn plot(path: &Path, scale: &Scale) -> Result<(), String> {
             ("exact, one node", "exact", false, MAGENTA),
         ]
         .into_iter()
-        .map(|(label, tier, threads, colour)| Line {
-            points: series(tier, threads, y),
+        .map(|(label, tier, every_core, colour)| Line {
+            points: series(tier, every_core, y),
             colour,
             label: format!("voxcube {label}"),
         })
@@ -432,6 +432,7 @@ mod tests {
             image: IMAGES[0],
             tier,
             config: config.into(),
+            every_core: config.starts_with("threads"),
             median: Duration::from_millis(ms),
             first: Duration::from_millis(ms),
             setup: Duration::ZERO,

@@ -210,6 +210,12 @@ pub const MAP_SAMPLES_PER_CELL: f64 = 16.0;
 /// 256³ (1.37 a cell) it saved 55 ms of 215 for about 0.1 s (docs/speed-log.md).
 pub const COMPOSITE_MAP_SAMPLES_PER_CELL: f64 = 1.0;
 
+/// The octants (by index, ascending) whose bits `mask` sets: the order the maps of a set of
+/// octants are stored in.
+fn octants_of(mask: u8) -> impl Iterator<Item = usize> {
+    (0..voxcube_kernel::skip::octant::OCTANTS).filter(move |o| mask >> o & 1 == 1)
+}
+
 /// How many of a parallel view's lattice samples a cell holds on average, over the rays
 /// that cross it: a cell's world volume over the world area of a pixel times the step.
 /// `None` for a perspective view, whose pixels' areas grow with depth.
@@ -396,7 +402,7 @@ impl Skipping {
         let depth_jobs = jobs.len();
         // A leap map, like the masks, depends on the blocks' verdicts alone: one kept for these
         // verdicts and an octant is copied, not built again.
-        let chosen = (0..voxcube_kernel::skip::octant::OCTANTS).filter(|o| octants >> o & 1 == 1);
+        let chosen = octants_of(octants);
         for (map, octant) in leaps.chunks_mut(len).zip(chosen) {
             let held = kept.as_ref().and_then(|k| k.block_map(octant));
             if let Some(held) = held.filter(|held| held.len() == map.len()) {
@@ -413,8 +419,7 @@ impl Skipping {
             }));
         }
         if let Some(with_masks) = &with_masks {
-            let chosen =
-                (0..voxcube_kernel::skip::octant::OCTANTS).filter(|o| building >> o & 1 == 1);
+            let chosen = octants_of(building);
             // Each map in parts of planes, one a thread: a part is built with the planes ahead
             // of it that its distances depend on, and keeps its own. The parts even out what
             // each thread builds (`cell_leaps::part`).
@@ -480,8 +485,7 @@ impl Skipping {
                     nodes: Arc::clone(&node_leaps),
                 });
             }
-            let chosen =
-                (0..voxcube_kernel::skip::octant::OCTANTS).filter(|o| octants >> o & 1 == 1);
+            let chosen = octants_of(octants);
             for (map, octant) in leaps.chunks(len.max(1)).zip(chosen) {
                 if block_maps.iter().all(|(o, _)| *o != octant) {
                     block_maps.push((octant, Arc::new(map.to_vec())));
