@@ -388,3 +388,98 @@ fn a_rank_lost_during_the_re_trace_takes_its_cluster_out_and_the_rest_finish() {
     assert_eq!(recovery["also_lost"], serde_json::json!([0]), "{recovery}");
     assert_eq!(recovery["by"], serde_json::json!([2, 3]), "{recovery}");
 }
+
+/// A node whose set-up (value ranges, skipping structures, node field of a big slab) takes
+/// longer than `--lost-after` is not declared lost: its rank heartbeats while it builds. The
+/// molecule at 512³ on two nodes with `--lost-after 0.5` (a rank's set-up takes about a second
+/// on a 2-core machine; before the fix this run failed, "node 0 stopped answering"). The
+/// image is the threads fabric's, and the report gives each rank's set-up and peak resident
+/// memory and the host's.
+#[test]
+fn a_node_setting_up_a_big_slab_is_not_declared_lost() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (n, c) = (511.0f64 / 2.0, 2.0 * 512.0 / std::f64::consts::SQRT_2);
+    let scene = dir.path().join("big.toml");
+    std::fs::write(
+        &scene,
+        format!(
+            r#"[[datasets]]
+name = "m512"
+builtin = "molecule"
+size = 512
+[[datasets.views]]
+name = "fast"
+width = 120
+height = 90
+mode = "composite"
+accuracy = "fast"
+[datasets.views.camera]
+eye = [{e}, {n}, {e}]
+look_at = [{n}, {n}, {n}]
+width = 844.8
+[[datasets.views.transfer]]
+value = 10.0
+color = [0.2, 0.3, 0.8]
+opacity = 0.0
+[[datasets.views.transfer]]
+value = 200.0
+color = [1.0, 0.2, 0.1]
+opacity = 0.8
+"#,
+            e = n + c
+        ),
+    )
+    .expect("scene written");
+    let scene = scene.display().to_string();
+    let render = |fabric: &str| {
+        let report = dir.path().join(format!("{fabric}.json"));
+        let out = dir.path().join(fabric).display().to_string();
+        let report_arg = report.display().to_string();
+        let args = [
+            "render",
+            &scene,
+            "--nodes",
+            "2",
+            "--machine",
+            "modern",
+            "--lost-after",
+            "0.5",
+            "-q",
+            "--fabric",
+            fabric,
+            "-o",
+            &out,
+            "--report",
+            &report_arg,
+        ];
+        let run = match fabric {
+            "mpi" => mpirun(3, &[], &args),
+            _ => Command::new(env!("CARGO_BIN_EXE_voxcube"))
+                .args(args)
+                .output()
+                .expect("runs"),
+        };
+        assert!(
+            run.status.success(),
+            "{fabric}: {}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        read_report(&report)
+    };
+    let (mpi, threads) = (render("mpi"), render("threads"));
+    let view = &mpi["views"][0];
+    assert_eq!(view["pixels_sha256"], threads["views"][0]["pixels_sha256"]);
+    let nodes = view["traffic"]["nodes"].as_array().expect("nodes");
+    assert_eq!(nodes.len(), 2);
+    for node in nodes {
+        // A rank holds at least its slab: a quarter of the 128 MiB volume and more.
+        let resident = node["resident_peak_bytes"].as_u64().expect("a rank's peak");
+        assert!(resident > 64 << 20, "{node}");
+    }
+    let setup = view["setup_ms"]
+        .as_f64()
+        .expect("the slowest rank's set-up");
+    assert!(setup > 0.0 && setup < view["wall_ms"].as_f64().unwrap_or(0.0));
+    assert!(view["host_resident_peak_bytes"].as_u64().is_some());
+    assert!(threads["views"][0]["traffic"]["nodes"][0]["resident_peak_bytes"].is_null());
+}

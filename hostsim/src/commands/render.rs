@@ -663,8 +663,15 @@ fn mpi_start(
     if plan.iter().any(|(_, _, m)| m.fabric != Fabric::Mpi) {
         return Err("with --fabric mpi every view renders on MPI".into());
     }
-    let universe =
-        mpi::initialize().ok_or("MPI could not be initialised (is this run under mpirun?)")?;
+    // Funnelled: a node builds its set-up on a thread of its own while its rank's thread,
+    // the only one that calls MPI, heartbeats (`crate::fabric::mpi`).
+    let (universe, level) = mpi::initialize_with_threading(mpi::Threading::Funneled)
+        .ok_or("MPI could not be initialised (is this run under mpirun?)")?;
+    if level == mpi::Threading::Single {
+        return Err(format!(
+            "this MPI library offers the threading level {level:?}; voxcube needs Funneled (a rank's set-up runs on a thread beside the one that calls MPI)"
+        ));
+    }
     let world = universe.world();
     for (job, v, m) in plan {
         if world.size() as u32 != m.nodes + 1 {

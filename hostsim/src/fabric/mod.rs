@@ -53,6 +53,10 @@ pub struct NodeReport {
     /// Wall time it spent in busy polls (threads fabric; zero in the simulator, whose time is
     /// not wall time).
     pub busy: Duration,
+    /// The peak resident memory of the process it ran in alone, bytes, as the operating
+    /// system measured it when the node could trace (MPI: its rank's); `None` where nodes
+    /// share a process.
+    pub resident_peak: Option<u64>,
 }
 
 /// What every node report of one run shares: the machine's layout, the slabs of
@@ -128,6 +132,7 @@ impl<'a> RunShape<'a> {
             peak_buffer: peak,
             memory,
             busy,
+            resident_peak: None,
         }
     }
 }
@@ -267,8 +272,8 @@ pub struct Distributed {
     /// Wall-clock time.
     pub wall: Duration,
     /// Of the wall time, what the host spent building every node's storage and the view's
-    /// skipping structures before any node traced (its plane shift included), where the host
-    /// built them; `None` where each rank builds its own (MPI).
+    /// skipping structures before any node traced (its plane shift included); on MPI, where
+    /// each rank builds its own side by side, the slowest rank's (`None` when a node was lost).
     pub setup: Option<Duration>,
     /// Virtual time, for timed simulated runs.
     pub time: Option<VirtualTime>,

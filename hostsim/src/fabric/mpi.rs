@@ -61,6 +61,10 @@ const TAG_MSG_BASE: i32 = 1000;
 const TAG_BEAT: i32 = 2;
 /// Tag of a node's account of its plane shift: messages, bytes, peak samples, rounds.
 const TAG_SHIFT_REPORT: i32 = 3;
+/// Tag of a node's account of its set-up: the phase's tag, the microseconds from its start
+/// until the node could trace (its plane shift included), and its rank's peak resident bytes
+/// then.
+const TAG_SETUP: i32 = 6;
 /// Tag of the plane shift's first round; round `r` uses `TAG_SHIFT + r`.
 pub const TAG_SHIFT: i32 = 16;
 /// How often a node tells the host it is alive.
@@ -633,6 +637,7 @@ fn serve_phase<T: Sample + Sync>(
     (node, tag, ranks): (u16, i32, &PhaseRanks),
     beat: &mut Instant,
 ) -> Result<Option<Start>, RunError> {
+    let began = Instant::now();
     let grid = volume.grid;
     let plan = Plan::new(&grid, view, cfg)?;
     let (view, flow, capacity, ghost) = (&*plan.view, plan.flow, plan.capacity, plan.ghost);
@@ -684,12 +689,17 @@ fn serve_phase<T: Sample + Sync>(
     let rows = layout.cluster_rows(layout.place(node).0);
     let cells =
         crate::memory::storage::cell_range_bytes(view, cfg.skipping, volume.data.kind()) > 0;
-    let ranges = volume.built.ranges(&slab, cells, 1);
-    let skipping =
-        crate::memory::storage::Skipping::build_for(&slab, &ranges, view, cfg.skipping, rows);
     let hold = crate::memory::storage::holds_node_field(view, cfg.skipping);
-    let field = volume.built.field(&slab, hold, 1);
+    let (skipping, field) = beating(world, beat, || {
+        let ranges = volume.built.ranges(&slab, cells, 1);
+        let skipping =
+            crate::memory::storage::Skipping::build_for(&slab, &ranges, view, cfg.skipping, rows);
+        (skipping, volume.built.field(&slab, hold, 1))
+    });
     let slab = field.apply(skipping.apply(slab));
+    let resident = crate::memory::resident::peak().unwrap_or(0);
+    let setup = [tag as u64, began.elapsed().as_micros() as u64, resident];
+    host.send_with_tag(&setup[..], TAG_SETUP);
     let mut worker = node_worker(view, slab, &partition, cfg, node, flow)?;
     let mut port = MpiPort {
         world,
@@ -724,6 +734,28 @@ fn serve_phase<T: Sample + Sync>(
         }
     }
     Ok(None)
+}
+
+/// `work` (a node's set-up: its value ranges, skipping structures and node field, seconds on
+/// a big slab) on a thread beside this one, which heartbeats until it ends: a node that is
+/// building is not silent, and is not declared lost for it. MPI is called from this thread
+/// alone (the funnelled threading level `crate::commands::render` asks for).
+fn beating<R: Send>(
+    world: &SimpleCommunicator,
+    beat: &mut Instant,
+    work: impl FnOnce() -> R + Send,
+) -> R {
+    std::thread::scope(|scope| {
+        let building = scope.spawn(work);
+        while !building.is_finished() {
+            heartbeat(world, beat);
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        match building.join() {
+            Ok(built) => built,
+            Err(panic) => std::panic::resume_unwind(panic),
+        }
+    })
 }
 
 /// Which world rank runs each node of a phase's machine: rank `n + 1` runs node `n` of the
@@ -843,6 +875,7 @@ pub fn host(
         }
     });
     let capacity = plan.capacity;
+    let setups = phase.setups;
     let mut run = plan.finish(
         &run_cfg,
         &grid,
@@ -853,6 +886,18 @@ pub fn host(
         &|_| Duration::ZERO,
         shift,
     );
+    // Each rank set up its own node, side by side: the view waited for the slowest. After a
+    // loss the re-trace's nodes set up again, and no figure is claimed.
+    if recovered.is_none() {
+        run.setup = setups
+            .iter()
+            .map(|s| s.map(|[micros, _]| Duration::from_micros(micros)))
+            .collect::<Option<Vec<_>>>()
+            .and_then(|all| all.into_iter().max());
+        for (node, setup) in run.nodes.iter_mut().zip(&setups) {
+            node.resident_peak = setup.map(|[_, bytes]| bytes).filter(|&b| b > 0);
+        }
+    }
     run.recovery = match (recovered, lost_before.first()) {
         (Some(r), _) => Some(r),
         (None, Some(&node)) => Some(Recovery {
@@ -924,6 +969,8 @@ struct PhaseEnd {
     /// Messages of the lost cluster that came after it was declared lost, dropped.
     late: u64,
     accounts: Vec<Option<[u64; 4]>>,
+    /// Each node's set-up: microseconds, and its rank's peak resident bytes ([`TAG_SETUP`]).
+    setups: Vec<Option<[u64; 2]>>,
 }
 
 /// Start `plan`'s machine (`cfg`) on `ranks` under `tag` and be its host until it ends: with
@@ -970,6 +1017,9 @@ fn run_phase(
         }
     }
     let mut accounts: Vec<Option<[u64; 4]>> = vec![None; if cfg.shift { nodes } else { 0 }];
+    let mut setups: Vec<Option<[u64; 2]>> = vec![None; nodes];
+    // A set-up of this phase (a node of an abandoned one may have sent one never read).
+    let of_phase = |m: [u64; 3]| (m[0] == tag as u64).then_some([m[1], m[2]]);
     let started = Instant::now();
     let mut heard = vec![Instant::now(); nodes];
     let mut lost: Option<LostNode> = None;
@@ -995,6 +1045,20 @@ fn run_phase(
             if let Some(n) = ranks.node(status.source_rank()).map(usize::from) {
                 if let Some(a) = accounts.get_mut(n) {
                     *a = Some(account);
+                }
+                heard[n] = Instant::now();
+            }
+            any = true;
+        }
+        while let Some((message, status)) = world
+            .any_process()
+            .immediate_matched_probe_with_tag(TAG_SETUP)
+        {
+            let mut setup = [0u64; 3];
+            message.matched_receive_into(&mut setup[..]);
+            if let Some(n) = ranks.node(status.source_rank()).map(usize::from) {
+                if let (Some(slot), Some(setup)) = (setups.get_mut(n), of_phase(setup)) {
+                    *slot = Some(setup);
                 }
                 heard[n] = Instant::now();
             }
@@ -1076,10 +1140,24 @@ fn run_phase(
             *account = Some(a);
         }
     }
+    // Likewise its set-up, sent before anything it traced.
+    for (n, setup) in setups.iter_mut().enumerate() {
+        let Some(rank) = ranks.rank(n as u16).filter(|_| host.expects_report(n)) else {
+            continue;
+        };
+        while setup.is_none() {
+            let mut m = [0u64; 3];
+            world
+                .process_at_rank(rank)
+                .receive_into_with_tag(&mut m[..], TAG_SETUP);
+            *setup = of_phase(m);
+        }
+    }
     Ok(PhaseEnd {
         host,
         lost,
         late,
         accounts,
+        setups,
     })
 }

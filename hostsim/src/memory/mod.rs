@@ -1,8 +1,8 @@
 //! What a node holds, and whether it fits: the node budget against the machine's memory
 //! ([`budget`]), each view's slab and skipping structures ([`storage`]), what is built once
 //! per volume and shared by its views ([`built`]: the fast tier's node fields, [`nodes`],
-//! and the slabs' value ranges, [`ranges`]), and how those builds are split over threads
-//! ([`parts`]).
+//! and the slabs' value ranges, [`ranges`]), how those builds are split over threads
+//! ([`parts`]), and what a process really held ([`resident`]).
 //!
 //! Invariant: every structure a node holds is counted by the budget before it is built.
 
@@ -11,4 +11,5 @@ pub mod built;
 pub mod nodes;
 pub mod parts;
 pub mod ranges;
+pub mod resident;
 pub mod storage;

@@ -73,6 +73,9 @@ pub struct NodeEntry {
     pub peak_buffer: usize,
     /// Wall time spent in busy polls, milliseconds (threads fabric).
     pub busy_ms: f64,
+    /// Peak resident memory of the node's own process, bytes, when it could trace (MPI: its
+    /// rank's); null where nodes share the host's process.
+    pub resident_peak_bytes: Option<u64>,
 }
 
 /// What a distributed run moved.
@@ -154,9 +157,12 @@ pub struct ViewReport {
     /// Wall time of the render, milliseconds.
     pub wall_ms: f64,
     /// Of it, the set-up before any ray was traced (the view's skipping structures; the
-    /// volume's value ranges and node field the first time), milliseconds; absent on MPI,
-    /// whose ranks each build their own.
+    /// volume's value ranges and node field the first time), milliseconds; on MPI, whose
+    /// ranks each build their own side by side, the slowest rank's (absent after a loss).
     pub setup_ms: Option<f64>,
+    /// The host's process's peak resident memory so far, bytes, when the view was reported
+    /// (the whole machine's on the in-process fabrics; rank 0's on MPI).
+    pub host_resident_peak_bytes: Option<u64>,
     /// SHA-256 of the RGBA8 pixel buffer.
     pub pixels_sha256: String,
     /// Static load balancing, when the view asked for it.
@@ -247,6 +253,7 @@ impl ViewReport {
                     memory_high_water: n.memory.total(),
                     peak_buffer: n.peak_buffer,
                     busy_ms: n.busy.as_secs_f64() * 1e3,
+                    resident_peak_bytes: n.resident_peak,
                 })
                 .collect();
             TrafficReport {
@@ -293,6 +300,7 @@ impl ViewReport {
             nan_pixels: c.non_finite_pixels,
             wall_ms: rendered.wall.as_secs_f64() * 1e3,
             setup_ms: rendered.setup.map(|d| d.as_secs_f64() * 1e3),
+            host_resident_peak_bytes: crate::memory::resident::peak(),
             pixels_sha256: crate::output::files::pixels_sha256(&rendered.bytes()),
             balance: None,
             recovery: rendered
