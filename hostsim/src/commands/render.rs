@@ -93,11 +93,12 @@ pub struct RenderArgs {
     /// once per volume (a debug option: it changes no pixel, only the time and the memory).
     #[arg(long)]
     pub no_cell_ranges: bool,
-    /// Inject a fault: node NODE stops answering after STEPS of its polls (with `:exit`,
-    /// on MPI, its rank's process exits instead: a crash). The host declares it lost and
-    /// the surviving clusters re-trace its cluster's unfinished rows: the same image, the
-    /// loss named in a warning and the report. Given twice, the second node (of another
-    /// cluster) stops after STEPS of its polls in that re-trace.
+    /// Inject a fault: node NODE stops answering after STEPS of its polls (on threads, of
+    /// those that did something; with `:exit`, on MPI, its rank's process exits instead: a
+    /// crash). The host declares it lost and the surviving clusters re-trace its cluster's
+    /// unfinished rows: the same image, the loss named in a warning and the report. Given
+    /// twice, the second node (of another cluster) stops after STEPS of its polls in that
+    /// re-trace.
     #[arg(long, value_name = "NODE@STEPS[:exit]", value_parser = parse_stop)]
     pub stop_node: Vec<(u16, u64, bool)>,
     /// Seconds the threads and MPI hosts wait without hearing from a node before they

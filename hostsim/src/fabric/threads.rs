@@ -579,7 +579,7 @@ struct Crew<'s, 'v, T: Sample> {
     busy: Vec<Duration>,
     /// When the rounds without progress began; `None` after one with progress.
     idle_since: Option<Instant>,
-    /// Each node's polls so far, and its heartbeat.
+    /// Each node's polls that did something so far (what the injected fault counts).
     polls: Vec<u64>,
     beats: Beats<'s>,
 }
@@ -594,7 +594,8 @@ struct Beats<'s> {
 }
 
 impl Beats<'_> {
-    /// Whether `node`, polled `polls` times so far, has stopped (the injected fault).
+    /// Whether `node`, after `polls` polls that did something, has stopped (the injected
+    /// fault).
     fn stopped(&self, node: u16, polls: u64) -> bool {
         self.stop
             .is_some_and(|(n, after)| n == node && polls >= after)
@@ -680,10 +681,13 @@ impl<'s, 'v, T: Sample> Crew<'s, 'v, T> {
             }
             let mut polls = 0;
             while polls < BURST && !beats.stopped(node, *total) {
-                *total += 1;
                 if w.poll(port) != Progress::Busy {
                     break;
                 }
+                // Only a poll that did something counts toward the injected fault, as the
+                // simulator counts only a node's steps while it is not idle: a node waiting on
+                // a loaded machine polls idly without end, and would stop wherever that was.
+                *total += 1;
                 polls += 1;
             }
             let now = Instant::now();
