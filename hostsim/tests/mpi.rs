@@ -483,3 +483,92 @@ opacity = 0.8
     assert!(view["host_resident_peak_bytes"].as_u64().is_some());
     assert!(threads["views"][0]["traffic"]["nodes"][0]["resident_peak_bytes"].is_null());
 }
+
+/// A node's rank holds only the planes its slab stores of a built-in volume whose views all
+/// place their cameras themselves: generated alone, never cut from the whole. Where a view
+/// frames its camera by what shows, which reads every sample, the rank holds the whole
+/// volume (the control). The images are the threads fabric's, on 4 nodes in 1 and 2
+/// clusters.
+#[test]
+fn a_rank_holds_only_the_planes_its_slab_stores() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let view = |camera: &str| {
+        format!(
+            r#"[[datasets.views]]
+name = "v"
+width = 64
+height = 48
+mode = "composite"
+{camera}
+[[datasets.views.transfer]]
+value = 10.0
+color = [0.2, 0.3, 0.8]
+opacity = 0.0
+[[datasets.views.transfer]]
+value = 200.0
+color = [1.0, 0.2, 0.1]
+opacity = 0.8
+"#
+        )
+    };
+    let placed = "[datasets.views.camera]\neye = [200.0, 47.5, 200.0]\nlook_at = [47.5, 47.5, 47.5]\nwidth = 160.0";
+    let text = format!(
+        "[[datasets]]\nname = \"placed\"\nbuiltin = \"molecule\"\nsize = 96\n{}\n[[datasets]]\nname = \"framed\"\nbuiltin = \"molecule\"\nsize = 96\n{}",
+        view(placed),
+        view("")
+    );
+    let scene = dir.path().join("two.toml");
+    std::fs::write(&scene, text).expect("scene written");
+    let scene = scene.display().to_string();
+    for clusters in ["1", "2"] {
+        let render = |fabric: &str| {
+            let report = dir.path().join(format!("{fabric}.json"));
+            let out = dir.path().join(fabric).display().to_string();
+            let report_arg = report.display().to_string();
+            let args = [
+                "render",
+                &scene,
+                "--nodes",
+                "4",
+                "--clusters",
+                clusters,
+                "-q",
+                "--fabric",
+                fabric,
+                "-o",
+                &out,
+                "--report",
+                &report_arg,
+            ];
+            let run = match fabric {
+                "mpi" => mpirun(5, &[], &args),
+                _ => Command::new(env!("CARGO_BIN_EXE_voxcube"))
+                    .args(args)
+                    .output()
+                    .expect("runs"),
+            };
+            assert!(
+                run.status.success(),
+                "{fabric}: {}",
+                String::from_utf8_lossy(&run.stderr)
+            );
+            read_report(&report)
+        };
+        let (mpi, threads) = (render("mpi"), render("threads"));
+        for (i, dataset) in ["placed", "framed"].into_iter().enumerate() {
+            let view = &mpi["views"][i];
+            assert_eq!(view["dataset"], dataset);
+            assert_eq!(
+                view["pixels_sha256"], threads["views"][i]["pixels_sha256"],
+                "{dataset} on {clusters} clusters"
+            );
+            for node in view["traffic"]["nodes"].as_array().expect("nodes") {
+                let held = &node["held_planes"];
+                match dataset {
+                    "placed" => assert_eq!(held, &node["stored"], "{node}"),
+                    _ => assert_eq!(held, &serde_json::json!([0, 96]), "{node}"),
+                }
+            }
+        }
+    }
+}

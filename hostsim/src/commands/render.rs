@@ -287,8 +287,33 @@ pub fn run(args: RenderArgs) -> Result<(), Box<dyn std::error::Error>> {
         Some(tier) => scene.with_accuracy(tier),
         None => scene,
     };
+    // MPI first where the views render on it: a node's rank loads only the planes its slab
+    // stores, where it can, and must know which node it runs.
+    #[cfg(feature = "mpi")]
+    let mpi_universe = match fabric {
+        Some(FabricArg::Mpi) => Some(mpi_init()?),
+        _ => None,
+    };
+    #[cfg(feature = "mpi")]
+    let mpi_world = mpi_universe.as_ref().map(|u| u.world());
+    #[cfg(feature = "mpi")]
+    let window = mpi_world.as_ref().and_then(|world| {
+        use mpi::topology::Communicator;
+        let node = u16::try_from(world.rank() - 1).ok()?;
+        Some(
+            move |grid: &voxcube_kernel::volume::grid::Grid, views: &[ViewJob]| {
+                rank_window(node, grid, views, (nodes, clusters, balance))
+            },
+        )
+    });
+    #[cfg(feature = "mpi")]
+    let window = window
+        .as_ref()
+        .map(|w| w as crate::input::scene::Window<'_>);
+    #[cfg(not(feature = "mpi"))]
+    let window = None;
     // Everything is loaded and checked before the first image is written.
-    let jobs = scene.load_orbits(orbit)?;
+    let jobs = scene.load_windowed(orbit, window)?;
     let mut plan = Vec::new();
     for job in &jobs {
         for v in &job.views {
@@ -404,9 +429,9 @@ pub fn run(args: RenderArgs) -> Result<(), Box<dyn std::error::Error>> {
     }
     // The universe finalises MPI when dropped, at the end of this command on every rank.
     #[cfg(feature = "mpi")]
-    let mpi_universe = mpi_start(&plan)?;
-    #[cfg(feature = "mpi")]
-    let mpi_world = mpi_universe.as_ref().map(|u| u.world());
+    if let Some(world) = &mpi_world {
+        mpi_check(world, &plan)?;
+    }
     #[cfg(feature = "mpi")]
     if let Some(world) = &mpi_world {
         use mpi::topology::Communicator;
@@ -653,17 +678,44 @@ fn balance_view(
     Ok(BalanceReport::new(&b, rays, name))
 }
 
+/// The X planes node `node` stores of a dataset on `grid` in any of `views` (on the machine
+/// `--nodes`, `--clusters` and each view's own make, slabs uniform): their hull; `None`, for
+/// every plane, where a slab is balanced (a re-trace then loads the host's cuts at once) or
+/// the node has no place.
 #[cfg(feature = "mpi")]
-fn mpi_start(
-    plan: &[(&crate::input::scene::DatasetJob, &ViewJob, Machine)],
-) -> Result<Option<mpi::environment::Universe>, String> {
-    use mpi::topology::Communicator;
-    if !plan.iter().any(|(_, _, m)| m.fabric == Fabric::Mpi) {
-        return Ok(None);
+fn rank_window(
+    node: u16,
+    grid: &voxcube_kernel::volume::grid::Grid,
+    views: &[ViewJob],
+    (nodes, clusters, balance): (Option<u32>, Option<u32>, bool),
+) -> Option<std::ops::Range<u32>> {
+    use voxcube_kernel::node::partition::Partition;
+    use voxcube_kernel::node::topology::Layout;
+    let nx = grid.dims()[0];
+    let mut hull: Option<std::ops::Range<u32>> = None;
+    for v in views {
+        let n = nodes.unwrap_or(v.nodes);
+        let m = clusters.unwrap_or(if nodes.is_some() { 1 } else { v.clusters });
+        if balance || v.balance || u32::from(node) >= n || m == 0 || !n.is_multiple_of(m) {
+            return None;
+        }
+        let layout = Layout::new(m, n / m).ok()?;
+        let planes = Partition::uniform(nx, usize::from(layout.size()))
+            .ok()?
+            .planes(usize::from(layout.place(node).1));
+        let stored =
+            voxcube_kernel::volume::slab::stored_planes(grid, planes, v.view.ghost_planes());
+        hull = Some(match hull {
+            None => stored,
+            Some(h) => h.start.min(stored.start)..h.end.max(stored.end),
+        });
     }
-    if plan.iter().any(|(_, _, m)| m.fabric != Fabric::Mpi) {
-        return Err("with --fabric mpi every view renders on MPI".into());
-    }
+    hull
+}
+
+/// MPI, initialised at the funnelled threading level.
+#[cfg(feature = "mpi")]
+fn mpi_init() -> Result<mpi::environment::Universe, String> {
     // Funnelled: a node builds its set-up on a thread of its own while its rank's thread,
     // the only one that calls MPI, heartbeats (`crate::fabric::mpi`).
     let (universe, level) = mpi::initialize_with_threading(mpi::Threading::Funneled)
@@ -673,7 +725,20 @@ fn mpi_start(
             "this MPI library offers the threading level {level:?}; voxcube needs Funneled (a rank's set-up runs on a thread beside the one that calls MPI)"
         ));
     }
-    let world = universe.world();
+    Ok(universe)
+}
+
+/// Check that every view of `plan` renders on MPI with as many ranks as its nodes need, and
+/// enroll this rank.
+#[cfg(feature = "mpi")]
+fn mpi_check(
+    world: &mpi::topology::SimpleCommunicator,
+    plan: &[(&crate::input::scene::DatasetJob, &ViewJob, Machine)],
+) -> Result<(), String> {
+    use mpi::topology::Communicator;
+    if plan.iter().any(|(_, _, m)| m.fabric != Fabric::Mpi) {
+        return Err("with --fabric mpi every view renders on MPI".into());
+    }
     for (job, v, m) in plan {
         if world.size() as u32 != m.nodes + 1 {
             return Err(format!(
@@ -687,8 +752,8 @@ fn mpi_start(
             ));
         }
     }
-    crate::fabric::mpi::enroll(&world);
-    Ok(Some(universe))
+    crate::fabric::mpi::enroll(world);
+    Ok(())
 }
 
 #[cfg(feature = "mpi")]

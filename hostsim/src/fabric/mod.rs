@@ -57,6 +57,9 @@ pub struct NodeReport {
     /// system measured it when the node could trace (MPI: its rank's); `None` where nodes
     /// share a process.
     pub resident_peak: Option<u64>,
+    /// The X planes of the volume its process held (MPI: its rank's, which loads only its
+    /// slab's where it can); `None` where nodes share the host's volume.
+    pub held: Option<Range<u32>>,
 }
 
 /// What every node report of one run shares: the machine's layout, the slabs of
@@ -133,6 +136,7 @@ impl<'a> RunShape<'a> {
             memory,
             busy,
             resident_peak: None,
+            held: None,
         }
     }
 }

@@ -35,6 +35,7 @@ use mpi::datatype::Equivalence;
 use mpi::point_to_point::{Destination, Source};
 use mpi::topology::{Communicator, SimpleCommunicator};
 use std::collections::VecDeque;
+use std::ops::Range;
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::{Mutex, PoisonError};
 use std::time::{Duration, Instant};
@@ -238,7 +239,7 @@ enum Shifted<T> {
 fn shift<T: Sample>(
     world: &SimpleCommunicator,
     grid: &Grid,
-    data: &[T],
+    mut storage: Vec<T>,
     cfg: &RunConfig,
     node: u16,
     (old, new): (&Partition, &Partition),
@@ -246,7 +247,6 @@ fn shift<T: Sample>(
     (beat, polls): (&mut Instant, &mut u64),
 ) -> Result<Shifted<T>, RunError> {
     let layout = cfg.layout;
-    let mut storage = planes::load(grid, data, layout, old, ghost, node);
     let rounds = planes::rounds(old, new)?;
     let mut account = [0, 0, storage.len() as u64, rounds.len() as u64];
     for (r, (from, to)) in rounds.iter().enumerate() {
@@ -646,7 +646,6 @@ fn serve_phase<T: Sample + Sync>(
     let uniform = Partition::uniform(nx, size)?;
     let position = layout.place(node).1;
     let j = usize::from(position);
-    let plane = grid.plane_len();
     let host = world.process_at_rank(0);
     // Balanced: the host's cuts, reached from the uniform slab by shifting planes (or, in a
     // re-trace, loaded at once).
@@ -654,10 +653,11 @@ fn serve_phase<T: Sample + Sync>(
     let (partition, shifted) = match (&cfg.cuts, cfg.shift) {
         (Some(cuts), true) => {
             let partition = Partition::new(cuts, nx)?;
+            let start = held(volume, data, stored_planes(&grid, uniform.planes(j), ghost))?;
             let shifted = shift(
                 world,
                 &grid,
-                data,
+                start.to_vec(),
                 cfg,
                 node,
                 (&uniform, &partition),
@@ -682,7 +682,7 @@ fn serve_phase<T: Sample + Sync>(
         ghost,
         match &shifted {
             Some(storage) => storage.as_slice(),
-            None => &data[stored.start as usize * plane..stored.end as usize * plane],
+            None => held(volume, data, stored.clone())?,
         },
     )?;
     // Depth bounds for this node's cluster's rows only, as its budget counts them.
@@ -698,7 +698,14 @@ fn serve_phase<T: Sample + Sync>(
     });
     let slab = field.apply(skipping.apply(slab));
     let resident = crate::memory::resident::peak().unwrap_or(0);
-    let setup = [tag as u64, began.elapsed().as_micros() as u64, resident];
+    let window = volume.held();
+    let setup = [
+        tag as u64,
+        began.elapsed().as_micros() as u64,
+        resident,
+        u64::from(window.start),
+        u64::from(window.end),
+    ];
     host.send_with_tag(&setup[..], TAG_SETUP);
     let mut worker = node_worker(view, slab, &partition, cfg, node, flow)?;
     let mut port = MpiPort {
@@ -734,6 +741,22 @@ fn serve_phase<T: Sample + Sync>(
         }
     }
     Ok(None)
+}
+
+/// The samples of the X planes `planes` among those `volume` holds (`data`, its samples from
+/// its first plane on): a rank may hold only the planes its slab stores.
+fn held<'d, T>(volume: &Volume, data: &'d [T], planes: Range<u32>) -> Result<&'d [T], RunError> {
+    let plane = volume.grid.plane_len();
+    let at = |p: u32| p.checked_sub(volume.first).map(|p| p as usize * plane);
+    at(planes.start)
+        .zip(at(planes.end))
+        .and_then(|(a, b)| data.get(a..b))
+        .ok_or_else(|| {
+            RunError::Host(format!(
+                "this rank holds the volume's planes {:?}; its node needs {planes:?}",
+                volume.held()
+            ))
+        })
 }
 
 /// `work` (a node's set-up: its value ranges, skipping structures and node field, seconds on
@@ -891,11 +914,12 @@ pub fn host(
     if recovered.is_none() {
         run.setup = setups
             .iter()
-            .map(|s| s.map(|[micros, _]| Duration::from_micros(micros)))
+            .map(|s| s.map(|[micros, ..]| Duration::from_micros(micros)))
             .collect::<Option<Vec<_>>>()
             .and_then(|all| all.into_iter().max());
         for (node, setup) in run.nodes.iter_mut().zip(&setups) {
-            node.resident_peak = setup.map(|[_, bytes]| bytes).filter(|&b| b > 0);
+            node.resident_peak = setup.map(|[_, bytes, ..]| bytes).filter(|&b| b > 0);
+            node.held = setup.map(|[.., first, end]| first as u32..end as u32);
         }
     }
     run.recovery = match (recovered, lost_before.first()) {
@@ -969,8 +993,9 @@ struct PhaseEnd {
     /// Messages of the lost cluster that came after it was declared lost, dropped.
     late: u64,
     accounts: Vec<Option<[u64; 4]>>,
-    /// Each node's set-up: microseconds, and its rank's peak resident bytes ([`TAG_SETUP`]).
-    setups: Vec<Option<[u64; 2]>>,
+    /// Each node's set-up: microseconds, its rank's peak resident bytes, and the planes it
+    /// holds ([`TAG_SETUP`]).
+    setups: Vec<Option<[u64; 4]>>,
 }
 
 /// Start `plan`'s machine (`cfg`) on `ranks` under `tag` and be its host until it ends: with
@@ -1017,9 +1042,9 @@ fn run_phase(
         }
     }
     let mut accounts: Vec<Option<[u64; 4]>> = vec![None; if cfg.shift { nodes } else { 0 }];
-    let mut setups: Vec<Option<[u64; 2]>> = vec![None; nodes];
+    let mut setups: Vec<Option<[u64; 4]>> = vec![None; nodes];
     // A set-up of this phase (a node of an abandoned one may have sent one never read).
-    let of_phase = |m: [u64; 3]| (m[0] == tag as u64).then_some([m[1], m[2]]);
+    let of_phase = |m: [u64; 5]| (m[0] == tag as u64).then_some([m[1], m[2], m[3], m[4]]);
     let started = Instant::now();
     let mut heard = vec![Instant::now(); nodes];
     let mut lost: Option<LostNode> = None;
@@ -1054,7 +1079,7 @@ fn run_phase(
             .any_process()
             .immediate_matched_probe_with_tag(TAG_SETUP)
         {
-            let mut setup = [0u64; 3];
+            let mut setup = [0u64; 5];
             message.matched_receive_into(&mut setup[..]);
             if let Some(n) = ranks.node(status.source_rank()).map(usize::from) {
                 if let (Some(slot), Some(setup)) = (setups.get_mut(n), of_phase(setup)) {
@@ -1146,7 +1171,7 @@ fn run_phase(
             continue;
         };
         while setup.is_none() {
-            let mut m = [0u64; 3];
+            let mut m = [0u64; 5];
             world
                 .process_at_rank(rank)
                 .receive_into_with_tag(&mut m[..], TAG_SETUP);

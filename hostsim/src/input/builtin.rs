@@ -12,8 +12,9 @@
 //! Invariant: every volume is the same bits on every machine: a fixed seed, integer-exact
 //! arithmetic where possible, and libm (not the platform's maths library) for the rest.
 
-use crate::input::dataset::{plane_major_from_fn, Volume, VolumeData};
+use crate::input::dataset::{plane_major_window, Volume, VolumeData};
 use crate::rng::SplitMix;
+use std::ops::Range;
 use voxcube_kernel::volume::grid::Grid;
 use voxcube_kernel::Vec3;
 
@@ -34,6 +35,39 @@ pub fn volume(name: &str, size: Option<u32>) -> Option<Volume> {
         ("sphere", None) => Some(sphere(64, 24.0)),
         ("sphere", Some(n)) => Some(sphere(n, 0.375 * f64::from(n))),
         _ => None,
+    }
+}
+
+/// The grid of the built-in volume called `name` at `size` (as [`volume`] takes them), known
+/// without generating a sample.
+pub fn grid(name: &str, size: Option<u32>) -> Option<Grid> {
+    let n = size.map(|n| n.max(MIN_SIZE));
+    let dims = match (name, n) {
+        ("molecule", None) => [97, 97, 116],
+        ("marschner-lobb", n) => [n.unwrap_or(41); 3],
+        ("sphere", n) => [n.unwrap_or(64); 3],
+        ("molecule", Some(n)) => [n; 3],
+        _ => return None,
+    };
+    Grid::new(dims, Vec3::ONE).ok()
+}
+
+/// Of the built-in volume called `name` at `size`, the X planes `planes` alone: the same
+/// samples as [`volume`]'s, generated without the others where the volume is big (a sized
+/// one), so that a node's rank holds only what its slab stores. `None` for an unknown name
+/// or planes past the grid.
+pub fn window(name: &str, size: Option<u32>, planes: Range<u32>) -> Option<Volume> {
+    let grid = grid(name, size)?;
+    if planes.start > planes.end || planes.end > grid.dims()[0] {
+        return None;
+    }
+    let n = size.map(|n| n.max(MIN_SIZE));
+    match (name, n) {
+        ("molecule", Some(n)) => Some(molecule_planes(n, planes)),
+        ("marschner-lobb", Some(n)) => Some(marschner_lobb_planes(n, planes)),
+        ("sphere", Some(n)) => Some(sphere_planes(n, 0.375 * f64::from(n), planes)),
+        // The volumes of their own size are small: generated whole, then cut.
+        _ => volume(name, size)?.planes(planes),
     }
 }
 
@@ -159,6 +193,11 @@ pub fn molecule() -> Volume {
 /// lerp and a gigabyte takes seconds, not minutes.
 pub fn molecule_at(n: u32) -> Volume {
     let n = n.max(MIN_SIZE);
+    molecule_planes(n, 0..n)
+}
+
+/// [`molecule_at`]'s X planes `planes` alone (within `0..n`, `n` at least [`MIN_SIZE`]).
+fn molecule_planes(n: u32, planes: Range<u32>) -> Volume {
     let m = molecule();
     let [mx, my, mz] = m.grid.dims().map(|d| d as usize);
     let VolumeData::U8(src) = &m.data else {
@@ -180,10 +219,10 @@ pub fn molecule_at(n: u32) -> Volume {
     // Plane-major source: plane x, then z, then y fastest.
     let plane = |x: usize| &src[x * mz * my..][..mz * my];
     let nn = n as usize;
-    let mut data = Vec::with_capacity(nn * nn * nn);
+    let mut data = Vec::with_capacity(planes.len() * nn * nn);
     let mut along_x = vec![0.0f32; mz * my];
     let mut along_z = vec![0.0f32; my];
-    for &(x, wx) in &tx {
+    for &(x, wx) in &tx[planes.start as usize..planes.end as usize] {
         let (a, b) = (plane(x), plane(x + 1));
         for (o, (&a, &b)) in along_x.iter_mut().zip(a.iter().zip(b)) {
             *o = lerp(f32::from(a), f32::from(b), wx);
@@ -199,41 +238,58 @@ pub fn molecule_at(n: u32) -> Volume {
             }));
         }
     }
-    volume_from([n; 3], VolumeData::U8(data))
+    window_from([n; 3], planes.start, VolumeData::U8(data))
 }
 
 /// The Marschner–Lobb function (f_M = 6, α = 1/4) on `[-1, 1]³`, `n` samples per axis (41 by
 /// default).
 pub fn marschner_lobb(n: u32) -> Volume {
     let n = n.max(MIN_SIZE);
+    marschner_lobb_planes(n, 0..n)
+}
+
+/// [`marschner_lobb`]'s X planes `planes` alone.
+fn marschner_lobb_planes(n: u32, planes: Range<u32>) -> Volume {
     let (fm, alpha) = (6.0f64, 0.25f64);
     let pi = core::f64::consts::PI;
     let c = |i: u32| -1.0 + 2.0 * f64::from(i) / f64::from(n - 1);
     let dims = [n; 3];
-    let data = plane_major_from_fn(dims, |x, y, z| {
+    let first = planes.start;
+    let data = plane_major_window(dims, planes, |x, y, z| {
         let (x, y, z) = (c(x), c(y), c(z));
         let r = libm::sqrt(x * x + y * y);
         let rho = libm::cos(2.0 * pi * fm * libm::cos(pi * r / 2.0));
         ((1.0 - libm::sin(pi * z / 2.0) + alpha * (1.0 + rho)) / (2.0 * (1.0 + alpha))) as f32
     });
-    volume_from(dims, VolumeData::F32(data))
+    window_from(dims, first, VolumeData::F32(data))
 }
 
 /// Signed distance (cells) to a sphere of `radius` centred in an `n³` grid, positive inside.
 pub fn sphere(n: u32, radius: f64) -> Volume {
+    sphere_planes(n, radius, 0..n)
+}
+
+/// [`sphere`]'s X planes `planes` alone.
+fn sphere_planes(n: u32, radius: f64, planes: Range<u32>) -> Volume {
     let c = f64::from(n - 1) / 2.0;
-    let data = plane_major_from_fn([n; 3], |x, y, z| {
+    let first = planes.start;
+    let data = plane_major_window([n; 3], planes, |x, y, z| {
         let d = [x, y, z].map(|g| f64::from(g) - c);
         (radius - libm::sqrt(d.iter().map(|v| v * v).sum())) as f32
     });
-    volume_from([n; 3], VolumeData::F32(data))
+    window_from([n; 3], first, VolumeData::F32(data))
 }
 
 fn volume_from(dims: [u32; 3], data: VolumeData) -> Volume {
+    window_from(dims, 0, data)
+}
+
+/// The planes from `first` of a built-in volume on `dims`.
+fn window_from(dims: [u32; 3], first: u32, data: VolumeData) -> Volume {
     // Fixed, valid dimensions and unit spacing: this cannot fail.
     #[allow(clippy::expect_used, reason = "constant, valid dimensions")]
     let grid = Grid::new(dims, Vec3::ONE).expect("built-in grids are valid");
-    Volume::new(grid, data)
+    Volume::window(grid, first, data)
 }
 
 #[cfg(test)]
@@ -251,6 +307,39 @@ mod tests {
         assert_eq!(marschner_lobb(41).grid.dims(), [41; 3]);
         let sp = sphere(8, 2.0).stats();
         assert!(sp.max > 1.0 && sp.min < -3.0);
+    }
+
+    /// A window of planes is the whole volume's planes, bit for bit, for every built-in, sized
+    /// or not, at the ends and inside; its grid is the one [`grid`] names without generating;
+    /// planes past the grid are refused.
+    #[test]
+    fn a_window_is_the_whole_volume_s_planes() {
+        for name in NAMES {
+            for size in [None, Some(7), Some(40)] {
+                let whole = volume(name, size).unwrap_or_else(|| panic!("{name}"));
+                assert_eq!(grid(name, size), Some(whole.grid), "{name} {size:?}");
+                let nx = whole.grid.dims()[0];
+                for planes in [0..nx, 0..1, 2..5, nx - 3..nx, 4..4] {
+                    let window = window(name, size, planes.clone()).expect("a window");
+                    assert_eq!(window.held(), planes, "{name} {size:?}");
+                    assert!(window.is_whole() == (planes == (0..nx)));
+                    assert_eq!(
+                        Some(window),
+                        whole.planes(planes.clone()),
+                        "{name} {size:?} {planes:?}"
+                    );
+                }
+                assert!(window(name, size, nx - 1..nx + 1).is_none());
+            }
+        }
+        // The control: a window is not just any planes of the volume.
+        let whole = molecule_at(40);
+        assert_ne!(
+            Some(window("molecule", Some(40), 10..12).unwrap()),
+            whole
+                .planes(11..13)
+                .map(|v| Volume::window(v.grid, 10, v.data))
+        );
     }
 
     #[test]

@@ -1,8 +1,10 @@
 //! A loaded dataset: its grid and samples, held plane-major (X slowest, then Z, then Y) so
 //! that any range of X planes — a slab — is one contiguous slice, with no copy.
 //!
-//! Invariants: `data` holds exactly `nx·ny·nz` samples; float samples are finite (loaders
-//! reject NaN and infinities, naming the first one's position).
+//! Invariants: `data` holds exactly the samples of the X planes [`Volume::held`] names: every
+//! plane (`nx·ny·nz` samples), unless an MPI node's rank loaded only a window of them, those
+//! its slab stores; float samples are finite (loaders reject NaN and infinities, naming the
+//! first one's position).
 
 use std::fmt;
 use std::ops::Range;
@@ -67,8 +69,10 @@ impl fmt::Display for Stats {
 pub struct Volume {
     /// The grid.
     pub grid: Grid,
-    /// The samples, plane-major.
+    /// The samples, plane-major, of the planes from `first` on.
     pub data: VolumeData,
+    /// The first X plane `data` holds: 0 for a whole volume.
+    pub first: u32,
     /// What is built once from `data` (a new volume for new samples starts with nothing).
     pub built: crate::memory::built::Built,
 }
@@ -79,8 +83,29 @@ impl Volume {
         Volume {
             grid,
             data,
+            first: 0,
             built: crate::memory::built::Built::default(),
         }
+    }
+
+    /// The window of `grid`'s X planes from `first` whose samples are `data`: what a node's
+    /// rank holds when it loads only the planes its slab stores.
+    pub fn window(grid: Grid, first: u32, data: VolumeData) -> Volume {
+        Volume {
+            first,
+            ..Volume::new(grid, data)
+        }
+    }
+
+    /// The X planes `data` holds.
+    pub fn held(&self) -> Range<u32> {
+        let planes = self.data.len() / self.grid.plane_len().max(1);
+        self.first..self.first + planes as u32
+    }
+
+    /// Whether it holds every plane of its grid.
+    pub fn is_whole(&self) -> bool {
+        self.held() == (0..self.grid.dims()[0])
     }
 
     /// Value statistics (exact sums in `f64`).
@@ -121,23 +146,41 @@ impl Volume {
         }
     }
 
-    /// The samples of X planes `planes`: one contiguous slice (what a slab stores).
-    pub fn planes(&self, planes: Range<u32>) -> VolumeData {
-        let n = self.grid.plane_len();
-        let r = planes.start as usize * n..planes.end as usize * n;
-        match &self.data {
-            VolumeData::U8(v) => VolumeData::U8(v[r].to_vec()),
-            VolumeData::U16(v) => VolumeData::U16(v[r].to_vec()),
-            VolumeData::F32(v) => VolumeData::F32(v[r].to_vec()),
+    /// The window of the X planes `planes` (of those it holds): one contiguous copy, what a
+    /// node's rank keeps of a volume generated whole; `None` where it does not hold them all.
+    pub fn planes(&self, planes: Range<u32>) -> Option<Volume> {
+        fn cut<T: Clone>(v: &[T], r: Range<usize>) -> Option<Vec<T>> {
+            v.get(r).map(<[T]>::to_vec)
         }
+        let held = self.held();
+        if planes.start < held.start || planes.end > held.end || planes.start > planes.end {
+            return None;
+        }
+        let n = self.grid.plane_len();
+        let r = (planes.start - self.first) as usize * n..(planes.end - self.first) as usize * n;
+        let data = match &self.data {
+            VolumeData::U8(v) => VolumeData::U8(cut(v, r)?),
+            VolumeData::U16(v) => VolumeData::U16(cut(v, r)?),
+            VolumeData::F32(v) => VolumeData::F32(cut(v, r)?),
+        };
+        Some(Volume::window(self.grid, planes.start, data))
     }
 }
 
 /// Samples `f(x, y, z)` for every node of a `dims` grid, plane-major.
-pub fn plane_major_from_fn<T>(dims: [u32; 3], mut f: impl FnMut(u32, u32, u32) -> T) -> Vec<T> {
-    let [nx, ny, nz] = dims;
-    let mut out = Vec::with_capacity(nx as usize * ny as usize * nz as usize);
-    for x in 0..nx {
+pub fn plane_major_from_fn<T>(dims: [u32; 3], f: impl FnMut(u32, u32, u32) -> T) -> Vec<T> {
+    plane_major_window(dims, 0..dims[0], f)
+}
+
+/// Samples `f(x, y, z)` for every node of a `dims` grid on the X planes `planes`, plane-major.
+pub fn plane_major_window<T>(
+    dims: [u32; 3],
+    planes: Range<u32>,
+    mut f: impl FnMut(u32, u32, u32) -> T,
+) -> Vec<T> {
+    let [_, ny, nz] = dims;
+    let mut out = Vec::with_capacity(planes.len() * ny as usize * nz as usize);
+    for x in planes {
         for z in 0..nz {
             for y in 0..ny {
                 out.push(f(x, y, z));

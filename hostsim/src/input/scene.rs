@@ -6,10 +6,11 @@
 //! view built — before anything is rendered, so a bad scene writes nothing.
 
 use crate::input::builtin;
-use crate::input::dataset::Volume;
+use crate::input::dataset::{Volume, VolumeData};
 use crate::input::formats::{self, raw::RawLayout, Endian, FileType, Format, LoadError};
 use crate::input::framing::{Frame, Showing};
 use serde::Deserialize;
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 use voxcube_kernel::optics::shade::{Light, Shading, MAX_LIGHTS};
 use voxcube_kernel::optics::surface::{IsoSurface, MAX_SURFACES};
@@ -473,6 +474,9 @@ fn orbit_views(v: &ViewToml, volume: &Volume, frames: u32) -> Result<Vec<View>, 
         .collect()
 }
 
+/// Which X planes of a dataset a process needs, given its grid and views; `None` for all.
+pub type Window<'a> = &'a dyn Fn(&Grid, &[ViewJob]) -> Option<Range<u32>>;
+
 /// A dataset loaded, with its views built.
 #[derive(Debug)]
 pub struct DatasetJob {
@@ -606,11 +610,23 @@ impl Scene {
     /// As [`Scene::load`], with every view turned into an orbit of `orbit` frames when given:
     /// views `<view>-000` … around the up axis through the target, at one scale.
     pub fn load_orbits(self, orbit: Option<u32>) -> Result<Vec<DatasetJob>, SceneError> {
+        self.load_windowed(orbit, None)
+    }
+
+    /// As [`Scene::load_orbits`], each dataset's samples only on the X planes `window` asks
+    /// for given its grid and views, where that can be known without its samples: a built-in
+    /// volume none of whose views frames its camera by what shows (a window is generated
+    /// alone, never cut from the whole). Every other dataset is loaded whole.
+    pub fn load_windowed(
+        self,
+        orbit: Option<u32>,
+        window: Option<Window<'_>>,
+    ) -> Result<Vec<DatasetJob>, SceneError> {
         let file = self.file;
         let mut jobs = Vec::new();
         for (i, (d, source)) in self.datasets.into_iter().enumerate() {
             let key = format!("datasets[{i}]");
-            let volume = load_source(&source).map_err(|e| match e {
+            let failed = |e| match e {
                 SourceError::Load(source) => SceneError::Dataset {
                     file: file.clone(),
                     key: key.clone(),
@@ -621,7 +637,21 @@ impl Scene {
                     key: format!("{key}.builtin"),
                     message: m,
                 },
-            })?;
+            };
+            let windowed = match (&source, window) {
+                (Source::Builtin(name, size), Some(window))
+                    if d.views.iter().all(|v| !v.camera.frames_by_default()) =>
+                {
+                    builtin::grid(name, *size).map(|grid| (name.clone(), *size, grid, window))
+                }
+                _ => None,
+            };
+            // Views that do not frame by what shows read the grid alone: built first on a
+            // window of no planes, then the window they need is generated.
+            let volume = match &windowed {
+                Some((_, _, grid, _)) => Volume::window(*grid, 0, VolumeData::U8(Vec::new())),
+                None => load_source(&source).map_err(failed)?,
+            };
             let mut views = Vec::new();
             for (j, v) in d.views.iter().enumerate() {
                 let vkey = format!("{key}.views[{j}]");
@@ -662,6 +692,18 @@ impl Scene {
                     });
                 }
             }
+            let volume = match windowed {
+                Some((name, size, grid, window)) => {
+                    let planes = window(&grid, &views).unwrap_or(0..grid.dims()[0]);
+                    builtin::window(&name, size, planes.clone()).ok_or_else(|| {
+                        failed(SourceError::Builtin(format!(
+                            "planes {planes:?} of the built-in \"{name}\": it has {}",
+                            grid.dims()[0]
+                        )))
+                    })?
+                }
+                None => volume,
+            };
             jobs.push(DatasetJob {
                 name: d.name.clone(),
                 source: describe(&source),

@@ -76,6 +76,9 @@ pub struct NodeEntry {
     /// Peak resident memory of the node's own process, bytes, when it could trace (MPI: its
     /// rank's); null where nodes share the host's process.
     pub resident_peak_bytes: Option<u64>,
+    /// The X planes `[first, end)` of the volume the node's own process held (MPI: a rank
+    /// holds only its slab's where it can); null where nodes share the host's volume.
+    pub held_planes: Option<[u32; 2]>,
 }
 
 /// What a distributed run moved.
@@ -254,6 +257,7 @@ impl ViewReport {
                     peak_buffer: n.peak_buffer,
                     busy_ms: n.busy.as_secs_f64() * 1e3,
                     resident_peak_bytes: n.resident_peak,
+                    held_planes: n.held.as_ref().map(|h| [h.start, h.end]),
                 })
                 .collect();
             TrafficReport {
