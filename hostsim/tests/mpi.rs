@@ -484,11 +484,11 @@ opacity = 0.8
     assert!(threads["views"][0]["traffic"]["nodes"][0]["resident_peak_bytes"].is_null());
 }
 
-/// A node's rank holds only the planes its slab stores of a built-in volume whose views all
-/// place their cameras themselves: generated alone, never cut from the whole. Where a view
-/// frames its camera by what shows, which reads every sample, the rank holds the whole
-/// volume (the control). The images are the threads fabric's, on 4 nodes in 1 and 2
-/// clusters.
+/// A node's rank holds only the planes its slab stores of a built-in volume or raw file whose
+/// views all place their cameras themselves: generated alone or streamed, never cut from the
+/// whole. Where a view frames its camera by what shows, which reads every sample, the rank
+/// holds the whole volume (the control). The images are the threads fabric's, on 4 nodes in
+/// 1 and 2 clusters.
 #[test]
 fn a_rank_holds_only_the_planes_its_slab_stores() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -512,11 +512,26 @@ opacity = 0.8
         )
     };
     let placed = "[datasets.views.camera]\neye = [200.0, 47.5, 200.0]\nlook_at = [47.5, 47.5, 47.5]\nwidth = 160.0";
-    let text = format!(
+    let mut text = format!(
         "[[datasets]]\nname = \"placed\"\nbuiltin = \"molecule\"\nsize = 96\n{}\n[[datasets]]\nname = \"framed\"\nbuiltin = \"molecule\"\nsize = 96\n{}",
         view(placed),
         view("")
     );
+    // A raw file, streamed: SOD, where the shared data is there.
+    let sod = scenes_with_data().first().map(|_| {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/sod-97x97x116.u8.binary")
+    });
+    if let Some(sod) = &sod {
+        text.push_str(&format!(
+            "\n[[datasets]]\nname = \"sod\"\npath = \"{}\"\nformat = \"raw\"\ndims = [97, 97, 116]\ntype = \"u8\"\nheader_bytes = 12\n{}",
+            sod.display(),
+            view(placed)
+        ));
+    }
+    let datasets: &[&str] = match sod {
+        Some(_) => &["placed", "framed", "sod"],
+        None => &["placed", "framed"],
+    };
     let scene = dir.path().join("two.toml");
     std::fs::write(&scene, text).expect("scene written");
     let scene = scene.display().to_string();
@@ -555,7 +570,7 @@ opacity = 0.8
             read_report(&report)
         };
         let (mpi, threads) = (render("mpi"), render("threads"));
-        for (i, dataset) in ["placed", "framed"].into_iter().enumerate() {
+        for (i, &dataset) in datasets.iter().enumerate() {
             let view = &mpi["views"][i];
             assert_eq!(view["dataset"], dataset);
             assert_eq!(
@@ -565,8 +580,8 @@ opacity = 0.8
             for node in view["traffic"]["nodes"].as_array().expect("nodes") {
                 let held = &node["held_planes"];
                 match dataset {
-                    "placed" => assert_eq!(held, &node["stored"], "{node}"),
-                    _ => assert_eq!(held, &serde_json::json!([0, 96]), "{node}"),
+                    "framed" => assert_eq!(held, &serde_json::json!([0, 96]), "{node}"),
+                    _ => assert_eq!(held, &node["stored"], "{dataset}: {node}"),
                 }
             }
         }

@@ -638,18 +638,19 @@ impl Scene {
                     message: m,
                 },
             };
-            let windowed = match (&source, window) {
-                (Source::Builtin(name, size), Some(window))
-                    if d.views.iter().all(|v| !v.camera.frames_by_default()) =>
-                {
-                    builtin::grid(name, *size).map(|grid| (name.clone(), *size, grid, window))
-                }
-                _ => None,
+            let placed = d.views.iter().all(|v| !v.camera.frames_by_default());
+            let windowed = match window.filter(|_| placed) {
+                Some(window) => match &source {
+                    Source::Builtin(name, size) => builtin::grid(name, *size).map(|g| (g, window)),
+                    Source::Raw(_, layout) => formats::raw::grid(layout).ok().map(|g| (g, window)),
+                    Source::File(..) => None,
+                },
+                None => None,
             };
             // Views that do not frame by what shows read the grid alone: built first on a
-            // window of no planes, then the window they need is generated.
+            // window of no planes, then the window they need is generated or streamed.
             let volume = match &windowed {
-                Some((_, _, grid, _)) => Volume::window(*grid, 0, VolumeData::U8(Vec::new())),
+                Some((grid, _)) => Volume::window(*grid, 0, VolumeData::U8(Vec::new())),
                 None => load_source(&source).map_err(failed)?,
             };
             let mut views = Vec::new();
@@ -693,14 +694,9 @@ impl Scene {
                 }
             }
             let volume = match windowed {
-                Some((name, size, grid, window)) => {
+                Some((grid, window)) => {
                     let planes = window(&grid, &views).unwrap_or(0..grid.dims()[0]);
-                    builtin::window(&name, size, planes.clone()).ok_or_else(|| {
-                        failed(SourceError::Builtin(format!(
-                            "planes {planes:?} of the built-in \"{name}\": it has {}",
-                            grid.dims()[0]
-                        )))
-                    })?
+                    load_window(&source, planes).map_err(failed)?
                 }
                 None => volume,
             };
@@ -891,6 +887,19 @@ fn load_source(source: &Source) -> Result<Volume, SourceError> {
             .ok_or_else(|| SourceError::Builtin(format!("unknown built-in \"{name}\""))),
         Source::Raw(p, layout) => formats::raw::load(p, layout).map_err(SourceError::Load),
         Source::File(p, f, s) => formats::load(p, *f, *s).map_err(SourceError::Load),
+    }
+}
+
+/// Of `source`, the X planes `planes` alone: a built-in's generated, a raw file's streamed;
+/// another file whole (its formats are read whole, a window of them no cheaper).
+fn load_window(source: &Source, planes: Range<u32>) -> Result<Volume, SourceError> {
+    match source {
+        Source::Builtin(name, size) => builtin::window(name, *size, planes.clone())
+            .ok_or_else(|| SourceError::Builtin(format!("planes {planes:?} of \"{name}\""))),
+        Source::Raw(p, layout) => {
+            formats::raw::load_window(p, layout, planes).map_err(SourceError::Load)
+        }
+        Source::File(..) => load_source(source),
     }
 }
 

@@ -257,6 +257,16 @@ pub enum LoadErrorKind {
     /// A compressed stream does not decode, or fails its checksum or declared length.
     #[error("corrupt compressed data: {0}")]
     Corrupt(String),
+    /// X planes asked of a volume that does not have them.
+    #[error("X planes {start}..{end} asked of a volume of {planes}")]
+    Window {
+        /// The first plane asked for.
+        start: u32,
+        /// One past the last.
+        end: u32,
+        /// The volume's X planes.
+        planes: u32,
+    },
 }
 
 /// A dataset file that could not be loaded.
@@ -374,6 +384,29 @@ pub fn check_length(
     Ok(())
 }
 
+/// One sample of a type held as `f32` (`I8`, `I16`, `I32`, `U32`, `F32`, `F64`; the others read
+/// as their unsigned value), from its bytes in `endian` order: through `f64`, so that every
+/// integer and `f32` is exact and an `f64` rounds once.
+pub fn sample_f32(b: &[u8], ty: FileType, endian: Endian) -> f32 {
+    let mut w = [0u8; 8];
+    let n = b.len().min(8);
+    w[..n].copy_from_slice(&b[..n]);
+    if endian == Endian::Big {
+        w[..n].reverse();
+    }
+    let word = match ty {
+        FileType::U8 => f64::from(w[0]),
+        FileType::I8 => f64::from(w[0] as i8),
+        FileType::U16 => f64::from(u16::from_le_bytes([w[0], w[1]])),
+        FileType::I16 => f64::from(i16::from_le_bytes([w[0], w[1]])),
+        FileType::F32 => f64::from(f32::from_le_bytes([w[0], w[1], w[2], w[3]])),
+        FileType::I32 => f64::from(i32::from_le_bytes([w[0], w[1], w[2], w[3]])),
+        FileType::U32 => f64::from(u32::from_le_bytes([w[0], w[1], w[2], w[3]])),
+        FileType::F64 => f64::from_le_bytes(w),
+    };
+    word as f32
+}
+
 /// Decode `samples` (file order, exactly `nx·ny·nz` samples of `ty`) into a plane-major volume.
 pub fn decode(
     samples: &[u8],
@@ -412,23 +445,9 @@ pub fn decode(
             VolumeData::F32(to_plane_major(&v, dims))
         }
         FileType::F32 | FileType::F64 | FileType::I32 | FileType::U32 => {
-            let word = |b: &[u8]| -> f64 {
-                let mut w = [0u8; 8];
-                let n = b.len();
-                w[..n].copy_from_slice(b);
-                if endian == Endian::Big {
-                    w[..n].reverse();
-                }
-                match ty {
-                    FileType::F32 => f64::from(f32::from_le_bytes([w[0], w[1], w[2], w[3]])),
-                    FileType::I32 => f64::from(i32::from_le_bytes([w[0], w[1], w[2], w[3]])),
-                    FileType::U32 => f64::from(u32::from_le_bytes([w[0], w[1], w[2], w[3]])),
-                    _ => f64::from_le_bytes(w),
-                }
-            };
             let v: Vec<f32> = samples
                 .chunks_exact(ty.bytes())
-                .map(|b| word(b) as f32)
+                .map(|b| sample_f32(b, ty, endian))
                 .collect();
             if let Some(i) = v.iter().position(|x| !x.is_finite()) {
                 let [nx, ny, _] = dims.map(|d| d as usize);

@@ -1,10 +1,20 @@
 //! Raw volumes: a fixed-size header to skip, then samples in X-fastest order, with the
 //! dimensions, sample type and byte order given by the scene.
+//!
+//! A file is streamed, a row of X at a time, into the planes kept ([`load_window`]): a
+//! window of X planes is a column range of every row, so it is read without holding the
+//! file or the other planes, and the whole volume without a second copy of it.
+//!
+//! Invariant: a window's samples are, bit for bit, those [`parse`] gives the same planes of
+//! the whole file (the same conversion of each sample), and the file's length is checked
+//! against the layout before a sample is kept.
 
-use super::{check_size, decode, read, Endian, FileType, LoadError, LoadErrorKind};
-use crate::input::dataset::Volume;
+use super::{check_length, check_size, decode, Endian, FileType, LoadError, LoadErrorKind};
+use crate::input::dataset::{Volume, VolumeData};
+use std::io::{BufReader, Read, Seek, SeekFrom};
+use std::ops::Range;
 use std::path::Path;
-use voxcube_kernel::volume::grid::GridError;
+use voxcube_kernel::volume::grid::{Grid, GridError};
 use voxcube_kernel::Vec3;
 
 /// How to read a raw file.
@@ -22,10 +32,103 @@ pub struct RawLayout {
     pub spacing: Vec3,
 }
 
-/// Load a raw volume.
+/// Load a raw volume, streamed (every plane of [`load_window`]).
 pub fn load(path: &Path, layout: &RawLayout) -> Result<Volume, LoadError> {
-    let bytes = read(path)?;
-    parse(&bytes, layout).map_err(|kind| LoadError::new(path, kind))
+    load_window(path, layout, 0..layout.dims[0])
+}
+
+/// The grid a raw layout describes.
+pub fn grid(layout: &RawLayout) -> Result<Grid, GridError> {
+    Grid::new(layout.dims, layout.spacing)
+}
+
+/// Of a raw volume, the X planes `planes` alone (all of them, or a node's slab with its
+/// ghosts), streamed a row at a time: the file's length is checked against the layout first,
+/// and nothing but those planes' samples is kept.
+pub fn load_window(
+    path: &Path,
+    layout: &RawLayout,
+    planes: Range<u32>,
+) -> Result<Volume, LoadError> {
+    let failed = |kind: LoadErrorKind| LoadError::new(path, kind);
+    if let Some(axis) = layout.dims.iter().position(|&d| d == 0) {
+        return Err(failed(GridError::ZeroDimension { axis }.into()));
+    }
+    let count = super::declared_samples(&layout.dims.map(u64::from)).map_err(failed)?;
+    let grid = grid(layout).map_err(|e| failed(e.into()))?;
+    let file = std::fs::File::open(path).map_err(|e| LoadError::new(path, e))?;
+    let length = file.metadata().map_err(|e| LoadError::new(path, e))?.len();
+    check_length(length, layout.header_bytes, count, layout.ty).map_err(failed)?;
+    let nx = layout.dims[0];
+    if planes.start > planes.end || planes.end > nx {
+        return Err(failed(LoadErrorKind::Window {
+            start: planes.start,
+            end: planes.end,
+            planes: nx,
+        }));
+    }
+    let mut reader = BufReader::with_capacity(1 << 20, file);
+    reader
+        .seek(SeekFrom::Start(layout.header_bytes))
+        .map_err(|e| LoadError::new(path, e))?;
+    let data = read_planes(&mut reader, layout, planes.clone()).map_err(failed)?;
+    Ok(Volume::window(grid, planes.start, data))
+}
+
+/// The samples of X planes `planes`, plane-major, from `reader` at the first sample of a
+/// file of `layout`, converted as [`decode`] converts them.
+fn read_planes(
+    reader: &mut impl Read,
+    layout: &RawLayout,
+    planes: Range<u32>,
+) -> Result<VolumeData, LoadErrorKind> {
+    let (ty, endian) = (layout.ty, layout.endian);
+    let u16_of = move |b: &[u8]| match endian {
+        Endian::Little => u16::from_le_bytes([b[0], b[1]]),
+        Endian::Big => u16::from_be_bytes([b[0], b[1]]),
+    };
+    Ok(match ty {
+        FileType::U8 => VolumeData::U8(columns(reader, layout, planes, |b, _| Ok(b[0]))?),
+        FileType::U16 => VolumeData::U16(columns(reader, layout, planes, |b, _| Ok(u16_of(b)))?),
+        _ => VolumeData::F32(columns(reader, layout, planes, |b, at| {
+            let v = super::sample_f32(b, ty, endian);
+            match v.is_finite() {
+                true => Ok(v),
+                false => Err(LoadErrorKind::NonFinite {
+                    x: at[0],
+                    y: at[1],
+                    z: at[2],
+                    value: v,
+                }),
+            }
+        })?),
+    })
+}
+
+/// The samples of X planes `planes` of every row of `reader` (file order: X fastest, then Y,
+/// then Z), each converted by `sample` from its bytes and its node, into plane-major order.
+fn columns<T: Copy + Default>(
+    reader: &mut impl Read,
+    layout: &RawLayout,
+    planes: Range<u32>,
+    sample: impl Fn(&[u8], [u32; 3]) -> Result<T, LoadErrorKind>,
+) -> Result<Vec<T>, LoadErrorKind> {
+    let [nx, ny, nz] = layout.dims.map(|d| d as usize);
+    let size = layout.ty.bytes();
+    let (first, kept) = (planes.start as usize, planes.len());
+    let mut out = vec![T::default(); kept * ny * nz];
+    let mut row = vec![0u8; nx * size];
+    for z in 0..nz {
+        for y in 0..ny {
+            reader.read_exact(&mut row)?;
+            let columns = row.chunks_exact(size).enumerate().skip(first).take(kept);
+            for (x, bytes) in columns {
+                let at = [x as u32, y as u32, z as u32];
+                out[((x - first) * nz + z) * ny + y] = sample(bytes, at)?;
+            }
+        }
+    }
+    Ok(out)
 }
 
 /// Decode raw bytes.
@@ -92,14 +195,119 @@ mod tests {
             },
         )
         .unwrap();
-        assert_eq!(v.data, crate::input::dataset::VolumeData::U16(vec![256, 2]));
+        assert_eq!(v.data, VolumeData::U16(vec![256, 2]));
         let v = parse(&[0xff, 0xff], &layout([1, 1, 1], FileType::I16, 0)).unwrap();
-        assert_eq!(v.data, crate::input::dataset::VolumeData::F32(vec![-1.0]));
+        assert_eq!(v.data, VolumeData::F32(vec![-1.0]));
         let nan = f32::NAN.to_le_bytes();
         let bytes = [0.0f32.to_le_bytes(), nan].concat();
         let e = parse(&bytes, &layout([2, 1, 1], FileType::F32, 0))
             .unwrap_err()
             .to_string();
         assert!(e.contains("(x 1, y 0, z 0) is NaN"), "{e}");
+    }
+
+    /// A file of `layout` holding `bytes` (after a header of its own size), in `dir`.
+    fn file(dir: &Path, bytes: &[u8], layout: &RawLayout) -> std::path::PathBuf {
+        let path = dir.join("v.raw");
+        let header = vec![7u8; layout.header_bytes as usize];
+        std::fs::write(&path, [header.as_slice(), bytes].concat()).expect("written");
+        path
+    }
+
+    /// The streamed read is the whole-file read: every sample type in both byte orders, on
+    /// uneven grids, read whole and by windows of X planes (at the ends, inside, one plane,
+    /// none), each the same bits as the same planes of `parse`'s volume; its NaN is named
+    /// where `parse` names it.
+    #[test]
+    fn the_streamed_read_is_the_whole_file_read() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let mut next = 0x2545_f491_u64;
+        let mut byte = move || {
+            next ^= next << 13;
+            next ^= next >> 7;
+            next ^= next << 17;
+            next as u8
+        };
+        let types = [
+            FileType::U8,
+            FileType::U16,
+            FileType::I8,
+            FileType::I16,
+            FileType::F32,
+            FileType::I32,
+            FileType::U32,
+            FileType::F64,
+        ];
+        for (i, ty) in types.into_iter().enumerate() {
+            for endian in [Endian::Little, Endian::Big] {
+                let dims = [5 + i as u32 % 3, 3, 4];
+                let layout = RawLayout {
+                    endian,
+                    ..layout(dims, ty, (i % 2 * 16) as u64)
+                };
+                let count = dims.iter().product::<u32>() as usize;
+                // Random bytes; floats from small integers, so every one is finite.
+                let bytes: Vec<u8> = (0..count)
+                    .flat_map(|_| {
+                        let v = f64::from(byte() as i8);
+                        let mut b = match ty {
+                            FileType::F32 => (v as f32).to_le_bytes().to_vec(),
+                            FileType::F64 => v.to_le_bytes().to_vec(),
+                            _ => (0..ty.bytes()).map(|_| byte()).collect(),
+                        };
+                        if endian == Endian::Big && matches!(ty, FileType::F32 | FileType::F64) {
+                            b.reverse();
+                        }
+                        b
+                    })
+                    .collect();
+                let path = file(dir.path(), &bytes, &layout);
+                let whole = parse(
+                    &bytes,
+                    &RawLayout {
+                        header_bytes: 0,
+                        ..layout
+                    },
+                )
+                .unwrap();
+                assert_eq!(load(&path, &layout).unwrap(), whole, "{ty:?} {endian:?}");
+                let nx = dims[0];
+                for planes in [0..nx, 0..2, 1..4, nx - 1..nx, 2..2] {
+                    let window = load_window(&path, &layout, planes.clone()).unwrap();
+                    assert_eq!(window.held(), planes, "{ty:?} {endian:?}");
+                    assert_eq!(Some(window), whole.planes(planes), "{ty:?} {endian:?}");
+                }
+                let e = load_window(&path, &layout, nx - 1..nx + 1)
+                    .unwrap_err()
+                    .to_string();
+                let says = format!("X planes {}..{} asked of a volume of {nx}", nx - 1, nx + 1);
+                assert!(e.contains(&says), "{e}");
+            }
+        }
+        let nan = [1.0f32.to_le_bytes(), f32::NAN.to_le_bytes()].concat();
+        let layout = layout([2, 1, 1], FileType::F32, 0);
+        let e = load_window(&file(dir.path(), &nan, &layout), &layout, 1..2)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("(x 1, y 0, z 0) is NaN"), "{e}");
+    }
+
+    /// A file's length is checked against its layout before a sample is read, whatever the
+    /// window: truncated and trailing files are refused by size, naming the file.
+    #[test]
+    fn a_streamed_file_of_the_wrong_length_is_refused_first() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let layout = layout([4, 2, 2], FileType::U16, 4);
+        let cases = [
+            (31, "truncated: expected 36 bytes, found 35"),
+            (33, "1 trailing bytes"),
+        ];
+        for (len, says) in cases {
+            let path = file(dir.path(), &vec![0; len], &layout);
+            for planes in [0..4, 1..2] {
+                let e = load_window(&path, &layout, planes).unwrap_err().to_string();
+                assert!(e.contains(says) && e.contains("v.raw"), "{e}");
+            }
+        }
     }
 }
