@@ -512,8 +512,14 @@ opacity = 0.8
         )
     };
     let placed = "[datasets.views.camera]\neye = [200.0, 47.5, 200.0]\nlook_at = [47.5, 47.5, 47.5]\nwidth = 160.0";
+    // A surface no value reaches: the host, which holds no plane of a placed dataset, warns
+    // of it from the ranges its nodes reported, as the threads fabric's host does from the
+    // volume.
+    let beyond = format!(
+        "[[datasets.views]]\nname = \"beyond\"\nwidth = 32\nheight = 24\n{placed}\n[[datasets.views.surfaces]]\niso = 300.0\ncolor = [1.0, 1.0, 1.0]\n"
+    );
     let mut text = format!(
-        "[[datasets]]\nname = \"placed\"\nbuiltin = \"molecule\"\nsize = 96\n{}\n[[datasets]]\nname = \"framed\"\nbuiltin = \"molecule\"\nsize = 96\n{}",
+        "[[datasets]]\nname = \"placed\"\nbuiltin = \"molecule\"\nsize = 96\n{}{beyond}\n[[datasets]]\nname = \"framed\"\nbuiltin = \"molecule\"\nsize = 96\n{}",
         view(placed),
         view("")
     );
@@ -528,9 +534,14 @@ opacity = 0.8
             view(placed)
         ));
     }
-    let datasets: &[&str] = match sod {
-        Some(_) => &["placed", "framed", "sod"],
-        None => &["placed", "framed"],
+    let views: &[(&str, &str)] = match sod {
+        Some(_) => &[
+            ("placed", "v"),
+            ("placed", "beyond"),
+            ("framed", "v"),
+            ("sod", "v"),
+        ],
+        None => &[("placed", "v"), ("placed", "beyond"), ("framed", "v")],
     };
     let scene = dir.path().join("two.toml");
     std::fs::write(&scene, text).expect("scene written");
@@ -570,13 +581,25 @@ opacity = 0.8
             read_report(&report)
         };
         let (mpi, threads) = (render("mpi"), render("threads"));
-        for (i, &dataset) in datasets.iter().enumerate() {
+        for (i, &(dataset, name)) in views.iter().enumerate() {
             let view = &mpi["views"][i];
-            assert_eq!(view["dataset"], dataset);
+            assert_eq!(
+                (&view["dataset"], &view["view"]),
+                (&dataset.into(), &name.into())
+            );
             assert_eq!(
                 view["pixels_sha256"], threads["views"][i]["pixels_sha256"],
                 "{dataset} on {clusters} clusters"
             );
+            let warnings = &view["warnings"];
+            assert_eq!(
+                warnings, &threads["views"][i]["warnings"],
+                "{dataset}/{name}"
+            );
+            let outside = warnings
+                .to_string()
+                .contains("lies outside the data's range");
+            assert_eq!(outside, name == "beyond", "{dataset}/{name}: {warnings}");
             for node in view["traffic"]["nodes"].as_array().expect("nodes") {
                 let held = &node["held_planes"];
                 match dataset {

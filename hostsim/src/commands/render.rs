@@ -297,14 +297,14 @@ pub fn run(args: RenderArgs) -> Result<(), Box<dyn std::error::Error>> {
     #[cfg(feature = "mpi")]
     let mpi_world = mpi_universe.as_ref().map(|u| u.world());
     #[cfg(feature = "mpi")]
-    let window = mpi_world.as_ref().and_then(|world| {
+    let window = mpi_world.as_ref().map(|world| {
         use mpi::topology::Communicator;
-        let node = u16::try_from(world.rank() - 1).ok()?;
-        Some(
-            move |grid: &voxcube_kernel::volume::grid::Grid, views: &[ViewJob]| {
-                rank_window(node, grid, views, (nodes, clusters, balance))
-            },
-        )
+        // Rank 0, the host, traces nothing: it holds no planes where the nodes hold theirs.
+        let node = u16::try_from(world.rank() - 1).ok();
+        move |grid: &voxcube_kernel::volume::grid::Grid, views: &[ViewJob]| match node {
+            Some(node) => rank_window(node, grid, views, (nodes, clusters, balance)),
+            None => rank_window(0, grid, views, (nodes, clusters, balance)).map(|_| 0..0),
+        }
     });
     #[cfg(feature = "mpi")]
     let window = window
@@ -561,7 +561,15 @@ pub fn run(args: RenderArgs) -> Result<(), Box<dyn std::error::Error>> {
         bar.finish_and_clear();
         let image = out.join(format!("{}-{}.png", job.name, v.name));
         let pixels = rendered.bytes();
-        let mut warnings = crate::input::framing::blank_reasons(&job.volume, &v.view);
+        // A host that holds no samples (MPI ranks each hold their own) takes the range of
+        // values its nodes reported.
+        let reported = rendered.distributed.as_ref().and_then(|d| d.data_range);
+        let mut warnings = match reported.filter(|_| !job.volume.is_whole()) {
+            Some(range) => {
+                crate::input::framing::blank_reasons_in(range, &job.volume.grid, &v.view)
+            }
+            None => crate::input::framing::blank_reasons(&job.volume, &v.view),
+        };
         if warnings.is_empty() && pixels.chunks_exact(4).all(|p| p == &pixels[..4]) {
             warnings.push("the view drew nothing: every pixel is the background".into());
         }

@@ -258,6 +258,7 @@ impl<'v> Plan<'v> {
             time: None,
             shift,
             recovery: None,
+            data_range: None,
         }
     }
 }

@@ -285,6 +285,9 @@ pub struct Distributed {
     pub shift: Option<shift::ShiftReport>,
     /// A node lost during the run and how the frame was completed without it.
     pub recovery: Option<Recovery>,
+    /// The least and greatest sample value over the planes the nodes' processes held, where
+    /// the host does not hold the samples itself (MPI); `None` elsewhere.
+    pub data_range: Option<(f64, f64)>,
 }
 
 /// How a run lost a node and completed its frame: the surviving clusters re-traced the lost

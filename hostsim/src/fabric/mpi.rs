@@ -63,8 +63,8 @@ const TAG_BEAT: i32 = 2;
 /// Tag of a node's account of its plane shift: messages, bytes, peak samples, rounds.
 const TAG_SHIFT_REPORT: i32 = 3;
 /// Tag of a node's account of its set-up: the phase's tag, the microseconds from its start
-/// until the node could trace (its plane shift included), and its rank's peak resident bytes
-/// then.
+/// until the node could trace (its plane shift included), its rank's peak resident bytes
+/// then, the planes its rank holds, and their least and greatest value (`f64` bits).
 const TAG_SETUP: i32 = 6;
 /// Tag of the plane shift's first round; round `r` uses `TAG_SHIFT + r`.
 pub const TAG_SHIFT: i32 = 16;
@@ -690,11 +690,12 @@ fn serve_phase<T: Sample + Sync>(
     let cells =
         crate::memory::storage::cell_range_bytes(view, cfg.skipping, volume.data.kind()) > 0;
     let hold = crate::memory::storage::holds_node_field(view, cfg.skipping);
-    let (skipping, field) = beating(world, beat, || {
+    let (skipping, field, values) = beating(world, beat, || {
         let ranges = volume.built.ranges(&slab, cells, 1);
         let skipping =
             crate::memory::storage::Skipping::build_for(&slab, &ranges, view, cfg.skipping, rows);
-        (skipping, volume.built.field(&slab, hold, 1))
+        let values = volume.held_stats();
+        (skipping, volume.built.field(&slab, hold, 1), values)
     });
     let slab = field.apply(skipping.apply(slab));
     let resident = crate::memory::resident::peak().unwrap_or(0);
@@ -705,6 +706,8 @@ fn serve_phase<T: Sample + Sync>(
         resident,
         u64::from(window.start),
         u64::from(window.end),
+        values.min.to_bits(),
+        values.max.to_bits(),
     ];
     host.send_with_tag(&setup[..], TAG_SETUP);
     let mut worker = node_worker(view, slab, &partition, cfg, node, flow)?;
@@ -919,8 +922,17 @@ pub fn host(
             .and_then(|all| all.into_iter().max());
         for (node, setup) in run.nodes.iter_mut().zip(&setups) {
             node.resident_peak = setup.map(|[_, bytes, ..]| bytes).filter(|&b| b > 0);
-            node.held = setup.map(|[.., first, end]| first as u32..end as u32);
+            node.held = setup.map(|[_, _, first, end, ..]| first as u32..end as u32);
         }
+        // Every node's planes together are the whole volume, whatever each rank held.
+        run.data_range = setups
+            .iter()
+            .map(|s| s.map(|[.., lo, hi]| (f64::from_bits(lo), f64::from_bits(hi))))
+            .collect::<Option<Vec<_>>>()
+            .and_then(|all| {
+                all.into_iter()
+                    .reduce(|(a, b), (c, d)| (a.min(c), b.max(d)))
+            });
     }
     run.recovery = match (recovered, lost_before.first()) {
         (Some(r), _) => Some(r),
@@ -993,9 +1005,9 @@ struct PhaseEnd {
     /// Messages of the lost cluster that came after it was declared lost, dropped.
     late: u64,
     accounts: Vec<Option<[u64; 4]>>,
-    /// Each node's set-up: microseconds, its rank's peak resident bytes, and the planes it
-    /// holds ([`TAG_SETUP`]).
-    setups: Vec<Option<[u64; 4]>>,
+    /// Each node's set-up: microseconds, its rank's peak resident bytes, the planes it holds
+    /// and their least and greatest value ([`TAG_SETUP`]).
+    setups: Vec<Option<[u64; 6]>>,
 }
 
 /// Start `plan`'s machine (`cfg`) on `ranks` under `tag` and be its host until it ends: with
@@ -1042,9 +1054,10 @@ fn run_phase(
         }
     }
     let mut accounts: Vec<Option<[u64; 4]>> = vec![None; if cfg.shift { nodes } else { 0 }];
-    let mut setups: Vec<Option<[u64; 4]>> = vec![None; nodes];
+    let mut setups: Vec<Option<[u64; 6]>> = vec![None; nodes];
     // A set-up of this phase (a node of an abandoned one may have sent one never read).
-    let of_phase = |m: [u64; 5]| (m[0] == tag as u64).then_some([m[1], m[2], m[3], m[4]]);
+    let of_phase =
+        |m: [u64; 7]| (m[0] == tag as u64).then_some([m[1], m[2], m[3], m[4], m[5], m[6]]);
     let started = Instant::now();
     let mut heard = vec![Instant::now(); nodes];
     let mut lost: Option<LostNode> = None;
@@ -1079,7 +1092,7 @@ fn run_phase(
             .any_process()
             .immediate_matched_probe_with_tag(TAG_SETUP)
         {
-            let mut setup = [0u64; 5];
+            let mut setup = [0u64; 7];
             message.matched_receive_into(&mut setup[..]);
             if let Some(n) = ranks.node(status.source_rank()).map(usize::from) {
                 if let (Some(slot), Some(setup)) = (setups.get_mut(n), of_phase(setup)) {
@@ -1171,7 +1184,7 @@ fn run_phase(
             continue;
         };
         while setup.is_none() {
-            let mut m = [0u64; 5];
+            let mut m = [0u64; 7];
             world
                 .process_at_rank(rank)
                 .receive_into_with_tag(&mut m[..], TAG_SETUP);

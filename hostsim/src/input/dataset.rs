@@ -131,6 +131,12 @@ impl Volume {
         }
     }
 
+    /// [`Volume::stats`] of the planes it holds, computed once and kept with what is built
+    /// from them.
+    pub fn held_stats(&self) -> Stats {
+        self.built.stats(self.held(), || self.stats())
+    }
+
     /// The root-mean-square deviation of the values from their `mean` (σ), what density maps
     /// are contoured in: a pass of its own about the mean (no cancellation between two large
     /// sums), taken only where it is asked for, not with every view's [`Volume::stats`].

@@ -10,7 +10,7 @@
 use crate::input::dataset::{Volume, VolumeData};
 use voxcube_kernel::trace::camera::Projection;
 use voxcube_kernel::trace::view::View;
-use voxcube_kernel::volume::grid::Model;
+use voxcube_kernel::volume::grid::{Grid, Model};
 use voxcube_kernel::volume::sample::Range;
 use voxcube_kernel::Vec3;
 
@@ -209,9 +209,15 @@ pub fn corners((lo, hi): (Vec3, Vec3)) -> [Vec3; 8] {
 /// before rendering: iso values outside the data's range, a transfer function transparent
 /// over it, a camera facing away, or a volume outside the image.
 pub fn blank_reasons(volume: &Volume, view: &View) -> Vec<String> {
+    let stats = volume.held_stats();
+    blank_reasons_in((stats.min, stats.max), &volume.grid, view)
+}
+
+/// [`blank_reasons`] of a volume on `grid` whose values span `range` (least, greatest),
+/// where the host does not hold its samples (MPI ranks each report their planes').
+pub fn blank_reasons_in(range: (f64, f64), grid: &Grid, view: &View) -> Vec<String> {
     use voxcube_kernel::trace::view::Mode;
-    let stats = volume.stats();
-    let (min, max) = (stats.min as f32, stats.max as f32);
+    let (min, max) = (range.0 as f32, range.1 as f32);
     let mut out = Vec::new();
     match &view.spec().mode {
         Mode::Surfaces(surfaces) => {
@@ -233,7 +239,7 @@ pub fn blank_reasons(volume: &Volume, view: &View) -> Vec<String> {
         }
     }
     let camera = &view.spec().camera;
-    let (lo, hi) = volume.grid.world_box(view.spec().model);
+    let (lo, hi) = grid.world_box(view.spec().model);
     let depth = |p: Vec3| (p - camera.eye()).dot(camera.forward());
     let box_corners = corners((lo, hi));
     if box_corners.iter().all(|&p| depth(p) <= 0.0) {

@@ -1,5 +1,6 @@
 //! What is built once from one volume's samples, whatever the view: each slab's node field
-//! ([`crate::memory::nodes`]) and its value ranges ([`crate::memory::ranges`]), kept by the
+//! ([`crate::memory::nodes`]) and its value ranges ([`crate::memory::ranges`]), and the
+//! statistics of the planes a process holds, kept by the
 //! planes they cover and shared by every view, orbit frame and bench repetition that reads them.
 //!
 //! Invariant: each structure is a pure function of the samples of the planes it is kept
@@ -60,6 +61,15 @@ impl Built {
             |built: &SlabRanges<T>| built.holds_cells() || !cells,
             || SlabRanges::build(slab, cells, threads),
         )
+    }
+
+    /// The value statistics of the planes `planes` of this volume: `stats`' the first time.
+    pub fn stats(
+        &self,
+        planes: Range<u32>,
+        stats: impl FnOnce() -> crate::input::dataset::Stats,
+    ) -> crate::input::dataset::Stats {
+        *self.get_or_build(planes, |_| true, stats)
     }
 
     /// The structure of type `V` kept for `planes` that `serves`, else `build`'s, kept in its

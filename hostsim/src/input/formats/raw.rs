@@ -116,6 +116,10 @@ fn columns<T: Copy + Default>(
     let [nx, ny, nz] = layout.dims.map(|d| d as usize);
     let size = layout.ty.bytes();
     let (first, kept) = (planes.start as usize, planes.len());
+    if kept == 0 {
+        // No plane kept (a host whose nodes hold theirs): nothing to read.
+        return Ok(Vec::new());
+    }
     let mut out = vec![T::default(); kept * ny * nz];
     let mut row = vec![0u8; nx * size];
     for z in 0..nz {
