@@ -694,7 +694,9 @@ fn serve_phase<T: Sample + Sync>(
         let ranges = volume.built.ranges(&slab, cells, 1);
         let skipping =
             crate::memory::storage::Skipping::build_for(&slab, &ranges, view, cfg.skipping, rows);
-        let values = volume.held_stats();
+        let values = volume
+            .held_range()
+            .unwrap_or((f64::INFINITY, f64::NEG_INFINITY));
         (skipping, volume.built.field(&slab, hold, 1), values)
     });
     let slab = field.apply(skipping.apply(slab));
@@ -706,8 +708,8 @@ fn serve_phase<T: Sample + Sync>(
         resident,
         u64::from(window.start),
         u64::from(window.end),
-        values.min.to_bits(),
-        values.max.to_bits(),
+        values.0.to_bits(),
+        values.1.to_bits(),
     ];
     host.send_with_tag(&setup[..], TAG_SETUP);
     let mut worker = node_worker(view, slab, &partition, cfg, node, flow)?;

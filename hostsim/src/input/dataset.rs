@@ -134,7 +134,29 @@ impl Volume {
     /// [`Volume::stats`] of the planes it holds, computed once and kept with what is built
     /// from them.
     pub fn held_stats(&self) -> Stats {
-        self.built.stats(self.held(), || self.stats())
+        self.built.summary(self.held(), || self.stats())
+    }
+
+    /// The least and greatest value of the planes it holds (`None` for none), computed once
+    /// in the samples' own type, a pass the compiler vectorises, and kept with what is built
+    /// from them: what a node's rank tells the host, which may hold no sample.
+    pub fn held_range(&self) -> Option<(f64, f64)> {
+        fn of<T: Copy + Into<f64>>(
+            v: &[T],
+            least: fn(T, T) -> T,
+            most: fn(T, T) -> T,
+        ) -> Option<(f64, f64)> {
+            let (&first, rest) = v.split_first()?;
+            let (lo, hi) = rest
+                .iter()
+                .fold((first, first), |(lo, hi), &x| (least(lo, x), most(hi, x)));
+            Some((lo.into(), hi.into()))
+        }
+        self.built.summary(self.held(), || match &self.data {
+            VolumeData::U8(v) => of(v, u8::min, u8::max),
+            VolumeData::U16(v) => of(v, u16::min, u16::max),
+            VolumeData::F32(v) => of(v, f32::min, f32::max),
+        })
     }
 
     /// The root-mean-square deviation of the values from their `mean` (σ), what density maps
@@ -241,6 +263,28 @@ mod tests {
             plane_major_from_fn([2, 2, 2], |x, y, z| (x + 2 * y + 4 * z) as u8),
             pm
         );
+    }
+
+    /// The range a rank reports is its planes' least and greatest value, as the statistics
+    /// give them, for every sample type; a window of no planes has none.
+    #[test]
+    fn the_held_range_is_the_statistics_extremes() {
+        let grid = Grid::new([3, 2, 2], voxcube_kernel::Vec3::ONE).unwrap();
+        let u8s: Vec<u8> = vec![9, 3, 250, 7, 1, 2, 3, 4, 5, 6, 7, 8];
+        for data in [
+            VolumeData::U8(u8s.clone()),
+            VolumeData::U16(u8s.iter().map(|&v| u16::from(v) * 250).collect()),
+            VolumeData::F32(u8s.iter().map(|&v| f32::from(v) - 100.5).collect()),
+        ] {
+            let volume = Volume::new(grid, data);
+            let stats = volume.stats();
+            assert_eq!(volume.held_range(), Some((stats.min, stats.max)));
+            let window = volume.planes(1..2).unwrap();
+            let stats = window.stats();
+            assert_eq!(window.held_range(), Some((stats.min, stats.max)));
+            assert_ne!(window.held_range(), volume.held_range());
+            assert_eq!(volume.planes(2..2).unwrap().held_range(), None);
+        }
     }
 
     #[test]

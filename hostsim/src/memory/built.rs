@@ -63,13 +63,14 @@ impl Built {
         )
     }
 
-    /// The value statistics of the planes `planes` of this volume: `stats`' the first time.
-    pub fn stats(
+    /// A summary of the values of the planes `planes` of this volume (statistics, a range):
+    /// `summary`'s the first time one of its type is asked for.
+    pub fn summary<V: Any + Send + Sync + Copy>(
         &self,
         planes: Range<u32>,
-        stats: impl FnOnce() -> crate::input::dataset::Stats,
-    ) -> crate::input::dataset::Stats {
-        *self.get_or_build(planes, |_| true, stats)
+        summary: impl FnOnce() -> V,
+    ) -> V {
+        *self.get_or_build(planes, |_| true, summary)
     }
 
     /// The structure of type `V` kept for `planes` that `serves`, else `build`'s, kept in its
