@@ -785,3 +785,37 @@ fn a_stopped_node_costs_no_pixel_and_is_named_in_a_warning_and_the_report() {
         );
     }
 }
+
+/// A built-in volume no machine here holds is refused before a sample is generated: 4096³
+/// (64 GiB, allowed by `--max-samples`) on one `modern` node and on 64, named with the
+/// smallest cluster that fits, exit 1, no image. Generated first, it would not fit this
+/// machine's memory: the allocation would fail and the process abort.
+#[test]
+fn a_volume_too_big_for_the_machine_is_refused_before_it_is_generated() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scene = dir.path().join("huge.toml");
+    std::fs::write(
+        &scene,
+        "[[datasets]]\nname = \"huge\"\nbuiltin = \"molecule\"\nsize = 4096\n[[datasets.views]]\nname = \"v\"\n[[datasets.views.surfaces]]\niso = 60.0\n",
+    )
+    .expect("scene written");
+    for nodes in ["1", "64"] {
+        let out = voxcube()
+            .args(["--max-samples", "100000000000", "render"])
+            .arg(&scene)
+            .args(["--machine", "modern", "--nodes", nodes, "--fabric"])
+            .arg(if nodes == "1" { "direct" } else { "threads" })
+            .arg("-o")
+            .arg(dir.path().join("out"))
+            .output()
+            .expect("runs");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{nodes}: {stderr}");
+        assert!(
+            stderr.contains(&format!("huge/v: a node of a cluster of {nodes} needs"))
+                && stderr.contains("the smallest cluster that fits has 128 nodes"),
+            "{nodes}: {stderr}"
+        );
+        assert!(!dir.path().join("out/huge-v.png").exists());
+    }
+}

@@ -287,6 +287,24 @@ pub fn run(args: RenderArgs) -> Result<(), Box<dyn std::error::Error>> {
         Some(tier) => scene.with_accuracy(tier),
         None => scene,
     };
+    // A dataset whose grid the scene gives is checked against the machine before a sample
+    // is generated or read: a volume no machine here holds is refused at once, not after
+    // minutes of loading, or never for want of memory.
+    let profile_of = || match profile {
+        ProfileArg::Ncube2 => Ok(Profile::ncube2()),
+        ProfileArg::Modern => {
+            Profile::builtin("modern").ok_or("the shipped modern profile is missing")
+        }
+    };
+    scene.check_before_loading(orbit, |dataset, volume, views| {
+        for v in views {
+            let mut m = machine(v, nodes, clusters, fabric, seed, generation, buffer)
+                .map_err(|e| format!("{dataset}/{}: {e}", v.name))?;
+            m.profile = profile_of()?;
+            preflight(volume, &v.view, &m).map_err(|e| format!("{dataset}/{}: {e}", v.name))?;
+        }
+        Ok::<(), Box<dyn std::error::Error>>(())
+    })?;
     // MPI first where the views render on it: a node's rank loads only the planes its slab
     // stores, where it can, and must know which node it runs.
     #[cfg(feature = "mpi")]
@@ -330,12 +348,7 @@ pub fn run(args: RenderArgs) -> Result<(), Box<dyn std::error::Error>> {
                 nodes: !no_node_field,
                 ranges: !no_cell_ranges,
             };
-            m.profile = match profile {
-                ProfileArg::Ncube2 => Profile::ncube2(),
-                ProfileArg::Modern => {
-                    Profile::builtin("modern").ok_or("the shipped modern profile is missing")?
-                }
-            };
+            m.profile = profile_of()?;
             m.lost_after = Duration::from_secs_f64(lost_after);
             for (i, &(node, steps, crash)) in stop_node.iter().enumerate() {
                 let name = m.fabric.name();

@@ -6,7 +6,7 @@
 //! view built — before anything is rendered, so a bad scene writes nothing.
 
 use crate::input::builtin;
-use crate::input::dataset::{Volume, VolumeData};
+use crate::input::dataset::Volume;
 use crate::input::formats::{self, raw::RawLayout, Endian, FileType, Format, LoadError};
 use crate::input::framing::{Frame, Showing};
 use serde::Deserialize;
@@ -403,7 +403,8 @@ fn framed_view(
         ..CameraTweak::default()
     };
     let view = build_view(v, &volume.grid, &base)?;
-    if !v.camera.frames_by_default() {
+    // Framing reads every sample: a window of the volume frames nothing.
+    if !v.camera.frames_by_default() || !volume.is_whole() {
         return Ok(view);
     }
     let showing = showing.get_or_insert_with(|| Showing::of(volume, &view));
@@ -434,7 +435,7 @@ fn orbit_views(v: &ViewToml, volume: &Volume, frames: u32) -> Result<Vec<View>, 
     let c = &v.camera;
     let mut showing = None;
     let look_at = match (c.frames_by_default(), c.look_at) {
-        (true, None) => {
+        (true, None) if volume.is_whole() => {
             let first = build_view(v, &volume.grid, &CameraTweak::default())?;
             let summary = showing.insert(Showing::of(volume, &first));
             summary.world_box(volume).map(|(lo, hi)| (lo + hi) * 0.5)
@@ -613,6 +614,28 @@ impl Scene {
         self.load_windowed(orbit, None)
     }
 
+    /// Before any sample is read: `check` each dataset whose grid and sample type the scene
+    /// gives (a built-in, a raw file; the file's length is checked too) with its views, on a
+    /// volume of no planes, so that a dataset no machine holds is refused before it is
+    /// generated or read. Views that would frame by what shows are checked as placed:
+    /// framing reads samples, and what a node must hold does not depend on it.
+    pub fn check_before_loading<E: From<SceneError>>(
+        &self,
+        orbit: Option<u32>,
+        check: impl Fn(&str, &Volume, &[ViewJob]) -> Result<(), E>,
+    ) -> Result<(), E> {
+        for (i, (d, source)) in self.datasets.iter().enumerate() {
+            if !matches!(source, Source::Builtin(..) | Source::Raw(..)) {
+                continue;
+            }
+            let key = format!("datasets[{i}]");
+            let none = load_window(source, 0..0).map_err(|e| source_error(&self.file, &key, e))?;
+            let views = dataset_views(d, &none, orbit, &self.file, &key)?;
+            check(&d.name, &none, &views)?;
+        }
+        Ok(())
+    }
+
     /// As [`Scene::load_orbits`], each dataset's samples only on the X planes `window` asks
     /// for given its grid and views, where that can be known without its samples: a built-in
     /// volume none of whose views frames its camera by what shows (a window is generated
@@ -626,75 +649,20 @@ impl Scene {
         let mut jobs = Vec::new();
         for (i, (d, source)) in self.datasets.into_iter().enumerate() {
             let key = format!("datasets[{i}]");
-            let failed = |e| match e {
-                SourceError::Load(source) => SceneError::Dataset {
-                    file: file.clone(),
-                    key: key.clone(),
-                    source,
-                },
-                SourceError::Builtin(m) => SceneError::Invalid {
-                    file: file.clone(),
-                    key: format!("{key}.builtin"),
-                    message: m,
-                },
-            };
+            let failed = |e| source_error(&file, &key, e);
             let placed = d.views.iter().all(|v| !v.camera.frames_by_default());
-            let windowed = match window.filter(|_| placed) {
-                Some(window) => match &source {
-                    Source::Builtin(name, size) => builtin::grid(name, *size).map(|g| (g, window)),
-                    Source::Raw(_, layout) => formats::raw::grid(layout).ok().map(|g| (g, window)),
-                    Source::File(..) => None,
-                },
-                None => None,
-            };
+            let given = matches!(source, Source::Builtin(..) | Source::Raw(..));
+            let windowed = window.filter(|_| placed && given);
             // Views that do not frame by what shows read the grid alone: built first on a
             // window of no planes, then the window they need is generated or streamed.
-            let volume = match &windowed {
-                Some((grid, _)) => Volume::window(*grid, 0, VolumeData::U8(Vec::new())),
+            let volume = match windowed {
+                Some(_) => load_window(&source, 0..0).map_err(failed)?,
                 None => load_source(&source).map_err(failed)?,
             };
-            let mut views = Vec::new();
-            for (j, v) in d.views.iter().enumerate() {
-                let vkey = format!("{key}.views[{j}]");
-                let invalid = |(k, message): (String, String)| SceneError::Invalid {
-                    file: file.clone(),
-                    key: if k.is_empty() {
-                        vkey.clone()
-                    } else {
-                        format!("{vkey}.{k}")
-                    },
-                    message,
-                };
-                let name = view_name(v, j);
-                let frames = match orbit {
-                    None => vec![framed_view(v, &volume, 0.0, None, &mut None).map_err(invalid)?],
-                    Some(n) => orbit_views(v, &volume, n).map_err(invalid)?,
-                };
-                let count = frames.len() as u32;
-                for (i, view) in frames.into_iter().enumerate() {
-                    let (name, orbit) = match orbit {
-                        None => (name.clone(), None),
-                        Some(_) => (
-                            format!("{name}-{i:03}"),
-                            Some(OrbitFrame {
-                                view: name.clone(),
-                                frame: i as u32,
-                                frames: count,
-                            }),
-                        ),
-                    };
-                    views.push(ViewJob {
-                        name,
-                        view,
-                        nodes: v.nodes,
-                        clusters: v.clusters,
-                        balance: v.balance,
-                        orbit,
-                    });
-                }
-            }
+            let views = dataset_views(&d, &volume, orbit, &file, &key)?;
             let volume = match windowed {
-                Some((grid, window)) => {
+                Some(window) => {
+                    let grid = volume.grid;
                     let planes = window(&grid, &views).unwrap_or(0..grid.dims()[0]);
                     load_window(&source, planes).map_err(failed)?
                 }
@@ -708,6 +676,74 @@ impl Scene {
             });
         }
         Ok(jobs)
+    }
+}
+
+/// The views of dataset `d` (at `key` of the scene `file`) on `volume`, each turned into an
+/// orbit of `orbit` frames when given.
+fn dataset_views(
+    d: &DatasetToml,
+    volume: &Volume,
+    orbit: Option<u32>,
+    file: &str,
+    key: &str,
+) -> Result<Vec<ViewJob>, SceneError> {
+    let mut views = Vec::new();
+    for (j, v) in d.views.iter().enumerate() {
+        let vkey = format!("{key}.views[{j}]");
+        let invalid = |(k, message): (String, String)| SceneError::Invalid {
+            file: file.to_string(),
+            key: if k.is_empty() {
+                vkey.clone()
+            } else {
+                format!("{vkey}.{k}")
+            },
+            message,
+        };
+        let name = view_name(v, j);
+        let frames = match orbit {
+            None => vec![framed_view(v, volume, 0.0, None, &mut None).map_err(invalid)?],
+            Some(n) => orbit_views(v, volume, n).map_err(invalid)?,
+        };
+        let count = frames.len() as u32;
+        for (i, view) in frames.into_iter().enumerate() {
+            let (name, orbit) = match orbit {
+                None => (name.clone(), None),
+                Some(_) => (
+                    format!("{name}-{i:03}"),
+                    Some(OrbitFrame {
+                        view: name.clone(),
+                        frame: i as u32,
+                        frames: count,
+                    }),
+                ),
+            };
+            views.push(ViewJob {
+                name,
+                view,
+                nodes: v.nodes,
+                clusters: v.clusters,
+                balance: v.balance,
+                orbit,
+            });
+        }
+    }
+    Ok(views)
+}
+
+/// A dataset's source that failed to load, as the scene names it.
+fn source_error(file: &str, key: &str, e: SourceError) -> SceneError {
+    match e {
+        SourceError::Load(source) => SceneError::Dataset {
+            file: file.to_string(),
+            key: key.to_string(),
+            source,
+        },
+        SourceError::Builtin(m) => SceneError::Invalid {
+            file: file.to_string(),
+            key: format!("{key}.builtin"),
+            message: m,
+        },
     }
 }
 
