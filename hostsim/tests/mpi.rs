@@ -484,9 +484,9 @@ opacity = 0.8
     assert!(threads["views"][0]["traffic"]["nodes"][0]["resident_peak_bytes"].is_null());
 }
 
-/// A node's rank holds only the planes its slab stores of a built-in volume or raw file whose
-/// views all place their cameras themselves: generated alone or streamed, never cut from the
-/// whole. Where a view frames its camera by what shows, which reads every sample, the rank
+/// A node's rank holds only the planes its slab stores of a built-in volume, a raw file or a
+/// NRRD file with raw samples whose views all place their cameras themselves: generated
+/// alone or streamed, never cut from the whole. Where a view frames its camera by what shows, which reads every sample, the rank
 /// holds the whole volume (the control). The images are the threads fabric's, on 4 nodes in
 /// 1 and 2 clusters.
 #[test]
@@ -523,23 +523,30 @@ opacity = 0.8
         view(placed),
         view("")
     );
-    // A raw file, streamed: SOD, where the shared data is there.
-    let sod = scenes_with_data().first().map(|_| {
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/sod-97x97x116.u8.binary")
-    });
-    if let Some(sod) = &sod {
+    // A raw file and a NRRD file's raw samples, streamed: SOD and neghip, where the shared
+    // data is there.
+    let data = scenes_with_data()
+        .first()
+        .map(|_| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data"));
+    if let Some(data) = &data {
         text.push_str(&format!(
             "\n[[datasets]]\nname = \"sod\"\npath = \"{}\"\nformat = \"raw\"\ndims = [97, 97, 116]\ntype = \"u8\"\nheader_bytes = 12\n{}",
-            sod.display(),
+            data.join("sod-97x97x116.u8.binary").display(),
+            view(placed)
+        ));
+        text.push_str(&format!(
+            "\n[[datasets]]\nname = \"neghip\"\npath = \"{}\"\n{}",
+            data.join("neghip-66x66x66.nhdr").display(),
             view(placed)
         ));
     }
-    let views: &[(&str, &str)] = match sod {
+    let views: &[(&str, &str)] = match data {
         Some(_) => &[
             ("placed", "v"),
             ("placed", "beyond"),
             ("framed", "v"),
             ("sod", "v"),
+            ("neghip", "v"),
         ],
         None => &[("placed", "v"), ("placed", "beyond"), ("framed", "v")],
     };

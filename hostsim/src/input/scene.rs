@@ -625,11 +625,12 @@ impl Scene {
         check: impl Fn(&str, &Volume, &[ViewJob]) -> Result<(), E>,
     ) -> Result<(), E> {
         for (i, (d, source)) in self.datasets.iter().enumerate() {
-            if !matches!(source, Source::Builtin(..) | Source::Raw(..)) {
+            let key = format!("datasets[{i}]");
+            let failed = |e| source_error(&self.file, &key, e);
+            if !streams(source).map_err(failed)? {
                 continue;
             }
-            let key = format!("datasets[{i}]");
-            let none = load_window(source, 0..0).map_err(|e| source_error(&self.file, &key, e))?;
+            let none = load_window(source, 0..0).map_err(failed)?;
             let views = dataset_views(d, &none, orbit, &self.file, &key)?;
             check(&d.name, &none, &views)?;
         }
@@ -651,8 +652,10 @@ impl Scene {
             let key = format!("datasets[{i}]");
             let failed = |e| source_error(&file, &key, e);
             let placed = d.views.iter().all(|v| !v.camera.frames_by_default());
-            let given = matches!(source, Source::Builtin(..) | Source::Raw(..));
-            let windowed = window.filter(|_| placed && given);
+            let windowed = match window.filter(|_| placed) {
+                Some(window) => streams(&source).map_err(failed)?.then_some(window),
+                None => None,
+            };
             // Views that do not frame by what shows read the grid alone: built first on a
             // window of no planes, then the window they need is generated or streamed.
             let volume = match windowed {
@@ -926,8 +929,17 @@ fn load_source(source: &Source) -> Result<Volume, SourceError> {
     }
 }
 
-/// Of `source`, the X planes `planes` alone: a built-in's generated, a raw file's streamed;
-/// another file whole (its formats are read whole, a window of them no cheaper).
+/// Whether `source`'s X planes are had alone, without the others ([`load_window`]): a
+/// built-in's, a raw file's, a NRRD file's with raw samples.
+fn streams(source: &Source) -> Result<bool, SourceError> {
+    match source {
+        Source::Builtin(..) | Source::Raw(..) => Ok(true),
+        Source::File(p, f, s) => formats::streams(p, *f, *s).map_err(SourceError::Load),
+    }
+}
+
+/// Of `source`, the X planes `planes` alone where it [`streams`]: a built-in's generated, a
+/// raw file's or NRRD file's streamed; another file whole.
 fn load_window(source: &Source, planes: Range<u32>) -> Result<Volume, SourceError> {
     match source {
         Source::Builtin(name, size) => builtin::window(name, *size, planes.clone())
@@ -935,7 +947,7 @@ fn load_window(source: &Source, planes: Range<u32>) -> Result<Volume, SourceErro
         Source::Raw(p, layout) => {
             formats::raw::load_window(p, layout, planes).map_err(SourceError::Load)
         }
-        Source::File(..) => load_source(source),
+        Source::File(p, f, s) => formats::load_window(p, *f, *s, planes).map_err(SourceError::Load),
     }
 }
 

@@ -167,6 +167,29 @@ pub fn load(path: &Path, format: Format, spacing: Option<Vec3>) -> Result<Volume
     }
 }
 
+/// Of `path` as `format`, the X planes `planes` alone where the format streams them
+/// ([`streams`]); a file read whole is kept whole.
+pub fn load_window(
+    path: &Path,
+    format: Format,
+    spacing: Option<Vec3>,
+    planes: std::ops::Range<u32>,
+) -> Result<Volume, LoadError> {
+    match format {
+        Format::Nrrd => nrrd::load_window(path, spacing, planes),
+        _ => load(path, format, spacing),
+    }
+}
+
+/// Whether [`load_window`] streams `path` as `format`, holding only the planes asked for:
+/// a NRRD file whose samples are raw at an offset its header gives.
+pub fn streams(path: &Path, format: Format, spacing: Option<Vec3>) -> Result<bool, LoadError> {
+    match format {
+        Format::Nrrd => nrrd::streams(path, spacing),
+        _ => Ok(false),
+    }
+}
+
 /// Apply a file's linear value scaling `v·slope + intercept` (NIfTI `scl_slope`/`scl_inter`,
 /// DICOM rescale). The identity keeps the samples' type; any other scaling makes them f32,
 /// computed in f64 and rounded once.

@@ -176,10 +176,19 @@ fn parse_header(bytes: &[u8]) -> Result<(Header, usize), LoadErrorKind> {
     Ok((h, pos))
 }
 
-/// Load a NRRD volume (`.nrrd` or `.nhdr`). `spacing` overrides the header's.
-pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
-    let bytes = read(path)?;
-    let (h, data_start) = parse_header(&bytes).map_err(|k| LoadError::new(path, k))?;
+/// What a header says of its samples, checked: the grid, type, byte order and encoding.
+struct Samples {
+    dims: [u32; 3],
+    count: u64,
+    ty: FileType,
+    endian: Endian,
+    spacing: Vec3,
+    gzip: bool,
+}
+
+/// The samples header `h` (of the file at `path`) describes, with `spacing` overriding its
+/// own; an error names the header's field.
+fn samples_of(h: &Header, path: &Path, spacing: Option<Vec3>) -> Result<Samples, LoadError> {
     let at = |k| LoadError::new(path, k);
     let ty =
         h.ty.ok_or_else(|| at(header_err("missing field \"type\"")))?;
@@ -194,8 +203,9 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
     }
     let sizes = h
         .sizes
+        .as_deref()
         .ok_or_else(|| at(header_err("missing field \"sizes\"")))?;
-    let dims: [u32; 3] = parse_three("sizes", &sizes).map_err(at)?;
+    let dims: [u32; 3] = parse_three("sizes", sizes).map_err(at)?;
     let count = super::declared_samples(&dims.map(u64::from)).map_err(at)?;
     let gzip = h
         .gzip
@@ -218,6 +228,103 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
             spacing[axis]
         ))));
     }
+    Ok(Samples {
+        dims,
+        count,
+        ty,
+        endian,
+        spacing,
+        gzip,
+    })
+}
+
+/// The most bytes of a file the streamed read takes for its header: a header that does not
+/// end within them is read with the whole file.
+const HEADER_AT_MOST: u64 = 1 << 16;
+
+/// Of a NRRD file, the X planes `planes` alone: streamed as a raw file
+/// ([`super::raw::load_window`]) where its samples are raw at an offset the header gives
+/// (attached or in its data file, no line skip), so that neither the file nor the other
+/// planes are held; otherwise (gzip, line skip) the file is read whole and kept whole.
+pub fn load_window(
+    path: &Path,
+    spacing: Option<Vec3>,
+    planes: std::ops::Range<u32>,
+) -> Result<Volume, LoadError> {
+    match streamed(path, spacing)? {
+        Some((data, layout)) => super::raw::load_window(&data, &layout, planes),
+        None => load(path, spacing),
+    }
+}
+
+/// Whether [`load_window`] streams the file (its samples raw at an offset the header gives).
+pub fn streams(path: &Path, spacing: Option<Vec3>) -> Result<bool, LoadError> {
+    Ok(streamed(path, spacing)?.is_some())
+}
+
+/// Where and how a NRRD file's samples lie when they can be streamed as a raw file.
+fn streamed(
+    path: &Path,
+    spacing: Option<Vec3>,
+) -> Result<Option<(PathBuf, super::raw::RawLayout)>, LoadError> {
+    use std::io::Read;
+    let io = |e| LoadError::new(path, e);
+    let mut head = Vec::new();
+    std::fs::File::open(path)
+        .map_err(io)?
+        .take(HEADER_AT_MOST)
+        .read_to_end(&mut head)
+        .map_err(io)?;
+    // A header cut off by the limit, or one that does not parse: the whole read decides.
+    let Ok((h, data_start)) = parse_header(&head) else {
+        return Ok(None);
+    };
+    if head.len() as u64 == HEADER_AT_MOST && data_start >= head.len() {
+        return Ok(None);
+    }
+    let samples = samples_of(&h, path, spacing)?;
+    if samples.gzip || h.line_skip != 0 {
+        return Ok(None);
+    }
+    let (data, offset) = match &h.data_file {
+        Some(name) => (path.parent().unwrap_or(Path::new(".")).join(name), 0),
+        None => (path.to_path_buf(), data_start as u64),
+    };
+    let need = samples.count.saturating_mul(samples.ty.bytes() as u64);
+    let header_bytes = match h.byte_skip {
+        // The samples end the file.
+        -1 => {
+            let length = std::fs::metadata(&data)
+                .map_err(|e| LoadError::new(&data, e))?
+                .len();
+            length.saturating_sub(need).max(offset)
+        }
+        s if s >= 0 => offset + s as u64,
+        _ => return Ok(None),
+    };
+    let layout = super::raw::RawLayout {
+        dims: samples.dims,
+        ty: samples.ty,
+        endian: samples.endian,
+        header_bytes,
+        spacing: samples.spacing,
+    };
+    Ok(Some((data, layout)))
+}
+
+/// Load a NRRD volume (`.nrrd` or `.nhdr`). `spacing` overrides the header's.
+pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
+    let bytes = read(path)?;
+    let (h, data_start) = parse_header(&bytes).map_err(|k| LoadError::new(path, k))?;
+    let at = |k| LoadError::new(path, k);
+    let Samples {
+        dims,
+        count,
+        ty,
+        endian,
+        spacing,
+        gzip,
+    } = samples_of(&h, path, spacing)?;
     let (data_path, payload): (PathBuf, Vec<u8>) = match &h.data_file {
         Some(name) => {
             let file = path.parent().unwrap_or(Path::new(".")).join(name);
@@ -302,5 +409,104 @@ mod tests {
         assert!(e.contains("not a NRRD file"), "{e}");
         let e = parse_three::<u32>("sizes", "1 2").unwrap_err().to_string();
         assert!(e.contains("sizes: expected three numbers"), "{e}");
+    }
+
+    /// A NRRD file streamed by X planes is the whole read's planes, bit for bit: attached and
+    /// detached raw samples, a byte skip and the samples at the file's end (`-1`), two-byte
+    /// big-endian samples; windows at the ends, inside and of no plane. A gzip file and a
+    /// line skip are not streamed: they are read whole, and kept whole.
+    #[test]
+    fn a_streamed_window_is_the_whole_read_s_planes() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let (nx, ny, nz) = (5u32, 3u32, 4u32);
+        let count = (nx * ny * nz) as usize;
+        let samples: Vec<u8> = (0..count as u32)
+            .map(|i| (i.wrapping_mul(2_654_435_761) >> 16) as u16)
+            .flat_map(u16::to_be_bytes)
+            .collect();
+        let header = |extra: &str| {
+            format!("NRRD0004\ntype: uint16\ndimension: 3\nsizes: {nx} {ny} {nz}\nendian: big\nspacings: 1 2 0.5\n{extra}")
+        };
+        let write = |name: &str, bytes: &[u8]| {
+            let path = dir.path().join(name);
+            std::fs::write(&path, bytes).expect("written");
+            path
+        };
+        let attached = write(
+            "a.nrrd",
+            &[
+                header("encoding: raw\nbyte skip: 3\n\n").as_bytes(),
+                b"xyz",
+                &samples,
+            ]
+            .concat(),
+        );
+        let at_end = write(
+            "e.nrrd",
+            &[
+                header("encoding: raw\nbyte skip: -1\n\n").as_bytes(),
+                b"junk",
+                &samples,
+            ]
+            .concat(),
+        );
+        write("d.raw", &samples);
+        let detached = write(
+            "d.nhdr",
+            header("encoding: raw\ndata file: d.raw\n").as_bytes(),
+        );
+        for path in [&attached, &at_end, &detached] {
+            assert!(streams(path, None).unwrap(), "{}", path.display());
+            let whole = load(path, None).unwrap();
+            for planes in [0..nx, 0..2, 1..4, nx - 1..nx, 3..3] {
+                let window = load_window(path, None, planes.clone()).unwrap();
+                assert_eq!(window.held(), planes, "{}", path.display());
+                assert_eq!(Some(window), whole.planes(planes), "{}", path.display());
+            }
+        }
+        let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+        std::io::Write::write_all(&mut gz, &samples).expect("compressed");
+        let gzip = write(
+            "g.nrrd",
+            &[
+                header("encoding: gzip\n\n").as_bytes(),
+                &gz.finish().expect("compressed"),
+            ]
+            .concat(),
+        );
+        let skip = write(
+            "l.nrrd",
+            &[
+                header("encoding: raw\nline skip: 1\n\n").as_bytes(),
+                b"a line\n",
+                &samples,
+            ]
+            .concat(),
+        );
+        for path in [&gzip, &skip] {
+            assert!(!streams(path, None).unwrap(), "{}", path.display());
+            let whole = load(path, None).unwrap();
+            assert_eq!(load_window(path, None, 1..2).unwrap(), whole);
+        }
+        assert_eq!(load(&gzip, None).unwrap(), load(&attached, None).unwrap());
+    }
+
+    /// The shared data's neghip (a detached header naming raw bytes) streams, and a window of
+    /// it is the whole read's planes.
+    #[test]
+    fn neghip_streams_by_planes() {
+        let nhdr =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/neghip-66x66x66.nhdr");
+        if !nhdr.is_file() {
+            assert!(
+                std::env::var_os("CI").is_none(),
+                "CI is set but the shared data is missing"
+            );
+            return;
+        }
+        assert!(streams(&nhdr, None).unwrap());
+        let whole = load(&nhdr, None).unwrap();
+        let window = load_window(&nhdr, None, 20..31).unwrap();
+        assert_eq!(Some(window), whole.planes(20..31));
     }
 }
