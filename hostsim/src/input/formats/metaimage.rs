@@ -154,11 +154,14 @@ fn parse_header(bytes: &[u8]) -> Result<Header, LoadErrorKind> {
     ))
 }
 
-/// Load a MetaImage volume. `spacing` overrides the header's.
-pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
-    let bytes = read(path)?;
+/// What header `h` (of the file at `path`) says of its samples, checked: the grid, type,
+/// spacing (`spacing` overriding its own) and byte order.
+fn samples_of(
+    h: &Header,
+    path: &Path,
+    spacing: Option<Vec3>,
+) -> Result<([u32; 3], FileType, Vec3, Endian), LoadError> {
     let at = |k| LoadError::new(path, k);
-    let h = parse_header(&bytes).map_err(at)?;
     let dims = h.dims.ok_or_else(|| at(header_err("missing DimSize")))?;
     let ty = h.ty.ok_or_else(|| at(header_err("missing ElementType")))?;
     let spacing = spacing.or(h.spacing).unwrap_or(Vec3::ONE);
@@ -172,6 +175,100 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
     } else {
         Endian::Little
     };
+    Ok((dims, ty, spacing, endian))
+}
+
+/// The most bytes of a file the streamed read takes for its header: a header that does not
+/// end within them is read with the whole file.
+const HEADER_AT_MOST: u64 = 1 << 16;
+
+/// Of a MetaImage file, the X planes `planes` alone: streamed as a raw file
+/// ([`super::raw::load_window`]) where its samples are uncompressed at an offset the header
+/// gives (`LOCAL` or in its data file), so that neither the file nor the other planes are
+/// held; a compressed file is read whole and kept whole.
+pub fn load_window(
+    path: &Path,
+    spacing: Option<Vec3>,
+    planes: std::ops::Range<u32>,
+) -> Result<Volume, LoadError> {
+    match streamed(path, spacing)? {
+        Some((data, layout)) => super::raw::load_window(&data, &layout, planes),
+        None => load(path, spacing),
+    }
+}
+
+/// Whether [`load_window`] streams the file (its samples uncompressed at a known offset).
+pub fn streams(path: &Path, spacing: Option<Vec3>) -> Result<bool, LoadError> {
+    Ok(streamed(path, spacing)?.is_some())
+}
+
+/// Where and how a MetaImage file's samples lie when they can be streamed as a raw file.
+fn streamed(
+    path: &Path,
+    spacing: Option<Vec3>,
+) -> Result<Option<(PathBuf, super::raw::RawLayout)>, LoadError> {
+    use std::io::Read;
+    let io = |e| LoadError::new(path, e);
+    let mut head = Vec::new();
+    std::fs::File::open(path)
+        .map_err(io)?
+        .take(HEADER_AT_MOST)
+        .read_to_end(&mut head)
+        .map_err(io)?;
+    // A header cut off by the limit, or one that does not parse: the whole read decides.
+    let Ok(h) = parse_header(&head) else {
+        return Ok(None);
+    };
+    if head.len() as u64 == HEADER_AT_MOST && h.end >= head.len() {
+        return Ok(None);
+    }
+    let (dims, ty, spacing, endian) = samples_of(&h, path, spacing)?;
+    if h.compressed {
+        return Ok(None);
+    }
+    let (data, offset) = match h.data_file.as_deref() {
+        Some("LOCAL") | None => (path.to_path_buf(), h.end as u64),
+        Some(name) => (path.parent().unwrap_or(Path::new(".")).join(name), 0),
+    };
+    // Named from the header, as the whole read names it: a missing data file is often a
+    // misspelt `ElementDataFile`.
+    let length = std::fs::metadata(&data)
+        .map_err(|e| {
+            LoadError::new(
+                path,
+                header_err(format!(
+                    "ElementDataFile = {}: cannot read {}: {e}",
+                    h.data_file.as_deref().unwrap_or("LOCAL"),
+                    data.display()
+                )),
+            )
+        })?
+        .len();
+    let count =
+        super::declared_samples(&dims.map(u64::from)).map_err(|k| LoadError::new(path, k))?;
+    let need = count.saturating_mul(ty.bytes() as u64);
+    let header_bytes = match h.header_size {
+        // The samples end the file.
+        -1 => length.saturating_sub(need).max(offset),
+        s if s >= 0 => offset + s as u64,
+        _ => return Ok(None),
+    };
+    let layout = super::raw::RawLayout {
+        dims,
+        ty,
+        endian,
+        header_bytes,
+        spacing,
+    };
+    Ok(Some((data, layout)))
+}
+
+/// Load a MetaImage volume. `spacing` overrides the header's.
+pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
+    let bytes = read(path)?;
+    let at = |k| LoadError::new(path, k);
+    let h = parse_header(&bytes).map_err(at)?;
+    let (dims, ty, spacing, endian) = samples_of(&h, path, spacing)?;
     let (data_path, payload): (PathBuf, Vec<u8>) = match h.data_file.as_deref() {
         Some("LOCAL") | None => (path.to_path_buf(), bytes[h.end..].to_vec()),
         Some(name) => {
@@ -259,5 +356,87 @@ mod tests {
             let e = parse_header(text).unwrap_err().to_string();
             assert!(e.contains(needle), "{e}");
         }
+    }
+
+    /// A MetaImage file streamed by X planes is the whole read's planes, bit for bit: `LOCAL`
+    /// and detached samples, a header size and the samples at the file's end (`-1`), two-byte
+    /// big-endian samples; windows at the ends, inside and of no plane. Compressed data is not
+    /// streamed: read whole, kept whole. A missing data file is named as the whole read
+    /// names it.
+    #[test]
+    fn a_streamed_window_is_the_whole_read_s_planes() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let (nx, ny, nz) = (5u32, 3u32, 4u32);
+        let samples: Vec<u8> = (0..nx * ny * nz)
+            .map(|i| (i.wrapping_mul(2_654_435_761) >> 16) as u16)
+            .flat_map(u16::to_be_bytes)
+            .collect();
+        let header = |extra: &str| {
+            format!("ObjectType = Image\nNDims = 3\nDimSize = {nx} {ny} {nz}\nElementType = MET_USHORT\nElementSpacing = 1 2 0.5\nBinaryDataByteOrderMSB = True\n{extra}")
+        };
+        let write = |name: &str, bytes: &[u8]| {
+            let path = dir.path().join(name);
+            std::fs::write(&path, bytes).expect("written");
+            path
+        };
+        let local = write(
+            "l.mha",
+            &[
+                header("HeaderSize = 3\nElementDataFile = LOCAL\n").as_bytes(),
+                b"xyz",
+                &samples,
+            ]
+            .concat(),
+        );
+        let at_end = write(
+            "e.mha",
+            &[
+                header("HeaderSize = -1\nElementDataFile = LOCAL\n").as_bytes(),
+                b"junk",
+                &samples,
+            ]
+            .concat(),
+        );
+        write("d.raw", &samples);
+        let detached = write("d.mhd", header("ElementDataFile = d.raw\n").as_bytes());
+        for path in [&local, &at_end, &detached] {
+            assert!(streams(path, None).unwrap(), "{}", path.display());
+            let whole = load(path, None).unwrap();
+            for planes in [0..nx, 0..2, 1..4, nx - 1..nx, 3..3] {
+                let window = load_window(path, None, planes.clone()).unwrap();
+                assert_eq!(window.held(), planes, "{}", path.display());
+                assert_eq!(Some(window), whole.planes(planes), "{}", path.display());
+            }
+        }
+        let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::fast());
+        std::io::Write::write_all(&mut z, &samples).expect("compressed");
+        let compressed = write(
+            "c.mha",
+            &[
+                header("CompressedData = True\nElementDataFile = LOCAL\n").as_bytes(),
+                &z.finish().expect("compressed"),
+            ]
+            .concat(),
+        );
+        assert!(!streams(&compressed, None).unwrap());
+        let whole = load(&compressed, None).unwrap();
+        assert_eq!(load_window(&compressed, None, 1..2).unwrap(), whole);
+        assert_eq!(whole, load(&local, None).unwrap());
+        let missing = write(
+            "m.mhd",
+            header("ElementDataFile = nowhere.raw\n").as_bytes(),
+        );
+        let (a, b) = (
+            load(&missing, None).unwrap_err().to_string(),
+            load_window(&missing, None, 0..1).unwrap_err().to_string(),
+        );
+        assert!(
+            a.contains("ElementDataFile = nowhere.raw: cannot read"),
+            "{a}"
+        );
+        assert!(
+            b.contains("ElementDataFile = nowhere.raw: cannot read"),
+            "{b}"
+        );
     }
 }

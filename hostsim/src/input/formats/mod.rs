@@ -177,15 +177,17 @@ pub fn load_window(
 ) -> Result<Volume, LoadError> {
     match format {
         Format::Nrrd => nrrd::load_window(path, spacing, planes),
+        Format::MetaImage => metaimage::load_window(path, spacing, planes),
         _ => load(path, format, spacing),
     }
 }
 
 /// Whether [`load_window`] streams `path` as `format`, holding only the planes asked for:
-/// a NRRD file whose samples are raw at an offset its header gives.
+/// a NRRD or MetaImage file whose samples are uncompressed at an offset its header gives.
 pub fn streams(path: &Path, format: Format, spacing: Option<Vec3>) -> Result<bool, LoadError> {
     match format {
         Format::Nrrd => nrrd::streams(path, spacing),
+        Format::MetaImage => metaimage::streams(path, spacing),
         _ => Ok(false),
     }
 }
