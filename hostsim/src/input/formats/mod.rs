@@ -16,7 +16,7 @@ pub mod raw;
 mod vti_arrays;
 pub mod vtk;
 
-use crate::input::dataset::{to_plane_major, Volume, VolumeData};
+use crate::input::dataset::{Volume, VolumeData};
 use std::fmt;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -432,6 +432,73 @@ pub fn sample_f32(b: &[u8], ty: FileType, endian: Endian) -> f32 {
     word as f32
 }
 
+/// The samples of X planes `planes` of a `dims` grid of `ty` in `endian` order, read from
+/// `reader` at the first sample (file order: X fastest, then Y, then Z), a row at a time,
+/// into plane-major order: `u8` and `u16` kept, every other type as `f32`
+/// ([`sample_f32`]), a non-finite one refused at its node. The one conversion of every
+/// reader, whole ([`decode`]) or by planes (`raw::load_window`).
+pub(crate) fn decode_planes(
+    reader: &mut impl std::io::Read,
+    dims: [u32; 3],
+    ty: FileType,
+    endian: Endian,
+    planes: std::ops::Range<u32>,
+) -> Result<VolumeData, LoadErrorKind> {
+    let u16_of = move |b: &[u8]| match endian {
+        Endian::Little => u16::from_le_bytes([b[0], b[1]]),
+        Endian::Big => u16::from_be_bytes([b[0], b[1]]),
+    };
+    let size = ty.bytes();
+    Ok(match ty {
+        FileType::U8 => VolumeData::U8(columns(reader, dims, size, planes, |b, _| Ok(b[0]))?),
+        FileType::U16 => {
+            VolumeData::U16(columns(reader, dims, size, planes, |b, _| Ok(u16_of(b)))?)
+        }
+        _ => VolumeData::F32(columns(reader, dims, size, planes, |b, at| {
+            let v = sample_f32(b, ty, endian);
+            match v.is_finite() {
+                true => Ok(v),
+                false => Err(LoadErrorKind::NonFinite {
+                    x: at[0],
+                    y: at[1],
+                    z: at[2],
+                    value: v,
+                }),
+            }
+        })?),
+    })
+}
+
+/// The samples of X planes `planes` of every row of `reader` (samples of `size` bytes in file
+/// order), each converted by `sample` from its bytes and its node, into plane-major order.
+fn columns<T: Copy + Default>(
+    reader: &mut impl std::io::Read,
+    dims: [u32; 3],
+    size: usize,
+    planes: std::ops::Range<u32>,
+    sample: impl Fn(&[u8], [u32; 3]) -> Result<T, LoadErrorKind>,
+) -> Result<Vec<T>, LoadErrorKind> {
+    let [nx, ny, nz] = dims.map(|d| d as usize);
+    let (first, kept) = (planes.start as usize, planes.len());
+    if kept == 0 {
+        // No plane kept (a host whose nodes hold theirs): nothing to read.
+        return Ok(Vec::new());
+    }
+    let mut out = vec![T::default(); kept * ny * nz];
+    let mut row = vec![0u8; nx * size];
+    for z in 0..nz {
+        for y in 0..ny {
+            reader.read_exact(&mut row)?;
+            let columns = row.chunks_exact(size).enumerate().skip(first).take(kept);
+            for (x, bytes) in columns {
+                let at = [x as u32, y as u32, z as u32];
+                out[((x - first) * nz + z) * ny + y] = sample(bytes, at)?;
+            }
+        }
+    }
+    Ok(out)
+}
+
 /// Decode `samples` (file order, exactly `nx·ny·nz` samples of `ty`) into a plane-major volume.
 pub fn decode(
     samples: &[u8],
@@ -448,43 +515,6 @@ pub fn decode(
             actual: samples.len() as u64,
         });
     }
-    let u16s = |b: &[u8]| match endian {
-        Endian::Little => u16::from_le_bytes([b[0], b[1]]),
-        Endian::Big => u16::from_be_bytes([b[0], b[1]]),
-    };
-    let data = match ty {
-        FileType::U8 => VolumeData::U8(to_plane_major(samples, dims)),
-        FileType::U16 => {
-            let v: Vec<u16> = samples.chunks_exact(2).map(u16s).collect();
-            VolumeData::U16(to_plane_major(&v, dims))
-        }
-        FileType::I8 => {
-            let v: Vec<f32> = samples.iter().map(|&b| f32::from(b as i8)).collect();
-            VolumeData::F32(to_plane_major(&v, dims))
-        }
-        FileType::I16 => {
-            let v: Vec<f32> = samples
-                .chunks_exact(2)
-                .map(|b| f32::from(u16s(b) as i16))
-                .collect();
-            VolumeData::F32(to_plane_major(&v, dims))
-        }
-        FileType::F32 | FileType::F64 | FileType::I32 | FileType::U32 => {
-            let v: Vec<f32> = samples
-                .chunks_exact(ty.bytes())
-                .map(|b| sample_f32(b, ty, endian))
-                .collect();
-            if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-                let [nx, ny, _] = dims.map(|d| d as usize);
-                return Err(LoadErrorKind::NonFinite {
-                    x: (i % nx) as u32,
-                    y: (i / nx % ny) as u32,
-                    z: (i / (nx * ny)) as u32,
-                    value: v[i],
-                });
-            }
-            VolumeData::F32(to_plane_major(&v, dims))
-        }
-    };
+    let data = decode_planes(&mut &samples[..], dims, ty, endian, 0..dims[0])?;
     Ok(Volume::new(grid, data))
 }

@@ -6,12 +6,12 @@
 //! file or the other planes, and the whole volume without a second copy of it.
 //!
 //! Invariant: a window's samples are, bit for bit, those [`parse`] gives the same planes of
-//! the whole file (the same conversion of each sample), and the file's length is checked
-//! against the layout before a sample is kept.
+//! the whole file (both read through `super::decode_planes`), and the file's length is
+//! checked against the layout before a sample is kept.
 
 use super::{check_length, check_size, decode, Endian, FileType, LoadError, LoadErrorKind};
-use crate::input::dataset::{Volume, VolumeData};
-use std::io::{BufReader, Read, Seek, SeekFrom};
+use crate::input::dataset::Volume;
+use std::io::{BufReader, Seek, SeekFrom};
 use std::ops::Range;
 use std::path::Path;
 use voxcube_kernel::volume::grid::{Grid, GridError};
@@ -71,68 +71,10 @@ pub fn load_window(
     reader
         .seek(SeekFrom::Start(layout.header_bytes))
         .map_err(|e| LoadError::new(path, e))?;
-    let data = read_planes(&mut reader, layout, planes.clone()).map_err(failed)?;
+    let (dims, ty, endian) = (layout.dims, layout.ty, layout.endian);
+    let data =
+        super::decode_planes(&mut reader, dims, ty, endian, planes.clone()).map_err(failed)?;
     Ok(Volume::window(grid, planes.start, data))
-}
-
-/// The samples of X planes `planes`, plane-major, from `reader` at the first sample of a
-/// file of `layout`, converted as [`decode`] converts them.
-fn read_planes(
-    reader: &mut impl Read,
-    layout: &RawLayout,
-    planes: Range<u32>,
-) -> Result<VolumeData, LoadErrorKind> {
-    let (ty, endian) = (layout.ty, layout.endian);
-    let u16_of = move |b: &[u8]| match endian {
-        Endian::Little => u16::from_le_bytes([b[0], b[1]]),
-        Endian::Big => u16::from_be_bytes([b[0], b[1]]),
-    };
-    Ok(match ty {
-        FileType::U8 => VolumeData::U8(columns(reader, layout, planes, |b, _| Ok(b[0]))?),
-        FileType::U16 => VolumeData::U16(columns(reader, layout, planes, |b, _| Ok(u16_of(b)))?),
-        _ => VolumeData::F32(columns(reader, layout, planes, |b, at| {
-            let v = super::sample_f32(b, ty, endian);
-            match v.is_finite() {
-                true => Ok(v),
-                false => Err(LoadErrorKind::NonFinite {
-                    x: at[0],
-                    y: at[1],
-                    z: at[2],
-                    value: v,
-                }),
-            }
-        })?),
-    })
-}
-
-/// The samples of X planes `planes` of every row of `reader` (file order: X fastest, then Y,
-/// then Z), each converted by `sample` from its bytes and its node, into plane-major order.
-fn columns<T: Copy + Default>(
-    reader: &mut impl Read,
-    layout: &RawLayout,
-    planes: Range<u32>,
-    sample: impl Fn(&[u8], [u32; 3]) -> Result<T, LoadErrorKind>,
-) -> Result<Vec<T>, LoadErrorKind> {
-    let [nx, ny, nz] = layout.dims.map(|d| d as usize);
-    let size = layout.ty.bytes();
-    let (first, kept) = (planes.start as usize, planes.len());
-    if kept == 0 {
-        // No plane kept (a host whose nodes hold theirs): nothing to read.
-        return Ok(Vec::new());
-    }
-    let mut out = vec![T::default(); kept * ny * nz];
-    let mut row = vec![0u8; nx * size];
-    for z in 0..nz {
-        for y in 0..ny {
-            reader.read_exact(&mut row)?;
-            let columns = row.chunks_exact(size).enumerate().skip(first).take(kept);
-            for (x, bytes) in columns {
-                let at = [x as u32, y as u32, z as u32];
-                out[((x - first) * nz + z) * ny + y] = sample(bytes, at)?;
-            }
-        }
-    }
-    Ok(out)
 }
 
 /// Decode raw bytes.
@@ -155,6 +97,7 @@ pub fn parse(bytes: &[u8], layout: &RawLayout) -> Result<Volume, LoadErrorKind> 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::input::dataset::VolumeData;
 
     fn layout(dims: [u32; 3], ty: FileType, header_bytes: u64) -> RawLayout {
         RawLayout {
