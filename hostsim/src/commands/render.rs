@@ -317,11 +317,9 @@ pub fn run(args: RenderArgs) -> Result<(), Box<dyn std::error::Error>> {
     #[cfg(feature = "mpi")]
     let window = mpi_world.as_ref().map(|world| {
         use mpi::topology::Communicator;
-        // Rank 0, the host, traces nothing: it holds no planes where the nodes hold theirs.
         let node = u16::try_from(world.rank() - 1).ok();
-        move |grid: &voxcube_kernel::volume::grid::Grid, views: &[ViewJob]| match node {
-            Some(node) => rank_window(node, grid, views, (nodes, clusters, balance)),
-            None => rank_window(0, grid, views, (nodes, clusters, balance)).map(|_| 0..0),
+        move |grid: &voxcube_kernel::volume::grid::Grid, views: &[ViewJob]| {
+            rank_window(node, grid, views, (nodes, clusters, balance))
         }
     });
     #[cfg(feature = "mpi")]
@@ -577,12 +575,11 @@ pub fn run(args: RenderArgs) -> Result<(), Box<dyn std::error::Error>> {
         // A host that holds no samples (MPI ranks each hold their own) takes the range of
         // values its nodes reported.
         let reported = rendered.distributed.as_ref().and_then(|d| d.data_range);
-        let mut warnings = match reported.filter(|_| !job.volume.is_whole()) {
-            Some(range) => {
-                crate::input::framing::blank_reasons_in(range, &job.volume.grid, &v.view)
-            }
-            None => crate::input::framing::blank_reasons(&job.volume, &v.view),
+        let range = match job.volume.is_whole() {
+            true => job.volume.held_range(),
+            false => reported,
         };
+        let mut warnings = crate::input::framing::blank_reasons(range, &job.volume.grid, &v.view);
         if warnings.is_empty() && pixels.chunks_exact(4).all(|p| p == &pixels[..4]) {
             warnings.push("the view drew nothing: every pixel is the background".into());
         }
@@ -700,12 +697,12 @@ fn balance_view(
 }
 
 /// The X planes node `node` stores of a dataset on `grid` in any of `views` (on the machine
-/// `--nodes`, `--clusters` and each view's own make, slabs uniform): their hull; `None`, for
-/// every plane, where a slab is balanced (a re-trace then loads the host's cuts at once) or
-/// the node has no place.
+/// `--nodes`, `--clusters` and each view's own make, slabs uniform): their hull; for the
+/// host (`None`), which traces nothing, no plane; `None`, for every plane, where a slab is
+/// balanced (a re-trace then loads the host's cuts at once) or the node has no place.
 #[cfg(feature = "mpi")]
 fn rank_window(
-    node: u16,
+    node: Option<u16>,
     grid: &voxcube_kernel::volume::grid::Grid,
     views: &[ViewJob],
     (nodes, clusters, balance): (Option<u32>, Option<u32>, bool),
@@ -713,14 +710,22 @@ fn rank_window(
     use voxcube_kernel::node::partition::Partition;
     use voxcube_kernel::node::topology::Layout;
     let nx = grid.dims()[0];
-    let mut hull: Option<std::ops::Range<u32>> = None;
+    // The host holds no plane whatever the views; a node the hull of its slabs'.
+    let mut hull: Option<std::ops::Range<u32>> = match node {
+        None => Some(0..0),
+        Some(_) => None,
+    };
     for v in views {
         let n = nodes.unwrap_or(v.nodes);
         let m = clusters.unwrap_or(if nodes.is_some() { 1 } else { v.clusters });
-        if balance || v.balance || u32::from(node) >= n || m == 0 || !n.is_multiple_of(m) {
+        let placed = node.map_or(0, u32::from) < n;
+        if balance || v.balance || !placed || m == 0 || !n.is_multiple_of(m) {
             return None;
         }
         let layout = Layout::new(m, n / m).ok()?;
+        let Some(node) = node else {
+            continue;
+        };
         let planes = Partition::uniform(nx, usize::from(layout.size()))
             .ok()?
             .planes(usize::from(layout.place(node).1));

@@ -131,15 +131,10 @@ impl Volume {
         }
     }
 
-    /// [`Volume::stats`] of the planes it holds, computed once and kept with what is built
-    /// from them.
-    pub fn held_stats(&self) -> Stats {
-        self.built.summary(self.held(), || self.stats())
-    }
-
     /// The least and greatest value of the planes it holds (`None` for none), computed once
     /// in the samples' own type, a pass the compiler vectorises, and kept with what is built
-    /// from them: what a node's rank tells the host, which may hold no sample.
+    /// from them: what the warnings of a view that draws nothing test against, and what a
+    /// node's rank tells a host that holds no sample.
     pub fn held_range(&self) -> Option<(f64, f64)> {
         fn of<T: Copy + Into<f64>>(
             v: &[T],

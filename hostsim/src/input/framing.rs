@@ -205,19 +205,18 @@ pub fn corners((lo, hi): (Vec3, Vec3)) -> [Vec3; 8] {
     })
 }
 
-/// Why `view` of `volume` can draw nothing (or a surface of it nothing), if a reason shows
+/// Why `view` of a volume can draw nothing (or a surface of it nothing), if a reason shows
 /// before rendering: iso values outside the data's range, a transfer function transparent
 /// over it, a camera facing away, or a volume outside the image.
-pub fn blank_reasons(volume: &Volume, view: &View) -> Vec<String> {
-    let stats = volume.held_stats();
-    blank_reasons_in((stats.min, stats.max), &volume.grid, view)
-}
-
-/// [`blank_reasons`] of a volume on `grid` whose values span `range` (least, greatest),
-/// where the host does not hold its samples (MPI ranks each report their planes').
-pub fn blank_reasons_in(range: (f64, f64), grid: &Grid, view: &View) -> Vec<String> {
+///
+/// `range` is the least and greatest value of the volume on `grid` (`None`: it has none): a
+/// host that holds the samples takes [`Volume::held_range`], one that does not (MPI ranks
+/// hold their own) what its nodes report.
+pub fn blank_reasons(range: Option<(f64, f64)>, grid: &Grid, view: &View) -> Vec<String> {
     use voxcube_kernel::trace::view::Mode;
-    let (min, max) = (range.0 as f32, range.1 as f32);
+    let (min, max) = range.map_or((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi)| {
+        (lo as f32, hi as f32)
+    });
     let mut out = Vec::new();
     match &view.spec().mode {
         Mode::Surfaces(surfaces) => {

@@ -1,6 +1,6 @@
 //! What is built once from one volume's samples, whatever the view: each slab's node field
 //! ([`crate::memory::nodes`]) and its value ranges ([`crate::memory::ranges`]), and the
-//! statistics of the planes a process holds, kept by the
+//! least and greatest value of the planes a process holds, kept by the
 //! planes they cover and shared by every view, orbit frame and bench repetition that reads them.
 //!
 //! Invariant: each structure is a pure function of the samples of the planes it is kept
@@ -63,7 +63,7 @@ impl Built {
         )
     }
 
-    /// A summary of the values of the planes `planes` of this volume (statistics, a range):
+    /// A summary of the values of the planes `planes` of this volume (their range):
     /// `summary`'s the first time one of its type is asked for.
     pub fn summary<V: Any + Send + Sync + Copy>(
         &self,
