@@ -178,48 +178,19 @@ fn samples_of(
     Ok((dims, ty, spacing, endian))
 }
 
-/// The most bytes of a file the streamed read takes for its header: a header that does not
-/// end within them is read with the whole file.
-const HEADER_AT_MOST: u64 = 1 << 16;
-
-/// Of a MetaImage file, the X planes `planes` alone: streamed as a raw file
-/// ([`super::raw::load_window`]) where its samples are uncompressed at an offset the header
-/// gives (`LOCAL` or in its data file), so that neither the file nor the other planes are
-/// held; a compressed file is read whole and kept whole.
-pub fn load_window(
-    path: &Path,
-    spacing: Option<Vec3>,
-    planes: std::ops::Range<u32>,
-) -> Result<Volume, LoadError> {
-    match streamed(path, spacing)? {
-        Some((data, layout)) => super::raw::load_window(&data, &layout, planes),
-        None => load(path, spacing),
-    }
-}
-
-/// Whether [`load_window`] streams the file (its samples uncompressed at a known offset).
-pub fn streams(path: &Path, spacing: Option<Vec3>) -> Result<bool, LoadError> {
-    Ok(streamed(path, spacing)?.is_some())
-}
-
-/// Where and how a MetaImage file's samples lie when they can be streamed as a raw file.
-fn streamed(
+/// Where and how a MetaImage file's samples lie when they can be streamed as a raw file
+/// (`super::load_window`): uncompressed, at an offset the header gives, `LOCAL` or in its
+/// data file.
+pub(super) fn streamed(
     path: &Path,
     spacing: Option<Vec3>,
 ) -> Result<Option<(PathBuf, super::raw::RawLayout)>, LoadError> {
-    use std::io::Read;
-    let io = |e| LoadError::new(path, e);
-    let mut head = Vec::new();
-    std::fs::File::open(path)
-        .map_err(io)?
-        .take(HEADER_AT_MOST)
-        .read_to_end(&mut head)
-        .map_err(io)?;
+    let (head, whole) = super::head(path)?;
     // A header cut off by the limit, or one that does not parse: the whole read decides.
     let Ok(h) = parse_header(&head) else {
         return Ok(None);
     };
-    if head.len() as u64 == HEADER_AT_MOST && h.end >= head.len() {
+    if !whole && h.end >= head.len() {
         return Ok(None);
     }
     let (dims, ty, spacing, endian) = samples_of(&h, path, spacing)?;
@@ -247,11 +218,9 @@ fn streamed(
     let count =
         super::declared_samples(&dims.map(u64::from)).map_err(|k| LoadError::new(path, k))?;
     let need = count.saturating_mul(ty.bytes() as u64);
-    let header_bytes = match h.header_size {
-        // The samples end the file.
-        -1 => length.saturating_sub(need).max(offset),
-        s if s >= 0 => offset + s as u64,
-        _ => return Ok(None),
+    let Some(header_bytes) = super::samples_start(offset, h.header_size, need, || Ok(length))?
+    else {
+        return Ok(None);
     };
     let layout = super::raw::RawLayout {
         dims,
@@ -318,6 +287,20 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The formats' read by planes, of a MetaImage file.
+    fn load_window(
+        path: &Path,
+        spacing: Option<Vec3>,
+        planes: std::ops::Range<u32>,
+    ) -> Result<Volume, LoadError> {
+        super::super::load_window(path, super::super::Format::MetaImage, spacing, planes)
+    }
+
+    /// Whether the formats' read by planes streams a MetaImage file.
+    fn streams(path: &Path, spacing: Option<Vec3>) -> Result<bool, LoadError> {
+        super::super::streams(path, super::super::Format::MetaImage, spacing)
+    }
 
     #[test]
     fn header_fields_parse_and_bad_ones_are_named() {

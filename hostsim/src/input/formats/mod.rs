@@ -168,28 +168,72 @@ pub fn load(path: &Path, format: Format, spacing: Option<Vec3>) -> Result<Volume
 }
 
 /// Of `path` as `format`, the X planes `planes` alone where the format streams them
-/// ([`streams`]); a file read whole is kept whole.
+/// ([`streams`]: through [`raw::load_window`], neither the file nor the other planes held); a
+/// file read whole is kept whole.
 pub fn load_window(
     path: &Path,
     format: Format,
     spacing: Option<Vec3>,
     planes: std::ops::Range<u32>,
 ) -> Result<Volume, LoadError> {
-    match format {
-        Format::Nrrd => nrrd::load_window(path, spacing, planes),
-        Format::MetaImage => metaimage::load_window(path, spacing, planes),
-        _ => load(path, format, spacing),
+    match streamed(path, format, spacing)? {
+        Some((data, layout)) => raw::load_window(&data, &layout, planes),
+        None => load(path, format, spacing),
     }
 }
 
 /// Whether [`load_window`] streams `path` as `format`, holding only the planes asked for:
 /// a NRRD or MetaImage file whose samples are uncompressed at an offset its header gives.
 pub fn streams(path: &Path, format: Format, spacing: Option<Vec3>) -> Result<bool, LoadError> {
+    Ok(streamed(path, format, spacing)?.is_some())
+}
+
+/// Where and how the samples of `path` as `format` lie when they can be streamed as a raw
+/// file: the file that holds them, and their layout there.
+fn streamed(
+    path: &Path,
+    format: Format,
+    spacing: Option<Vec3>,
+) -> Result<Option<(PathBuf, raw::RawLayout)>, LoadError> {
     match format {
-        Format::Nrrd => nrrd::streams(path, spacing),
-        Format::MetaImage => metaimage::streams(path, spacing),
-        _ => Ok(false),
+        Format::Nrrd => nrrd::streamed(path, spacing),
+        Format::MetaImage => metaimage::streamed(path, spacing),
+        _ => Ok(None),
     }
+}
+
+/// The most bytes of a file a streamed read takes for its header: a header that does not end
+/// within them is read with the whole file.
+const HEADER_AT_MOST: u64 = 1 << 16;
+
+/// The first bytes of `path`, at most [`HEADER_AT_MOST`], and whether they are all of it.
+pub(crate) fn head(path: &Path) -> Result<(Vec<u8>, bool), LoadError> {
+    use std::io::Read;
+    let io = |e| LoadError::new(path, e);
+    let mut head = Vec::new();
+    std::fs::File::open(path)
+        .map_err(io)?
+        .take(HEADER_AT_MOST)
+        .read_to_end(&mut head)
+        .map_err(io)?;
+    let whole = (head.len() as u64) < HEADER_AT_MOST;
+    Ok((head, whole))
+}
+
+/// Where `need` bytes of samples start in a file: `skip` bytes after `offset`, or, for a
+/// skip of -1, where they end the file (`length`, asked only then, at least `offset`); `None`
+/// for another skip, which the whole read refuses by name.
+pub(crate) fn samples_start(
+    offset: u64,
+    skip: i64,
+    need: u64,
+    length: impl FnOnce() -> Result<u64, LoadError>,
+) -> Result<Option<u64>, LoadError> {
+    Ok(match skip {
+        -1 => Some(length()?.saturating_sub(need).max(offset)),
+        s if s >= 0 => Some(offset + s as u64),
+        _ => None,
+    })
 }
 
 /// Apply a file's linear value scaling `v·slope + intercept` (NIfTI `scl_slope`/`scl_inter`,

@@ -238,48 +238,19 @@ fn samples_of(h: &Header, path: &Path, spacing: Option<Vec3>) -> Result<Samples,
     })
 }
 
-/// The most bytes of a file the streamed read takes for its header: a header that does not
-/// end within them is read with the whole file.
-const HEADER_AT_MOST: u64 = 1 << 16;
-
-/// Of a NRRD file, the X planes `planes` alone: streamed as a raw file
-/// ([`super::raw::load_window`]) where its samples are raw at an offset the header gives
-/// (attached or in its data file, no line skip), so that neither the file nor the other
-/// planes are held; otherwise (gzip, line skip) the file is read whole and kept whole.
-pub fn load_window(
-    path: &Path,
-    spacing: Option<Vec3>,
-    planes: std::ops::Range<u32>,
-) -> Result<Volume, LoadError> {
-    match streamed(path, spacing)? {
-        Some((data, layout)) => super::raw::load_window(&data, &layout, planes),
-        None => load(path, spacing),
-    }
-}
-
-/// Whether [`load_window`] streams the file (its samples raw at an offset the header gives).
-pub fn streams(path: &Path, spacing: Option<Vec3>) -> Result<bool, LoadError> {
-    Ok(streamed(path, spacing)?.is_some())
-}
-
-/// Where and how a NRRD file's samples lie when they can be streamed as a raw file.
-fn streamed(
+/// Where and how a NRRD file's samples lie when they can be streamed as a raw file
+/// (`super::load_window`): raw, at an offset the header gives, attached or in its data file,
+/// no line skip.
+pub(super) fn streamed(
     path: &Path,
     spacing: Option<Vec3>,
 ) -> Result<Option<(PathBuf, super::raw::RawLayout)>, LoadError> {
-    use std::io::Read;
-    let io = |e| LoadError::new(path, e);
-    let mut head = Vec::new();
-    std::fs::File::open(path)
-        .map_err(io)?
-        .take(HEADER_AT_MOST)
-        .read_to_end(&mut head)
-        .map_err(io)?;
+    let (head, whole) = super::head(path)?;
     // A header cut off by the limit, or one that does not parse: the whole read decides.
     let Ok((h, data_start)) = parse_header(&head) else {
         return Ok(None);
     };
-    if head.len() as u64 == HEADER_AT_MOST && data_start >= head.len() {
+    if !whole && data_start >= head.len() {
         return Ok(None);
     }
     let samples = samples_of(&h, path, spacing)?;
@@ -291,16 +262,12 @@ fn streamed(
         None => (path.to_path_buf(), data_start as u64),
     };
     let need = samples.count.saturating_mul(samples.ty.bytes() as u64);
-    let header_bytes = match h.byte_skip {
-        // The samples end the file.
-        -1 => {
-            let length = std::fs::metadata(&data)
-                .map_err(|e| LoadError::new(&data, e))?
-                .len();
-            length.saturating_sub(need).max(offset)
-        }
-        s if s >= 0 => offset + s as u64,
-        _ => return Ok(None),
+    let length = || {
+        let meta = std::fs::metadata(&data).map_err(|e| LoadError::new(&data, e))?;
+        Ok(meta.len())
+    };
+    let Some(header_bytes) = super::samples_start(offset, h.byte_skip, need, length)? else {
+        return Ok(None);
     };
     let layout = super::raw::RawLayout {
         dims: samples.dims,
@@ -383,6 +350,20 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The formats' read by planes, of a Nrrd file.
+    fn load_window(
+        path: &Path,
+        spacing: Option<Vec3>,
+        planes: std::ops::Range<u32>,
+    ) -> Result<Volume, LoadError> {
+        super::super::load_window(path, super::super::Format::Nrrd, spacing, planes)
+    }
+
+    /// Whether the formats' read by planes streams a Nrrd file.
+    fn streams(path: &Path, spacing: Option<Vec3>) -> Result<bool, LoadError> {
+        super::super::streams(path, super::super::Format::Nrrd, spacing)
+    }
 
     #[test]
     fn header_fields_parse() {
