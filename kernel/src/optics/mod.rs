@@ -6,5 +6,6 @@
 
 pub mod classify;
 pub mod shade;
+pub mod shading_table;
 pub mod surface;
 pub mod transfer;

@@ -151,12 +151,19 @@ impl Default for Shading {
 /// The unit normal facing the viewer at a point with world gradient `gradient`, seen along
 /// `view_dir`; and whether the fallback was used.
 pub fn normal(gradient: Vec3, view_dir: Vec3) -> (Vec3, bool) {
-    let len2 = gradient.length_squared();
-    if !(len2 > MIN_GRADIENT_SQUARED) || !len2.is_finite() {
+    if !usable(gradient) {
         return (-view_dir, true);
     }
-    let n = -gradient / libm::sqrtf(len2);
+    let n = -gradient / libm::sqrtf(gradient.length_squared());
     (face_viewer(n, view_dir), false)
+}
+
+/// Whether `gradient` gives a direction to shade by: its squared length finite and above
+/// [`MIN_GRADIENT_SQUARED`].
+#[inline(always)]
+pub fn usable(gradient: Vec3) -> bool {
+    let len2 = gradient.length_squared();
+    len2 > MIN_GRADIENT_SQUARED && len2.is_finite()
 }
 
 /// `n` or `-n`, whichever faces against `view_dir`.
@@ -189,13 +196,9 @@ pub fn direct(
     light_dir: Vec3,
     light_color: Vec3,
 ) -> Vec3 {
-    let (n, light_dir) = (Vec3A::from(n), Vec3A::from(light_dir));
-    let n_dot_l = n.dot(light_dir);
-    if !(n_dot_l > 0.0) {
+    let Some((n_dot_l, r_dot_v)) = cosines(n, view_dir, light_dir) else {
         return Vec3::ZERO;
-    }
-    let reflected = n * (2.0 * n_dot_l) - light_dir;
-    let r_dot_v = reflected.dot(-Vec3A::from(view_dir));
+    };
     let diffuse = Vec3A::from(base) * (s.diffuse * n_dot_l);
     let specular = match highlights {
         Some(table) if r_dot_v > 0.0 => table.at(r_dot_v),
@@ -205,6 +208,36 @@ pub fn direct(
         _ => 0.0,
     };
     (Vec3A::from(light_color) * (diffuse + Vec3A::splat(specular))).into()
+}
+
+/// The cosines Lambert and Phong weigh a light by, at unit normal `n` seen along `view_dir`,
+/// the light toward `light_dir`: the normal's with the light, and the reflection's with the
+/// way back to the viewer; `None` when the light is behind the surface. In `Vec3A`, as
+/// [`direct`] says why.
+#[inline(always)]
+fn cosines(n: Vec3, view_dir: Vec3, light_dir: Vec3) -> Option<(f32, f32)> {
+    let (n, light_dir) = (Vec3A::from(n), Vec3A::from(light_dir));
+    let n_dot_l = n.dot(light_dir);
+    if !(n_dot_l > 0.0) {
+        return None;
+    }
+    let reflected = n * (2.0 * n_dot_l) - light_dir;
+    Some((n_dot_l, reflected.dot(-Vec3A::from(view_dir))))
+}
+
+/// What [`direct`] multiplies the light's colour by, split for a point of any colour: the
+/// diffuse coefficient (to multiply the point's colour by) and the highlight (by `powf`);
+/// both zero when the light is behind the surface.
+pub fn terms(s: &Shading, n: Vec3, view_dir: Vec3, light_dir: Vec3) -> (f32, f32) {
+    let Some((n_dot_l, r_dot_v)) = cosines(n, view_dir, light_dir) else {
+        return (0.0, 0.0);
+    };
+    let specular = if r_dot_v > 0.0 {
+        s.specular * libm::powf(r_dot_v, s.shininess)
+    } else {
+        0.0
+    };
+    (s.diffuse * n_dot_l, specular)
 }
 
 /// Intervals of the fast tier's highlight table over cosines in `[0, 1]`.

@@ -280,7 +280,7 @@ fn samples<T: Sample, C: Classify, R: Reading<T>>(
     let grid = slab.grid();
     let mut skipper = Skipper::new(view, slab, ray);
     skipper.pass_depth_bound(view, slab, ray, true, counters);
-    let light = Unshadowed::new(view);
+    let light = Unshadowed::new(view, ray.ray.dir_world);
     // Where the interior's samples need no more of the skipping than their cell's leap
     // distance (from a map that holds every cell inside), and the storage holds whole cells
     // there.
@@ -377,13 +377,7 @@ fn samples<T: Sample, C: Classify, R: Reading<T>>(
         ray.k += 1;
         if alpha > 0.0 {
             // Compositing casts no shadows: every light is fully visible.
-            let lit = light.color(
-                slab,
-                base,
-                (probe.p4.truncate(), &site, gradient),
-                ray.ray.dir_world,
-                counters,
-            );
+            let lit = light.color(slab, base, (probe.p4.truncate(), &site, gradient), counters);
             color += lit * (weight * alpha);
             weight *= 1.0 - alpha;
             if !(weight > spec.cutoff) {
@@ -551,13 +545,7 @@ fn run<T: Sample, C: Classify, R: Reading<T>, E: CellTest>(
                 hi: lo.map(|c| c + 1),
                 frac,
             };
-            let lit = light.color(
-                slab,
-                base,
-                (q.truncate(), &site, gradient),
-                r.dir_world,
-                counters,
-            );
+            let lit = light.color(slab, base, (q.truncate(), &site, gradient), counters);
             *color += lit * (*weight * alpha);
             *weight *= 1.0 - alpha;
             if !(*weight > cutoff) {

@@ -10,6 +10,7 @@
 
 use crate::counters::Counters;
 use crate::optics::shade::{self, Light, MAX_LIGHTS};
+use crate::optics::shading_table::ShadingTable;
 use crate::trace::tree;
 use crate::trace::view::View;
 use crate::volume::field::{self, Site};
@@ -100,19 +101,26 @@ pub struct Unshadowed<'v> {
     /// Each light's direction toward it and its colour, when every light is directional;
     /// `None` when some light is a point light, whose direction depends on the point.
     fixed: Option<heapless::Vec<(Vec3, Vec3), MAX_LIGHTS>>,
+    /// The direction the points are seen along.
+    view_dir: Vec3,
+    /// The fast tier's shading by normal direction, where the view has one built for
+    /// `view_dir` (every ray of the views that have one is).
+    table: Option<&'v ShadingTable>,
 }
 
 impl<'v> Unshadowed<'v> {
-    /// The unshadowed lighting of `view`'s points.
-    pub fn new(view: &'v View) -> Unshadowed<'v> {
+    /// The unshadowed lighting of `view`'s points seen along `view_dir` (a ray's direction).
+    pub fn new(view: &'v View, view_dir: Vec3) -> Unshadowed<'v> {
         let fixed = |light: &Light| Some((light.toward_everywhere()?, light.color));
         Unshadowed {
             view,
             fixed: view.spec().lights.iter().map(fixed).collect(),
+            view_dir,
+            table: view.shading_table().filter(|t| t.view_dir() == view_dir),
         }
     }
 
-    /// The colour at index-space `p` of a point of colour `base`, seen along `view_dir`.
+    /// The colour at index-space `p` of a point of colour `base`.
     /// `site` is where `p` reads the grid under the view's model ([`field::locate`]), which
     /// the sample loop has found already, and `gradient` the gradient there where it has
     /// that too (from the node field's lanes, [`nodes::lanes_at`]): counted as the read it
@@ -122,19 +130,25 @@ impl<'v> Unshadowed<'v> {
         &self,
         slab: &Slab<'_, T>,
         base: Vec3,
-        (p, site, gradient): (Vec3, &Site, Option<Vec3>),
-        view_dir: Vec3,
+        (p, site, gradient_known): (Vec3, &Site, Option<Vec3>),
         counters: &mut Counters,
     ) -> Vec3 {
-        let view = self.view;
+        let (view, view_dir) = (self.view, self.view_dir);
         let spec = view.spec();
         let Some(shading) = &spec.shading else {
             return base;
         };
+        if let Some(table) = self.table {
+            counters.shadings += 1;
+            let g = gradient(view, slab, (p, Some(site), gradient_known), counters);
+            let (color, fallback) = table.color(base, g);
+            counters.normal_fallbacks += u64::from(fallback);
+            return color;
+        }
         let n = normal(
             view,
             slab,
-            (p, Some(site), gradient),
+            (p, Some(site), gradient_known),
             None,
             view_dir,
             counters,
@@ -170,42 +184,52 @@ impl<'v> Unshadowed<'v> {
 fn normal<T: Sample>(
     view: &View,
     slab: &Slab<'_, T>,
-    (p, site, known): (Vec3, Option<&Site>, Option<Vec3>),
+    at: (Vec3, Option<&Site>, Option<Vec3>),
     cap_normal: Option<Vec3>,
     view_dir: Vec3,
     counters: &mut Counters,
 ) -> Vec3 {
-    let spec = view.spec();
     counters.shadings += 1;
     match cap_normal {
         Some(n) => shade::face_viewer(n, view_dir),
         None => {
-            let g = match known {
-                // Read with the sample's value, counted here as the reads it stands for.
-                Some(g) => {
-                    counters.interpolations += view.interpolations_per_gradient();
-                    counters.gradients += 1;
-                    g
-                }
-                // The nodes' differences, where the tier's gradient is read from them: the
-                // fast tier everywhere, the exact tier at points in the grid (there the same
-                // number as its six reads, [`View::exact_node_gradients`]). Counted as the
-                // reads the tier's definition makes.
-                None if view.node_gradients()
-                    || (view.exact_node_gradients() && nodes::in_grid(slab.grid(), p)) =>
-                {
-                    let site = site.copied();
-                    let site = site.unwrap_or_else(|| field::locate(slab.grid(), spec.model, p));
-                    counters.interpolations += view.interpolations_per_gradient();
-                    counters.gradients += 1;
-                    nodes::lanes_at(slab, &site, counters).1
-                }
-                None => field::gradient(slab, spec.model, p, spec.gradient_distance, counters),
-            };
-            let (n, fallback) = shade::normal(g, view_dir);
+            let (n, fallback) = shade::normal(gradient(view, slab, at, counters), view_dir);
             counters.normal_fallbacks += u64::from(fallback);
             n
         }
+    }
+}
+
+/// The gradient the tier shades by at `p` (whose [`Site`] and gradient are given where
+/// known), counted as the reads the tier's definition makes.
+#[inline(always)]
+fn gradient<T: Sample>(
+    view: &View,
+    slab: &Slab<'_, T>,
+    (p, site, known): (Vec3, Option<&Site>, Option<Vec3>),
+    counters: &mut Counters,
+) -> Vec3 {
+    let spec = view.spec();
+    match known {
+        // Read with the sample's value, counted here as the reads it stands for.
+        Some(g) => {
+            counters.interpolations += view.interpolations_per_gradient();
+            counters.gradients += 1;
+            g
+        }
+        // The nodes' differences, where the tier's gradient is read from them: the fast tier
+        // everywhere, the exact tier at points in the grid (there the same number as its six
+        // reads, [`View::exact_node_gradients`]).
+        None if view.node_gradients()
+            || (view.exact_node_gradients() && nodes::in_grid(slab.grid(), p)) =>
+        {
+            let site = site.copied();
+            let site = site.unwrap_or_else(|| field::locate(slab.grid(), spec.model, p));
+            counters.interpolations += view.interpolations_per_gradient();
+            counters.gradients += 1;
+            nodes::lanes_at(slab, &site, counters).1
+        }
+        None => field::gradient(slab, spec.model, p, spec.gradient_distance, counters),
     }
 }
 
@@ -288,10 +312,68 @@ mod tests {
                 let (mut c, mut d) = (Counters::default(), Counters::default());
                 let full = lighting(v, &slab, base, p, None, dir, &mut c).color(&[1.0; MAX_LIGHTS]);
                 let site = field::locate(&grid, v.spec().model, p);
-                let fast = Unshadowed::new(v).color(&slab, base, (p, &site, None), dir, &mut d);
+                let fast = Unshadowed::new(v, dir).color(&slab, base, (p, &site, None), &mut d);
                 assert_eq!(bits(fast), bits(full), "{p} {base}");
                 assert_eq!(c, d, "{p}");
             }
         }
+    }
+
+    #[test]
+    fn a_composited_fast_view_along_its_rays_shades_by_its_table_in_every_bit() {
+        let (data, grid) = crate::testing::hashed_field();
+        let slab = Slab::whole(grid, &data).unwrap();
+        let lights = [
+            Light::directional(Vec3::new(0.4, -0.5, 1.0), Vec3::new(1.0, 0.9, 0.8), false).unwrap(),
+            Light::directional(Vec3::new(-1.0, 0.2, -0.3), Vec3::splat(0.5), false).unwrap(),
+        ];
+        let fast = View::new(
+            ViewSpec {
+                accuracy: crate::trace::view::Accuracy::Fast,
+                ..view(&grid, Some(Shading::default()), &lights)
+                    .spec()
+                    .clone()
+            },
+            &grid,
+        )
+        .unwrap();
+        let table = fast
+            .shading_table()
+            .expect("parallel rays, directional lights");
+        let along = fast.spec().camera.forward();
+        assert_eq!(table.view_dir(), along);
+        // The exact tier's view of the same scene: the same counts, its own colours.
+        let exact = view(&grid, Some(Shading::default()), &lights);
+        let mut next = crate::testing::xorshift(0x7ab1_e5ad);
+        let unit = |n: u32| (n >> 8) as f32 / (1 << 24) as f32 - 0.5;
+        let bits = |c: Vec3| c.to_array().map(f32::to_bits);
+        let mut differ = 0;
+        for n in 0..4_000 {
+            let p = Vec3::new(4.0, 3.0, 5.0);
+            let site = field::locate(&grid, fast.spec().model, p);
+            let g = match n {
+                0 => Vec3::ZERO,
+                1 => Vec3::NAN,
+                _ => Vec3::new(unit(next()), unit(next()), unit(next())) * 40.0,
+            };
+            let base = Vec3::new(0.9, 0.7, 0.3) * (next() % 5) as f32 * 0.25;
+            let (mut c, mut d) = (Counters::default(), Counters::default());
+            let lit = Unshadowed::new(&fast, along).color(&slab, base, (p, &site, Some(g)), &mut c);
+            let (want, fallback) = table.color(base, g);
+            assert_eq!(bits(lit), bits(want), "{g} {base}");
+            assert_eq!(c.normal_fallbacks, u64::from(fallback));
+            let by_terms =
+                Unshadowed::new(&exact, along).color(&slab, base, (p, &site, Some(g)), &mut d);
+            // Counted as the exact shading is, but for the gradient's reads (one
+            // interpolation in this tier, six in the exact one).
+            assert_eq!((c.shadings, c.gradients), (d.shadings, d.gradients));
+            assert_eq!(c.normal_fallbacks, d.normal_fallbacks, "{g}");
+            differ += usize::from(bits(by_terms) != bits(lit));
+            // Along another direction, the table is not the shading.
+            let other = Unshadowed::new(&fast, -along);
+            assert!(other.table.is_none());
+        }
+        // The table is an approximation: most colours differ from the exact terms' bits.
+        assert!(differ > 2_000, "{differ}");
     }
 }

@@ -9,9 +9,10 @@
 
 use crate::optics::classify::Classified;
 use crate::optics::shade::{Highlights, Light, Shading, MAX_LIGHTS};
+use crate::optics::shading_table::ShadingTable;
 use crate::optics::surface::{IsoSurface, MAX_SURFACES};
 use crate::optics::transfer::TransferFunction;
-use crate::trace::camera::Camera;
+use crate::trace::camera::{Camera, Projection};
 use crate::trace::lattice::Lattice;
 use crate::trace::ray::{clip, Ray};
 use crate::trace::starts::RowLeaps;
@@ -75,6 +76,9 @@ pub enum Approximation {
     /// trilinear field: equal in exact arithmetic inside the grid, rounded differently, and
     /// one-sided at the grid's faces on the nodes rather than at the point.
     NodeGradients,
+    /// A composited view with parallel rays and directional lights shades by a table over
+    /// normal directions ([`crate::optics::shading_table`]), read at its gradient's cell.
+    ShadingTable,
 }
 
 impl Approximation {
@@ -84,6 +88,7 @@ impl Approximation {
             Approximation::PreClassified => "pre-classified transfer function",
             Approximation::HighlightTable => "highlight by table",
             Approximation::NodeGradients => "gradient from node differences",
+            Approximation::ShadingTable => "shading by table over normal directions",
         }
     }
 }
@@ -224,6 +229,9 @@ pub struct View {
     classified: Option<Classified>,
     /// The highlight table (fast tier, shaded views with a highlight).
     highlights: Option<Highlights>,
+    /// The shading by normal direction (fast tier, compositing with parallel rays and
+    /// directional lights).
+    shading_table: Option<ShadingTable>,
     /// Whether shading reads gradients from the node field (fast tier, shaded, cell model,
     /// differences one cell apart).
     node_gradients: bool,
@@ -317,8 +325,19 @@ impl View {
             (Mode::Composite(tf), Accuracy::Fast) => Some(Classified::new(tf, spec.dt)),
             _ => None,
         };
+        let shading_table = match (&spec.shading, &spec.mode, spec.camera.projection()) {
+            (Some(s), Mode::Composite(_), Projection::Orthographic { .. })
+                if spec.accuracy == Accuracy::Fast =>
+            {
+                ShadingTable::new(s, &spec.lights, spec.camera.forward())
+            }
+            _ => None,
+        };
+        // Where the table shades, the highlight is its `powf`'s.
         let highlights = match (&spec.shading, spec.accuracy) {
-            (Some(s), Accuracy::Fast) if s.specular > 0.0 => Some(Highlights::new(s)),
+            (Some(s), Accuracy::Fast) if s.specular > 0.0 && shading_table.is_none() => {
+                Some(Highlights::new(s))
+            }
             _ => None,
         };
         let by_nodes =
@@ -328,6 +347,7 @@ impl View {
         Ok(View {
             classified,
             highlights,
+            shading_table,
             node_gradients,
             exact_node_gradients,
             dt_world: spec.dt * cell_edge,
@@ -396,6 +416,13 @@ impl View {
         self.highlights.as_ref()
     }
 
+    /// The shading by normal direction, when the view has one
+    /// ([`Approximation::ShadingTable`]).
+    #[inline]
+    pub fn shading_table(&self) -> Option<&ShadingTable> {
+        self.shading_table.as_ref()
+    }
+
     /// Whether shading reads its gradients from the node field
     /// ([`Approximation::NodeGradients`]).
     #[inline]
@@ -438,7 +465,7 @@ impl View {
 
     /// The approximations this view's tier makes here (none in the exact tier, and none
     /// where the view calls for nothing a fast-tier approximation replaces).
-    pub fn approximations(&self) -> Vec<Approximation, 4> {
+    pub fn approximations(&self) -> Vec<Approximation, 5> {
         let mut out = Vec::new();
         // Room for every approximation the tier knows.
         if self.classified.is_some() {
@@ -449,6 +476,9 @@ impl View {
         }
         if self.node_gradients {
             let _ = out.push(Approximation::NodeGradients);
+        }
+        if self.shading_table.is_some() {
+            let _ = out.push(Approximation::ShadingTable);
         }
         out
     }
