@@ -1708,3 +1708,83 @@ fn damaged_files_of_every_format_are_read_right_or_refused() {
         eprintln!("{name}: {read} read, {refused} refused of {copies} damaged copies");
     }
 }
+
+/// A NIfTI-1 file with uncompressed samples streams by X planes as raw files do, so an MPI
+/// rank holds only its slab: a window is the whole read's planes bit for bit, for a `.nii`
+/// (little-endian i16; u16 scaled by `scl_slope`/`scl_inter` into f32, as CT is stored;
+/// big-endian) and a `.hdr`/`.img` pair, at the ends, inside and of no plane. Compressed
+/// files, and float samples scaled (whose range no type bounds), are read whole and kept
+/// whole.
+#[test]
+fn a_nifti_window_is_the_whole_read_s_planes() {
+    use voxcube::input::formats::{load, load_window, streams, Format};
+    let dir = tempfile::tempdir().expect("tempdir");
+    let w = |name: &str, bytes: &[u8]| {
+        let path = dir.path().join(name);
+        std::fs::write(&path, bytes).expect("write");
+        path
+    };
+    let v = samples();
+    let shifted: Vec<u8> = v
+        .iter()
+        .flat_map(|&x| ((i32::from(x) + 1024) as u16).to_le_bytes())
+        .collect();
+    let mut big = nifti(4, 16, 1.0, 0.0, &be(&v));
+    // The byte order is the header's own: a big-endian header says so by its sizeof_hdr.
+    let shorts = (40..56).step_by(2).chain([70, 72]);
+    for (at, len) in shorts.map(|at| (at, 2)).chain([(0, 4)]) {
+        big[at..at + len].reverse();
+    }
+    for at in (76..108).step_by(4).chain([108, 112, 116]) {
+        big[at..at + 4].reverse();
+    }
+    let mut hdr = nifti(4, 16, 1.0, 0.0, &[]);
+    hdr.truncate(348);
+    hdr[108..112].copy_from_slice(&0f32.to_le_bytes());
+    hdr[344..348].copy_from_slice(b"ni1\0");
+    w("pair.img", &le(&v));
+    let streamed = [
+        w("plain.nii", &nifti(4, 16, 1.0, 0.0, &le(&v))),
+        w("scaled.nii", &nifti(512, 16, 1.0, -1024.0, &shifted)),
+        w("big.nii", &big),
+        w("pair.hdr", &hdr),
+    ];
+    let whole_of = |path: &Path| load(path, Format::Nifti, None).expect("whole read");
+    let reference = whole_of(&streamed[0]);
+    let nx = DIMS[0] as u32;
+    for path in &streamed {
+        assert!(
+            streams(path, Format::Nifti, None).expect("header"),
+            "{}",
+            path.display()
+        );
+        let whole = whole_of(path);
+        // Every file holds the same values, the scaled one as f32.
+        assert_eq!(
+            whole.held_range(),
+            reference.held_range(),
+            "{}",
+            path.display()
+        );
+        for planes in [0..nx, 0..2, 5..11, nx - 1..nx, 3..3] {
+            let window = load_window(path, Format::Nifti, None, planes.clone()).expect("window");
+            assert_eq!(window.held(), planes, "{}", path.display());
+            assert_eq!(Some(window), whole.planes(planes), "{}", path.display());
+        }
+    }
+    let floats: Vec<u8> = v.iter().flat_map(|&x| f32::from(x).to_le_bytes()).collect();
+    let whole_only = [
+        w("blob.nii.gz", &gzip(&nifti(4, 16, 1.0, 0.0, &le(&v)))),
+        w("floats.nii", &nifti(16, 32, 2.0, 1.0, &floats)),
+    ];
+    for path in &whole_only {
+        assert!(
+            !streams(path, Format::Nifti, None).expect("header"),
+            "{}",
+            path.display()
+        );
+        let whole = whole_of(path);
+        let window = load_window(path, Format::Nifti, None, 1..2).expect("read whole");
+        assert_eq!(window, whole, "{}", path.display());
+    }
+}

@@ -484,11 +484,42 @@ opacity = 0.8
     assert!(threads["views"][0]["traffic"]["nodes"][0]["resident_peak_bytes"].is_null());
 }
 
-/// A node's rank holds only the planes its slab stores of a built-in volume, a raw file or a
-/// NRRD file with raw samples whose views all place their cameras themselves: generated
-/// alone or streamed, never cut from the whole. Where a view frames its camera by what shows, which reads every sample, the rank
-/// holds the whole volume (the control). The images are the threads fabric's, on 4 nodes in
-/// 1 and 2 clusters.
+/// A NIfTI-1 file of `n`³ u16 samples, X fastest, stored 1024 above their values with
+/// `scl_inter = -1024` as scanners store CT: a ball whose values fall from 250 at its centre.
+fn ct_nifti(n: u16) -> Vec<u8> {
+    let mut h = vec![0u8; 352];
+    let mut put = |at: usize, bytes: &[u8]| h[at..at + bytes.len()].copy_from_slice(bytes);
+    put(0, &348i32.to_le_bytes());
+    for (i, d) in [3, n, n, n, 1, 1, 1, 1].into_iter().enumerate() {
+        put(40 + 2 * i, &d.to_le_bytes());
+    }
+    put(70, &512i16.to_le_bytes());
+    put(72, &16i16.to_le_bytes());
+    for (i, p) in [1.0f32; 8].into_iter().enumerate() {
+        put(76 + 4 * i, &p.to_le_bytes());
+    }
+    put(108, &352f32.to_le_bytes());
+    put(112, &1f32.to_le_bytes());
+    put(116, &(-1024f32).to_le_bytes());
+    put(344, b"n+1\0");
+    let c = i32::from(n / 2);
+    for z in 0..i32::from(n) {
+        for y in 0..i32::from(n) {
+            for x in 0..i32::from(n) {
+                let d2 = (x - c).pow(2) + (y - c).pow(2) + (z - c).pow(2);
+                let stored = (250 - d2 / 2).max(0) + 1024;
+                h.extend_from_slice(&(stored as u16).to_le_bytes());
+            }
+        }
+    }
+    h
+}
+
+/// A node's rank holds only the planes its slab stores of a built-in volume, a raw file, a
+/// NRRD file with raw samples or a scaled NIfTI-1 file, whose views all place their cameras
+/// themselves: generated alone or streamed, never cut from the whole. Where a view frames
+/// its camera by what shows, which reads every sample, the rank holds the whole volume (the
+/// control). The images are the threads fabric's, on 4 nodes in 1 and 2 clusters.
 #[test]
 fn a_rank_holds_only_the_planes_its_slab_stores() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -540,6 +571,14 @@ opacity = 0.8
             view(placed)
         ));
     }
+    // A NIfTI-1 file of u16 samples scaled by its intercept, as CT is stored, streamed.
+    let nii = dir.path().join("ct.nii");
+    std::fs::write(&nii, ct_nifti(48)).expect("nifti written");
+    text.push_str(&format!(
+        "\n[[datasets]]\nname = \"ct\"\npath = \"{}\"\n{}",
+        nii.display(),
+        view(placed)
+    ));
     let views: &[(&str, &str)] = match data {
         Some(_) => &[
             ("placed", "v"),
@@ -547,8 +586,14 @@ opacity = 0.8
             ("framed", "v"),
             ("sod", "v"),
             ("neghip", "v"),
+            ("ct", "v"),
         ],
-        None => &[("placed", "v"), ("placed", "beyond"), ("framed", "v")],
+        None => &[
+            ("placed", "v"),
+            ("placed", "beyond"),
+            ("framed", "v"),
+            ("ct", "v"),
+        ],
     };
     let scene = dir.path().join("two.toml");
     std::fs::write(&scene, text).expect("scene written");

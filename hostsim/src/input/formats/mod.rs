@@ -177,27 +177,53 @@ pub fn load_window(
     planes: std::ops::Range<u32>,
 ) -> Result<Volume, LoadError> {
     match streamed(path, format, spacing)? {
-        Some((data, layout)) => raw::load_window(&data, &layout, planes),
+        Some(Streamed {
+            data,
+            layout,
+            scale: (slope, intercept),
+        }) => {
+            let window = raw::load_window(&data, &layout, planes)?;
+            // Checked by the format's `streamed` to scale every value of the type finitely.
+            rescale(window, slope, intercept).map_err(|k| LoadError::new(path, k))
+        }
         None => load(path, format, spacing),
     }
 }
 
 /// Whether [`load_window`] streams `path` as `format`, holding only the planes asked for:
-/// a NRRD or MetaImage file whose samples are uncompressed at an offset its header gives.
+/// a NRRD, MetaImage or NIfTI-1 file whose samples are uncompressed at an offset its header
+/// gives.
 pub fn streams(path: &Path, format: Format, spacing: Option<Vec3>) -> Result<bool, LoadError> {
     Ok(streamed(path, format, spacing)?.is_some())
 }
 
-/// Where and how the samples of `path` as `format` lie when they can be streamed as a raw
-/// file: the file that holds them, and their layout there.
+/// Where and how a file's samples lie when they can be streamed as a raw file.
+pub(crate) struct Streamed {
+    /// The file that holds them.
+    pub(crate) data: PathBuf,
+    /// Their layout there.
+    pub(crate) layout: raw::RawLayout,
+    /// The linear scaling (slope, intercept) the header asks of their values.
+    pub(crate) scale: (f64, f64),
+}
+
+/// Where and how the samples of `path` as `format` lie when they can be streamed.
 fn streamed(
     path: &Path,
     format: Format,
     spacing: Option<Vec3>,
-) -> Result<Option<(PathBuf, raw::RawLayout)>, LoadError> {
+) -> Result<Option<Streamed>, LoadError> {
+    let unscaled = |s: Option<(PathBuf, raw::RawLayout)>| {
+        s.map(|(data, layout)| Streamed {
+            data,
+            layout,
+            scale: (1.0, 0.0),
+        })
+    };
     match format {
-        Format::Nrrd => nrrd::streamed(path, spacing),
-        Format::MetaImage => metaimage::streamed(path, spacing),
+        Format::Nrrd => nrrd::streamed(path, spacing).map(unscaled),
+        Format::MetaImage => metaimage::streamed(path, spacing).map(unscaled),
+        Format::Nifti => nifti::streamed(path, spacing),
         _ => Ok(None),
     }
 }
@@ -259,7 +285,12 @@ pub fn rescale(volume: Volume, slope: f64, intercept: f64) -> Result<Volume, Loa
             "value scaling slope {slope}, intercept {intercept} overflows 32-bit floats"
         )));
     }
-    Ok(Volume::new(volume.grid, VolumeData::F32(data)))
+    // A window of planes stays that window.
+    Ok(Volume::window(
+        volume.grid,
+        volume.first,
+        VolumeData::F32(data),
+    ))
 }
 
 /// Byte order of multi-byte samples.

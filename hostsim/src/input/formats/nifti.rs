@@ -241,7 +241,7 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
             (bytes, declared, start)
         }
     };
-    let (h, dims, ty) = (&declared.header, declared.dims, declared.ty);
+    let (dims, ty) = (declared.dims, declared.ty);
     let expected = start + declared.sample_bytes();
     let raw = bytes
         .get(start as usize..expected as usize)
@@ -250,29 +250,121 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
             actual: bytes.len() as u64,
         })
         .map_err(|k| LoadError::new(image.as_deref().unwrap_or(path), k))?;
-    let spacing = match spacing {
-        Some(s) => s,
-        None => {
-            let p = Vec3::new(h.pixdim[1], h.pixdim[2], h.pixdim[3]).abs();
-            if !(p.is_finite() && p.min_element() > 0.0) {
-                return Err(at(header_err(format!(
-                    "pixdim[1..4] is {:?}; expected three spacings > 0 (or give spacing in the scene)",
-                    &h.pixdim[1..4]
-                ))));
-            }
-            p
-        }
-    };
-    let endian = match h.endianness {
-        nifti::Endianness::Little => Endian::Little,
-        nifti::Endianness::Big => Endian::Big,
-    };
-    // `scl_slope = 0` means "no scaling" in NIfTI-1.
-    let (slope, inter) = if h.scl_slope == 0.0 {
-        (1.0, 0.0)
-    } else {
-        (f64::from(h.scl_slope), f64::from(h.scl_inter))
-    };
+    let Stored {
+        spacing,
+        endian,
+        scale: (slope, inter),
+    } = Stored::of(&declared.header, spacing).map_err(at)?;
     let volume = decode(raw, dims, spacing, ty, endian).map_err(at)?;
-    rescale(volume, slope, inter).map_err(|k| at(header_err(format!("scl_slope/scl_inter: {k}"))))
+    rescale(volume, slope, inter).map_err(|k| at(scaling_err(k)))
+}
+
+/// What the header says of the samples beyond their grid and type.
+struct Stored {
+    /// `pixdim`'s spacing, or the scene's.
+    spacing: Vec3,
+    endian: Endian,
+    /// `scl_slope` and `scl_inter`: the identity where the slope is 0 ("no scaling").
+    scale: (f64, f64),
+}
+
+impl Stored {
+    fn of(h: &NiftiHeader, spacing: Option<Vec3>) -> Result<Stored, LoadErrorKind> {
+        let spacing = match spacing {
+            Some(s) => s,
+            None => {
+                let p = Vec3::new(h.pixdim[1], h.pixdim[2], h.pixdim[3]).abs();
+                if !(p.is_finite() && p.min_element() > 0.0) {
+                    return Err(header_err(format!(
+                        "pixdim[1..4] is {:?}; expected three spacings > 0 (or give spacing in the scene)",
+                        &h.pixdim[1..4]
+                    )));
+                }
+                p
+            }
+        };
+        let endian = match h.endianness {
+            nifti::Endianness::Little => Endian::Little,
+            nifti::Endianness::Big => Endian::Big,
+        };
+        let scale = if h.scl_slope == 0.0 {
+            (1.0, 0.0)
+        } else {
+            (f64::from(h.scl_slope), f64::from(h.scl_inter))
+        };
+        Ok(Stored {
+            spacing,
+            endian,
+            scale,
+        })
+    }
+}
+
+fn scaling_err(k: LoadErrorKind) -> LoadErrorKind {
+    header_err(format!("scl_slope/scl_inter: {k}"))
+}
+
+/// Whether scaling every value of `ty` by `(slope, intercept)` stays a finite f32: then a
+/// window's samples scale as the whole volume's would, and none of the file's others could
+/// have refused it. Bounded by the type's range, so only integer types are.
+fn scales_finitely(ty: FileType, (slope, intercept): (f64, f64)) -> bool {
+    let (lo, hi): (f64, f64) = match ty {
+        FileType::U8 => (0.0, 255.0),
+        FileType::I8 => (-128.0, 127.0),
+        FileType::U16 => (0.0, 65_535.0),
+        FileType::I16 => (-32_768.0, 32_767.0),
+        FileType::U32 => (0.0, 4_294_967_295.0),
+        FileType::I32 => (-2_147_483_648.0, 2_147_483_647.0),
+        FileType::F32 | FileType::F64 => return slope == 1.0 && intercept == 0.0,
+    };
+    slope.is_finite()
+        && intercept.is_finite()
+        && slope != 0.0
+        && [lo, hi]
+            .iter()
+            .all(|v| ((v * slope + intercept) as f32).is_finite())
+}
+
+/// Where the samples of `path` lie when they can be streamed as a raw file
+/// (`super::load_window`): uncompressed, in the `.nii` after `vox_offset` or in the `.img`
+/// beside a `.hdr`, with the scaling the header asks of their values (an integer type's
+/// whole range staying finite). Anything else, and any header the whole read would refuse,
+/// is left to the whole read, which reports it.
+pub(super) fn streamed(
+    path: &Path,
+    spacing: Option<Vec3>,
+) -> Result<Option<super::Streamed>, LoadError> {
+    let image = image_of(path);
+    if is_gzip(path) || image.as_deref().is_some_and(|i| is_gzip(i) || !i.is_file()) {
+        return Ok(None);
+    }
+    let (head, _) = super::head(path)?;
+    let Ok(declared) = Declared::of(&head) else {
+        return Ok(None);
+    };
+    let single = image.is_none();
+    if single && &declared.header.magic == b"ni1\0" {
+        return Ok(None);
+    }
+    let (Ok(start), Ok(stored)) = (
+        declared.offset(single),
+        Stored::of(&declared.header, spacing),
+    ) else {
+        return Ok(None);
+    };
+    if !scales_finitely(declared.ty, stored.scale) {
+        return Ok(None);
+    }
+    let layout = super::raw::RawLayout {
+        dims: declared.dims,
+        ty: declared.ty,
+        endian: stored.endian,
+        header_bytes: start,
+        spacing: stored.spacing,
+    };
+    Ok(Some(super::Streamed {
+        data: image.unwrap_or_else(|| path.to_path_buf()),
+        layout,
+        scale: stored.scale,
+    }))
 }
