@@ -503,9 +503,13 @@ fn run<T: Sample, C: Classify, R: Reading<T>, E: CellTest>(
     ray: &mut RayState,
     (light, color, weight): (&Unshadowed<'_>, &mut Vec3, &mut f32),
     skipper: &mut Skipper<'_>,
-    counters: &mut Counters,
+    totals: &mut Counters,
 ) -> Run {
     let (lattice, r, cutoff) = (ray.lattice, ray.ray, view.spec().cutoff);
+    // Counted here and added once at the end: the loop's counts then stay in registers
+    // rather than in memory behind a pointer the compiler must assume others read.
+    let mut local = Counters::default();
+    let counters = &mut local;
     let mut k = ray.k;
     let mut last_read = None;
     let end = loop {
@@ -559,5 +563,6 @@ fn run<T: Sample, C: Classify, R: Reading<T>, E: CellTest>(
         ray.prev = v;
         ray.primed = true;
     }
+    totals.add(&local);
     end
 }
