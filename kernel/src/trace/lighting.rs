@@ -264,6 +264,15 @@ mod tests {
         View::new(spec, grid).unwrap()
     }
 
+    /// `view` in the fast tier.
+    fn fast(view: &View, grid: &Grid) -> View {
+        let spec = ViewSpec {
+            accuracy: crate::trace::view::Accuracy::Fast,
+            ..view.spec().clone()
+        };
+        View::new(spec, grid).unwrap()
+    }
+
     #[test]
     fn an_unshadowed_colour_is_the_lighting_of_every_light_fully_visible_in_every_bit() {
         const DIMS: [u32; 3] = crate::testing::HASHED_DIMS;
@@ -280,16 +289,7 @@ mod tests {
             Light::directional(Vec3::new(-1.0, 0.2, -0.3), Vec3::splat(0.5), false).unwrap(),
         ];
         // And the fast tier's, whose gradient comes from node differences.
-        let fast = View::new(
-            ViewSpec {
-                accuracy: crate::trace::view::Accuracy::Fast,
-                ..view(&grid, Some(Shading::default()), &lights)
-                    .spec()
-                    .clone()
-            },
-            &grid,
-        )
-        .unwrap();
+        let fast = fast(&view(&grid, Some(Shading::default()), &lights), &grid);
         assert!(fast.node_gradients());
         let views = [
             view(&grid, None, &lights),
@@ -327,23 +327,14 @@ mod tests {
             Light::directional(Vec3::new(0.4, -0.5, 1.0), Vec3::new(1.0, 0.9, 0.8), false).unwrap(),
             Light::directional(Vec3::new(-1.0, 0.2, -0.3), Vec3::splat(0.5), false).unwrap(),
         ];
-        let fast = View::new(
-            ViewSpec {
-                accuracy: crate::trace::view::Accuracy::Fast,
-                ..view(&grid, Some(Shading::default()), &lights)
-                    .spec()
-                    .clone()
-            },
-            &grid,
-        )
-        .unwrap();
+        // The exact tier's view of the same scene: the same counts, its own colours.
+        let exact = view(&grid, Some(Shading::default()), &lights);
+        let fast = fast(&exact, &grid);
         let table = fast
             .shading_table()
             .expect("parallel rays, directional lights");
         let along = fast.spec().camera.forward();
         assert_eq!(table.view_dir(), along);
-        // The exact tier's view of the same scene: the same counts, its own colours.
-        let exact = view(&grid, Some(Shading::default()), &lights);
         let mut next = crate::testing::xorshift(0x7ab1_e5ad);
         let unit = |n: u32| (n >> 8) as f32 / (1 << 24) as f32 - 0.5;
         let bits = |c: Vec3| c.to_array().map(f32::to_bits);

@@ -297,11 +297,6 @@ mod tests {
         super::super::load_window(path, super::super::Format::MetaImage, spacing, planes)
     }
 
-    /// Whether the formats' read by planes streams a MetaImage file.
-    fn streams(path: &Path, spacing: Option<Vec3>) -> Result<bool, LoadError> {
-        super::super::streams(path, super::super::Format::MetaImage, spacing)
-    }
-
     #[test]
     fn header_fields_parse_and_bad_ones_are_named() {
         let text = b"ObjectType = Image\nNDims = 3\nDimSize = 2 3 4\nElementType = MET_SHORT\nElementSpacing = 1 2 0.5\nBinaryDataByteOrderMSB = True\nElementDataFile = LOCAL\nDATA";
@@ -348,20 +343,15 @@ mod tests {
     /// names it.
     #[test]
     fn a_streamed_window_is_the_whole_read_s_planes() {
+        use super::super::windows::{assert_read_whole, assert_streamed, big_endian_u16};
         let dir = tempfile::tempdir().expect("tempdir");
         let (nx, ny, nz) = (5u32, 3u32, 4u32);
-        let samples: Vec<u8> = (0..nx * ny * nz)
-            .map(|i| (i.wrapping_mul(2_654_435_761) >> 16) as u16)
-            .flat_map(u16::to_be_bytes)
-            .collect();
+        let samples = big_endian_u16(nx * ny * nz);
         let header = |extra: &str| {
             format!("ObjectType = Image\nNDims = 3\nDimSize = {nx} {ny} {nz}\nElementType = MET_USHORT\nElementSpacing = 1 2 0.5\nBinaryDataByteOrderMSB = True\n{extra}")
         };
-        let write = |name: &str, bytes: &[u8]| {
-            let path = dir.path().join(name);
-            std::fs::write(&path, bytes).expect("written");
-            path
-        };
+        let write =
+            |name: &str, bytes: &[u8]| super::super::windows::write(dir.path(), name, bytes);
         let local = write(
             "l.mha",
             &[
@@ -383,13 +373,7 @@ mod tests {
         write("d.raw", &samples);
         let detached = write("d.mhd", header("ElementDataFile = d.raw\n").as_bytes());
         for path in [&local, &at_end, &detached] {
-            assert!(streams(path, None).unwrap(), "{}", path.display());
-            let whole = load(path, None).unwrap();
-            for planes in [0..nx, 0..2, 1..4, nx - 1..nx, 3..3] {
-                let window = load_window(path, None, planes.clone()).unwrap();
-                assert_eq!(window.held(), planes, "{}", path.display());
-                assert_eq!(Some(window), whole.planes(planes), "{}", path.display());
-            }
+            assert_streamed(path, super::super::Format::MetaImage, nx);
         }
         let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::fast());
         std::io::Write::write_all(&mut z, &samples).expect("compressed");
@@ -401,9 +385,7 @@ mod tests {
             ]
             .concat(),
         );
-        assert!(!streams(&compressed, None).unwrap());
-        let whole = load(&compressed, None).unwrap();
-        assert_eq!(load_window(&compressed, None, 1..2).unwrap(), whole);
+        let whole = assert_read_whole(&compressed, super::super::Format::MetaImage);
         assert_eq!(whole, load(&local, None).unwrap());
         let missing = write(
             "m.mhd",

@@ -593,3 +593,47 @@ pub fn decode(
     let data = decode_planes(&mut &samples[..], dims, ty, endian, 0..dims[0])?;
     Ok(Volume::new(grid, data))
 }
+
+/// What the streamed reads' tests share: a window of a file is the whole read's planes.
+#[cfg(test)]
+pub(super) mod windows {
+    use super::{load, load_window, streams, Format};
+    use crate::input::dataset::Volume;
+    use std::path::{Path, PathBuf};
+
+    /// `count` big-endian two-byte samples in no pattern a misplaced byte could keep.
+    pub fn big_endian_u16(count: u32) -> Vec<u8> {
+        (0..count)
+            .map(|i| (i.wrapping_mul(2_654_435_761) >> 16) as u16)
+            .flat_map(u16::to_be_bytes)
+            .collect()
+    }
+
+    /// `bytes` written to `name` in `dir`.
+    pub fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
+        let path = dir.join(name);
+        std::fs::write(&path, bytes).expect("written");
+        path
+    }
+
+    /// `path` streams as `format`, and its windows (all `nx` planes, at the ends, inside, of
+    /// one plane and of none) are the whole read's planes, bit for bit.
+    pub fn assert_streamed(path: &Path, format: Format, nx: u32) {
+        assert!(streams(path, format, None).unwrap(), "{}", path.display());
+        let whole = load(path, format, None).unwrap();
+        for planes in [0..nx, 0..2, 1..4, nx - 1..nx, 3..3] {
+            let window = load_window(path, format, None, planes.clone()).unwrap();
+            assert_eq!(window.held(), planes, "{}", path.display());
+            assert_eq!(Some(window), whole.planes(planes), "{}", path.display());
+        }
+    }
+
+    /// `path` does not stream as `format`: a window read is the whole volume, which this
+    /// returns.
+    pub fn assert_read_whole(path: &Path, format: Format) -> Volume {
+        assert!(!streams(path, format, None).unwrap(), "{}", path.display());
+        let whole = load(path, format, None).unwrap();
+        assert_eq!(load_window(path, format, None, 1..2).unwrap(), whole);
+        whole
+    }
+}

@@ -398,21 +398,15 @@ mod tests {
     /// line skip are not streamed: they are read whole, and kept whole.
     #[test]
     fn a_streamed_window_is_the_whole_read_s_planes() {
+        use super::super::windows::{assert_read_whole, assert_streamed, big_endian_u16};
         let dir = tempfile::tempdir().expect("tempdir");
         let (nx, ny, nz) = (5u32, 3u32, 4u32);
-        let count = (nx * ny * nz) as usize;
-        let samples: Vec<u8> = (0..count as u32)
-            .map(|i| (i.wrapping_mul(2_654_435_761) >> 16) as u16)
-            .flat_map(u16::to_be_bytes)
-            .collect();
+        let samples = big_endian_u16(nx * ny * nz);
         let header = |extra: &str| {
             format!("NRRD0004\ntype: uint16\ndimension: 3\nsizes: {nx} {ny} {nz}\nendian: big\nspacings: 1 2 0.5\n{extra}")
         };
-        let write = |name: &str, bytes: &[u8]| {
-            let path = dir.path().join(name);
-            std::fs::write(&path, bytes).expect("written");
-            path
-        };
+        let write =
+            |name: &str, bytes: &[u8]| super::super::windows::write(dir.path(), name, bytes);
         let attached = write(
             "a.nrrd",
             &[
@@ -437,13 +431,7 @@ mod tests {
             header("encoding: raw\ndata file: d.raw\n").as_bytes(),
         );
         for path in [&attached, &at_end, &detached] {
-            assert!(streams(path, None).unwrap(), "{}", path.display());
-            let whole = load(path, None).unwrap();
-            for planes in [0..nx, 0..2, 1..4, nx - 1..nx, 3..3] {
-                let window = load_window(path, None, planes.clone()).unwrap();
-                assert_eq!(window.held(), planes, "{}", path.display());
-                assert_eq!(Some(window), whole.planes(planes), "{}", path.display());
-            }
+            assert_streamed(path, super::super::Format::Nrrd, nx);
         }
         let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
         std::io::Write::write_all(&mut gz, &samples).expect("compressed");
@@ -465,9 +453,7 @@ mod tests {
             .concat(),
         );
         for path in [&gzip, &skip] {
-            assert!(!streams(path, None).unwrap(), "{}", path.display());
-            let whole = load(path, None).unwrap();
-            assert_eq!(load_window(path, None, 1..2).unwrap(), whole);
+            assert_read_whole(path, super::super::Format::Nrrd);
         }
         assert_eq!(load(&gzip, None).unwrap(), load(&attached, None).unwrap());
     }
