@@ -846,7 +846,8 @@ fn every_node_skips_by_the_same_storage_however_the_build_is_threaded() {
     assert_eq!(compared, 2 * 3 * (8 + 4 + 1));
 }
 
-/// Whether a cell holds fewer of `view`'s samples than cell leap maps need beside depth bounds.
+/// Whether a cell holds fewer of `view`'s samples than cell leap maps built for each frame need
+/// beside depth bounds.
 fn samples_below(view: &View) -> bool {
     voxcube::memory::storage::samples_per_cell(view)
         .is_some_and(|n| n < voxcube::memory::storage::MAP_SAMPLES_PER_CELL)
@@ -898,14 +899,16 @@ fn nodes_hold_cell_leap_maps_only_where_they_fit() {
     // Primary rays of one octant, and of several: the latter hold no maps, anywhere.
     let parallel = blob_view(cam(40.0), &small);
     assert_eq!(
-        cell_leap_octants(&parallel, machine.skipping).count_ones(),
+        cell_leap_octants(&parallel, machine.skipping, false).count_ones(),
         1
     );
-    // With depth bounds, maps only where a cell holds enough of the rays' samples: not at
-    // 40×30 pixels over 60 units (0.9 samples a cell) nor at 160×120 (14.2), at 240×180 (32).
+    // With depth bounds, maps built for each frame only where a cell holds enough of the
+    // rays' samples: not at 40×30 pixels over 60 units (0.9 samples a cell) nor at 160×120
+    // (14.2), at 240×180 (32); maps kept for later frames from one sample a cell.
     let few = voxcube::memory::storage::samples_per_cell(&parallel).expect("parallel");
     assert!((few - 1.0 / (1.5 * 1.5 * 0.5)).abs() < 1e-9, "{few}");
-    assert_eq!(cell_leap_octants(&parallel, SkipMode::ALL), 0);
+    assert_eq!(cell_leap_octants(&parallel, SkipMode::ALL, false), 0);
+    assert_eq!(cell_leap_octants(&parallel, SkipMode::ALL, true), 0);
     let sized = |w: u32, h: u32| {
         let surface = voxcube_tests::surfaces(&[(150.0, 0.0)]);
         let spec = voxcube_tests::spec(cam(40.0), w, h, Model::Cell, 0.5, surface);
@@ -913,8 +916,15 @@ fn nodes_hold_cell_leap_maps_only_where_they_fit() {
     };
     let (under, over) = (sized(160, 120), sized(240, 180));
     assert!(samples_below(&under) && !samples_below(&over));
-    assert_eq!(cell_leap_octants(&under, SkipMode::ALL), 0);
-    assert_eq!(cell_leap_octants(&over, SkipMode::ALL).count_ones(), 1);
+    assert_eq!(cell_leap_octants(&under, SkipMode::ALL, false), 0);
+    assert_eq!(
+        cell_leap_octants(&over, SkipMode::ALL, false).count_ones(),
+        1
+    );
+    assert_eq!(
+        cell_leap_octants(&under, SkipMode::ALL, true).count_ones(),
+        1
+    );
     // Composited, a cell must hold one sample: not at 40×30 (0.9 a cell), at 48×36 (1.28);
     // without depth bounds the first keeps its map too.
     let composited = |w: u32, h: u32| {
@@ -932,13 +942,21 @@ fn nodes_hold_cell_leap_maps_only_where_they_fit() {
     let per_cell = |v: &View| voxcube::memory::storage::samples_per_cell(v).expect("parallel");
     let least = voxcube::memory::storage::COMPOSITE_MAP_SAMPLES_PER_CELL;
     assert!(per_cell(&thin) < least && per_cell(&dense) >= least);
-    assert_eq!(cell_leap_octants(&thin, SkipMode::ALL), 0);
-    assert_eq!(cell_leap_octants(&dense, SkipMode::ALL).count_ones(), 1);
-    assert_eq!(cell_leap_octants(&thin, machine.skipping).count_ones(), 1);
+    for kept in [false, true] {
+        assert_eq!(cell_leap_octants(&thin, SkipMode::ALL, kept), 0);
+        assert_eq!(
+            cell_leap_octants(&dense, SkipMode::ALL, kept).count_ones(),
+            1
+        );
+        assert_eq!(
+            cell_leap_octants(&thin, machine.skipping, kept).count_ones(),
+            1
+        );
+    }
     let eye = Vec3::splat(20.0);
     let inside = voxcube_tests::perspective(eye, eye + Vec3::new(1.0, 0.3, 0.2), Vec3::Y, 100.0);
     let spread = blob_view(inside, &small);
-    assert_eq!(cell_leap_octants(&spread, SkipMode::ALL), 0);
+    assert_eq!(cell_leap_octants(&spread, SkipMode::ALL, true), 0);
     assert!(!node_skipping(&small, &spread, &machine, false).cell_leaps);
 }
 

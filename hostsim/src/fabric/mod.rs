@@ -85,8 +85,9 @@ impl<'a> RunShape<'a> {
         view: &View,
         kind: voxcube_kernel::volume::sample::SampleKind,
     ) -> RunShape<'a> {
-        let cell_maps =
-            crate::memory::storage::cell_leap_octants(view, cfg.skipping).count_ones() as usize;
+        let kept = crate::memory::storage::maps_kept(kind, cfg.skipping);
+        let cell_maps = crate::memory::storage::cell_leap_octants(view, cfg.skipping, kept)
+            .count_ones() as usize;
         RunShape {
             layout: cfg.layout,
             partition,

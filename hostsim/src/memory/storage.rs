@@ -175,17 +175,18 @@ pub fn depth_bytes(view: &View, mode: SkipMode, clusters: u16) -> usize {
 /// pass over every cell, and each octant's rays are then only a share of the image.
 /// None either where depth bounds pass the primary rays over the cells before their first
 /// that shows and a cell holds fewer of their samples ([`samples_per_cell`]) than the map's
-/// pass over every cell repays: for surfaces [`MAP_SAMPLES_PER_CELL`] (most such rays end at
-/// a crossing soon after their bound), for composited views, whose rays go on through the
+/// pass over every cell repays: for surfaces whose maps are built for each frame (`kept`
+/// false, [`maps_kept`]) [`MAP_SAMPLES_PER_CELL`] (most such rays end at a crossing soon
+/// after their bound), for kept maps and composited views, whose rays go on through the
 /// volume after it, [`COMPOSITE_MAP_SAMPLES_PER_CELL`].
-pub fn cell_leap_octants(view: &View, mode: SkipMode) -> u8 {
+pub fn cell_leap_octants(view: &View, mode: SkipMode, kept: bool) -> u8 {
     let by_cell = view.spec().model == voxcube_kernel::volume::grid::Model::Cell;
     let primary = voxcube_kernel::skip::leaps::primary_octants(view);
     let surfaces = matches!(
         view.spec().mode,
         voxcube_kernel::trace::view::Mode::Surfaces(_)
     );
-    let least = match surfaces {
+    let least = match surfaces && !kept {
         true => MAP_SAMPLES_PER_CELL,
         false => COMPOSITE_MAP_SAMPLES_PER_CELL,
     };
@@ -196,11 +197,21 @@ pub fn cell_leap_octants(view: &View, mode: SkipMode) -> u8 {
     }
 }
 
-/// The samples a cell must hold, on average, for a view with depth bounds to take cell leap
-/// maps: below it the map's pass over every cell costs more than the turns it saves. Timed
-/// on SOD over image sizes (docs/speed-log.md), the two are about even at 16 a cell; the
-/// paper's view holds 8.
+/// The samples a cell must hold, on average, for a surfaces view with depth bounds to build
+/// cell leap maps for each frame: below it the map's pass over every cell costs more than
+/// the turns it saves. Timed on SOD over image sizes (docs/speed-log.md), the two are about
+/// even at 16 a cell; the paper's view holds 8. Maps kept for later frames
+/// ([`maps_kept`]) are taken as a composited view's are: the paper's view's further frame
+/// then costs a fifth fewer instructions, its first about the same.
 pub const MAP_SAMPLES_PER_CELL: f64 = 16.0;
+
+/// Whether the cell leap maps a node builds for a volume of `kind` outlive the frame: a byte
+/// volume's are kept beside its classified cell masks for the next view with the same
+/// verdicts (where its cells' value ranges are held, `mode.ranges`), so each octant's map
+/// is built once for all of them; other volumes' are built for each frame.
+pub fn maps_kept(kind: SampleKind, mode: SkipMode) -> bool {
+    kind == SampleKind::U8 && mode.ranges
+}
 
 /// The samples a cell must hold, on average, for a composited view with depth bounds to take
 /// cell leap maps. A map's pass over every cell costs the same whatever the image, while what
@@ -358,7 +369,7 @@ impl Skipping {
         let mut leaps = vec![0; maps * len];
         let with_masks = blocks.with_cells(&cells).ok().filter(|_| !cells.is_empty());
         let cell_octants = match with_masks {
-            Some(_) => cell_leap_octants(view, mode),
+            Some(_) => cell_leap_octants(view, mode, verdicts.is_some()),
             None => 0,
         };
         let per_map = len * voxcube_kernel::skip::cell_leaps::PER_BLOCK;
@@ -784,7 +795,7 @@ mod tests {
         let slab = voxcube_kernel::volume::slab::Slab::whole(volume.grid, data)
             .unwrap_or_else(|e| panic!("{e}"));
         let ranges = SlabRanges::build(&slab, true, 1);
-        let octant = |v: &View| cell_leap_octants(v, SkipMode::ALL);
+        let octant = |v: &View| cell_leap_octants(v, SkipMode::ALL, true);
         assert!(octant(&first) != 0 && octant(&turned) != 0);
         assert_ne!(
             octant(&first),
