@@ -267,6 +267,9 @@ pub struct Skipping {
     depths: Vec<f32>,
     depth_rows: voxcube_kernel::node::topology::Rows,
     depth_width: u32,
+    /// The octants of the view's primary rays: the blocks face them where they are one, so
+    /// that those rays, nearly all, read them in place.
+    primary: u8,
 }
 
 impl Skipping {
@@ -523,6 +526,7 @@ impl Skipping {
             depths,
             depth_rows: rows,
             depth_width: view.spec().width,
+            primary: voxcube_kernel::skip::leaps::primary_octants(view),
         }
     }
 
@@ -566,6 +570,10 @@ impl Skipping {
                 self.depth_width,
                 self.depth_rows,
             )),
+        };
+        let blocks = match sole_octant(self.primary) {
+            Some(octant) => blocks.toward(octant),
+            None => blocks,
         };
         slab.with_blocks(blocks)
     }

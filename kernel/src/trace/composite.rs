@@ -278,7 +278,8 @@ fn samples<T: Sample, C: Classify, R: Reading<T>>(
 ) -> Stop {
     let spec = view.spec();
     let grid = slab.grid();
-    let mut skipper = Skipper::new(view, slab, ray);
+    let mut turned = None;
+    let mut skipper = Skipper::new(view, slab, ray, &mut turned);
     skipper.pass_depth_bound(view, slab, ray, true, counters);
     let light = Unshadowed::new(view, ray.ray.dir_world);
     // Where the interior's samples need no more of the skipping than their cell's leap

@@ -48,7 +48,8 @@ fn search<T: Sample>(
 ) -> Stop {
     let spec = view.spec();
     let grid = slab.grid();
-    let mut skipper = Skipper::new(view, slab, ray);
+    let mut turned = None;
+    let mut skipper = Skipper::new(view, slab, ray, &mut turned);
     skipper.pass_depth_bound(view, slab, ray, view.may_skip(ray), counters);
     loop {
         if ray.k > ray.lattice.last {

@@ -30,7 +30,7 @@ pub(crate) struct Skipper<'s> {
     /// node, no more than the mask would.
     by_cell: bool,
     /// The blocks as this ray reads them: the leap map of its direction's octant.
-    blocks: Option<Blocks<'s>>,
+    blocks: Option<&'s Blocks<'s>>,
     /// Where the view has a cell leap map for this octant, a ray leaps from cell to cell by
     /// it, and asks no block.
     cell_leaps: Option<CellLeaps<'s>>,
@@ -47,18 +47,29 @@ pub(crate) struct Skipper<'s> {
 }
 
 impl<'s> Skipper<'s> {
-    /// The skipping `slab` offers `ray` under `view`.
+    /// The skipping `slab` offers `ray` under `view`. The slab's blocks are read in place
+    /// where they face the ray's octant (the host turns them toward the primary rays'), else
+    /// turned into `turned`: a copy of them for every ray would cost more than most rays'
+    /// skipping.
     #[inline]
-    pub(crate) fn new<T: Sample>(view: &View, slab: &'s Slab<'_, T>, ray: &RayState) -> Self {
+    pub(crate) fn new<T: Sample>(
+        view: &View,
+        slab: &'s Slab<'_, T>,
+        ray: &RayState,
+        turned: &'s mut Option<Blocks<'s>>,
+    ) -> Self {
         let by_cell = view.spec().model == Model::Cell;
-        let blocks = slab
-            .blocks()
-            .map(|b| b.toward(crate::skip::octant::Octant::of(ray.ray.dir)));
-        let cell_leaps = match &blocks {
+        let octant = crate::skip::octant::Octant::of(ray.ray.dir);
+        let blocks: Option<&'s Blocks<'s>> = match slab.blocks() {
+            Some(blocks) if blocks.octant() == octant => Some(blocks),
+            Some(blocks) => Some(turned.insert(blocks.toward(octant))),
+            None => None,
+        };
+        let cell_leaps = match blocks {
             Some(blocks) if by_cell => CellLeaps::of(blocks),
             _ => None,
         };
-        let masks = match &blocks {
+        let masks = match blocks {
             Some(blocks)
                 if by_cell && cell_leaps.is_none() && scan::pays(&ray.ray, &ray.lattice) =>
             {
@@ -68,7 +79,7 @@ impl<'s> Skipper<'s> {
         };
         // A primary ray passes at once over the samples before its pixel's depth bound: they
         // lie in no cell the masks keep, so the turns below would skip each of them.
-        let depths = match &blocks {
+        let depths = match blocks {
             Some(blocks) if by_cell && ray.kind == RayKind::Primary => blocks.depths(),
             _ => None,
         };
@@ -130,7 +141,7 @@ impl<'s> Skipper<'s> {
     #[inline]
     pub(crate) fn node_leaps(&self) -> Option<NodeLeaps<'s>> {
         self.cell_leaps?;
-        self.blocks.as_ref()?.node_leaps()
+        self.blocks?.node_leaps()
     }
 
     /// What a run through the slab's interior ([`crate::trace::interior`]) asks of the
@@ -140,7 +151,7 @@ impl<'s> Skipper<'s> {
     /// verdicts, cell masks).
     #[inline]
     pub(crate) fn per_cell(&self) -> Option<Option<CellLeaps<'s>>> {
-        match (&self.blocks, self.cell_leaps) {
+        match (self.blocks, self.cell_leaps) {
             (None, _) => Some(None),
             (Some(_), Some(leaps)) => Some(Some(leaps)),
             (Some(_), None) => None,
@@ -195,7 +206,7 @@ impl<'s> Skipper<'s> {
                 .unwrap_or_else(|| field::cell4(slab.grid(), probe.p4));
             return Some(cell_leap(ray, slab, leaps, cell, distance, exits));
         }
-        let blocks = self.blocks.as_ref()?;
+        let blocks = self.blocks?;
         let block = blocks.block_of(corner.lo);
         let here = match self.known {
             Some(v) if v.block == block => v,
