@@ -515,8 +515,30 @@ fn ct_nifti(n: u16) -> Vec<u8> {
     h
 }
 
+/// A binary legacy VTK file of `n`³ big-endian `short` samples, X fastest: a ball whose values
+/// fall from 250 at its centre.
+fn ball_vtk(n: u16) -> Vec<u8> {
+    let mut file = format!(
+        "# vtk DataFile Version 3.0\nball\nBINARY\nDATASET STRUCTURED_POINTS\n\
+         DIMENSIONS {n} {n} {n}\nORIGIN 0 0 0\nSPACING 1 1 1\nPOINT_DATA {}\n\
+         SCALARS density short\nLOOKUP_TABLE default\n",
+        u32::from(n).pow(3)
+    )
+    .into_bytes();
+    let c = i32::from(n / 2);
+    for z in 0..i32::from(n) {
+        for y in 0..i32::from(n) {
+            for x in 0..i32::from(n) {
+                let d2 = (x - c).pow(2) + (y - c).pow(2) + (z - c).pow(2);
+                file.extend_from_slice(&((250 - d2 / 2).max(-40) as i16).to_be_bytes());
+            }
+        }
+    }
+    file
+}
+
 /// A node's rank holds only the planes its slab stores of a built-in volume, a raw file, a
-/// NRRD file with raw samples or a scaled NIfTI-1 file, whose views all place their cameras
+/// NRRD file with raw samples, a scaled NIfTI-1 file or a binary legacy VTK file, whose views all place their cameras
 /// themselves: generated alone or streamed, never cut from the whole. Where a view frames
 /// its camera by what shows, which reads every sample, the rank holds the whole volume (the
 /// control). The images are the threads fabric's, on 4 nodes in 1 and 2 clusters.
@@ -579,6 +601,14 @@ opacity = 0.8
         nii.display(),
         view(placed)
     ));
+    // A binary legacy VTK file of big-endian shorts, streamed.
+    let vtk = dir.path().join("ball.vtk");
+    std::fs::write(&vtk, ball_vtk(48)).expect("vtk written");
+    text.push_str(&format!(
+        "\n[[datasets]]\nname = \"ball\"\npath = \"{}\"\n{}",
+        vtk.display(),
+        view(placed)
+    ));
     let views: &[(&str, &str)] = match data {
         Some(_) => &[
             ("placed", "v"),
@@ -587,12 +617,14 @@ opacity = 0.8
             ("sod", "v"),
             ("neghip", "v"),
             ("ct", "v"),
+            ("ball", "v"),
         ],
         None => &[
             ("placed", "v"),
             ("placed", "beyond"),
             ("framed", "v"),
             ("ct", "v"),
+            ("ball", "v"),
         ],
     };
     let scene = dir.path().join("two.toml");

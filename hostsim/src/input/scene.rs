@@ -898,6 +898,7 @@ fn source_of(d: &DatasetToml, base: &Path) -> Result<Source, (String, String)> {
                         endian,
                         header_bytes: d.header_bytes.unwrap_or(0),
                         spacing: spacing.unwrap_or(Vec3::ONE),
+                        trailing: false,
                     };
                     Ok(Source::Raw(path, layout))
                 }

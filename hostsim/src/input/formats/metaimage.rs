@@ -228,6 +228,7 @@ pub(super) fn streamed(
         endian,
         header_bytes,
         spacing,
+        trailing: false,
     };
     Ok(Some((data, layout)))
 }

@@ -1,6 +1,7 @@
 //! Reading datasets from files — raw, NRRD, Levoy `.den`, NIfTI-1, MetaImage, VTK (legacy
 //! and XML image data) and DICOM series — and the errors they report. Each loader checks the
-//! sample count exactly (a truncated file and trailing bytes are both errors), applies the
+//! sample count exactly (a truncated file and trailing bytes are both errors, but for the
+//! sections a legacy VTK file may hold after its samples), applies the
 //! file's value scaling, and returns the samples plane-major in index space with the file's
 //! spacing; orientation and origin are not applied (docs/datasets.md says which fields).
 
@@ -192,7 +193,7 @@ pub fn load_window(
 
 /// Whether [`load_window`] streams `path` as `format`, holding only the planes asked for:
 /// a NRRD, MetaImage or NIfTI-1 file whose samples are uncompressed at an offset its header
-/// gives.
+/// gives, or a binary legacy VTK file.
 pub fn streams(path: &Path, format: Format, spacing: Option<Vec3>) -> Result<bool, LoadError> {
     Ok(streamed(path, format, spacing)?.is_some())
 }
@@ -224,6 +225,7 @@ fn streamed(
         Format::Nrrd => nrrd::streamed(path, spacing).map(unscaled),
         Format::MetaImage => metaimage::streamed(path, spacing).map(unscaled),
         Format::Nifti => nifti::streamed(path, spacing),
+        Format::Vtk => vtk::streamed(path, spacing).map(unscaled),
         _ => Ok(None),
     }
 }

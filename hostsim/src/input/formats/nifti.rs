@@ -361,6 +361,7 @@ pub(super) fn streamed(
         endian: stored.endian,
         header_bytes: start,
         spacing: stored.spacing,
+        trailing: false,
     };
     Ok(Some(super::Streamed {
         data: image.unwrap_or_else(|| path.to_path_buf()),

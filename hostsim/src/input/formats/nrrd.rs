@@ -275,6 +275,7 @@ pub(super) fn streamed(
         endian: samples.endian,
         header_bytes,
         spacing: samples.spacing,
+        trailing: false,
     };
     Ok(Some((data, layout)))
 }

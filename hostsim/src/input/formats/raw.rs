@@ -30,6 +30,10 @@ pub struct RawLayout {
     pub header_bytes: u64,
     /// Grid spacing.
     pub spacing: Vec3,
+    /// Whether bytes may follow the samples: a format's later sections (a legacy VTK file's
+    /// line end and further attributes). A raw file's may not: a byte more says its dims,
+    /// type or header size are wrong.
+    pub trailing: bool,
 }
 
 /// Load a raw volume, streamed (every plane of [`load_window`]).
@@ -58,7 +62,10 @@ pub fn load_window(
     let grid = grid(layout).map_err(|e| failed(e.into()))?;
     let file = std::fs::File::open(path).map_err(|e| LoadError::new(path, e))?;
     let length = file.metadata().map_err(|e| LoadError::new(path, e))?.len();
-    check_length(length, layout.header_bytes, count, layout.ty).map_err(failed)?;
+    match check_length(length, layout.header_bytes, count, layout.ty) {
+        Err(LoadErrorKind::Trailing { .. }) if layout.trailing => {}
+        checked => checked.map_err(failed)?,
+    }
     let nx = layout.dims[0];
     if planes.start > planes.end || planes.end > nx {
         return Err(failed(LoadErrorKind::Window {
@@ -106,6 +113,7 @@ mod tests {
             endian: Endian::Little,
             header_bytes,
             spacing: Vec3::ONE,
+            trailing: false,
         }
     }
 

@@ -1,11 +1,13 @@
 //! VTK image data, read with the `vtkio` crate: legacy `STRUCTURED_POINTS` files (`.vtk`,
 //! ASCII or big-endian binary) and XML `ImageData` files (`.vti`, inline or appended data,
 //! raw or zlib-compressed). The first point-data array of one component is the volume; the
-//! spacing is the file's, the origin is not applied (index space).
+//! spacing is the file's, the origin is not applied (index space). A binary legacy file whose
+//! header reads as `vtkio` reads it also streams by planes ([`streamed`]): `vtkio` parses a
+//! file whole and says nothing of where its samples lie.
 
 use super::{decode, Endian, FileType, LoadError, LoadErrorKind};
 use crate::input::dataset::Volume;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use voxcube_kernel::Vec3;
 use vtkio::model::{Attribute, DataSet, ElementType, IOBuffer};
 use vtkio::Vtk;
@@ -117,6 +119,175 @@ fn without_blank_header_lines(bytes: &[u8]) -> std::borrow::Cow<'_, [u8]> {
     std::borrow::Cow::Owned(out)
 }
 
+/// Where and how a legacy file's samples lie when they can be streamed as a raw file
+/// (`super::load_window`): binary `STRUCTURED_POINTS` (big-endian, as the format writes binary
+/// samples) whose header lines are those `vtkio` reads, in its order, and whose first
+/// point-data attribute is one component of `SCALARS` of a type the whole read takes, its
+/// samples right after its `LOOKUP_TABLE` line. Anything else (an ASCII or XML file, other
+/// attributes first, a header this does not follow) is left to the whole read, which decides
+/// and names what is wrong: a file streams only where the whole read would read the same
+/// samples.
+pub(super) fn streamed(
+    path: &Path,
+    spacing: Option<Vec3>,
+) -> Result<Option<(PathBuf, super::raw::RawLayout)>, LoadError> {
+    let (head, _) = super::head(path)?;
+    let Some(header) = legacy_header(&head) else {
+        return Ok(None);
+    };
+    let spacing = spacing.unwrap_or(Vec3::from_array(header.spacing).abs());
+    if !(spacing.is_finite() && spacing.min_element() > 0.0) {
+        return Ok(None);
+    }
+    Ok(Some((
+        path.to_path_buf(),
+        super::raw::RawLayout {
+            dims: header.dims,
+            ty: header.ty,
+            endian: Endian::Big,
+            header_bytes: header.samples_at as u64,
+            spacing,
+            // The line end VTK writes after binary samples, and any attributes after them.
+            trailing: true,
+        },
+    )))
+}
+
+/// What a binary legacy header says of its samples ([`legacy_header`]).
+#[derive(Debug, PartialEq)]
+struct LegacyHeader {
+    dims: [u32; 3],
+    spacing: [f32; 3],
+    ty: FileType,
+    /// The byte the samples start at.
+    samples_at: usize,
+}
+
+/// A binary `STRUCTURED_POINTS` header in `bytes` (a file's first bytes) as `vtkio` reads it,
+/// blank lines between its keyword lines skipped as [`load`] does: the version line, the
+/// title, `BINARY`, `DATASET STRUCTURED_POINTS`, then `DIMENSIONS`, `ORIGIN` and `SPACING` (or
+/// `ASPECT_RATIO`) once each in any order, `POINT_DATA` with every point, `SCALARS name type`
+/// of one component and at once its `LOOKUP_TABLE name` line, whose end is where the samples
+/// start. Keywords in any case, as `vtkio` takes them; `None` for anything else.
+fn legacy_header(bytes: &[u8]) -> Option<LegacyHeader> {
+    let mut at = 0;
+    // Each line with its end: `\n` or `\r\n`, as `vtkio` ends lines.
+    let next_line = |at: &mut usize| -> Option<&str> {
+        let rest = bytes.get(*at..)?;
+        let end = rest.iter().position(|&b| b == b'\n')?;
+        *at += end + 1;
+        let line = &rest[..end];
+        std::str::from_utf8(line.strip_suffix(b"\r").unwrap_or(line)).ok()
+    };
+    let keyword_line = |at: &mut usize| loop {
+        let line = next_line(at)?;
+        if !line.trim().is_empty() {
+            return Some(line.split_whitespace().collect::<Vec<_>>());
+        }
+    };
+    let is = |word: &str, expected: &str| word.eq_ignore_ascii_case(expected);
+    // `# vtk DataFile Version 3.0`, as `load` tells a legacy file; a title of one character
+    // at least, which `vtkio` needs.
+    let version = next_line(&mut at)?;
+    match version.split_whitespace().collect::<Vec<_>>().as_slice() {
+        ["#", vtk, data_file, word, number]
+            if version.starts_with("# vtk DataFile")
+                && is(vtk, "vtk")
+                && is(data_file, "DataFile")
+                && is(word, "Version")
+                && number
+                    .split_once('.')
+                    .is_some_and(|(a, b)| a.parse::<u32>().is_ok() && b.parse::<u32>().is_ok()) => {
+        }
+        _ => return None,
+    }
+    if next_line(&mut at)?.is_empty() {
+        return None;
+    }
+    match keyword_line(&mut at)?.as_slice() {
+        [binary] if is(binary, "BINARY") => {}
+        _ => return None,
+    }
+    match keyword_line(&mut at)?.as_slice() {
+        [dataset, points] if is(dataset, "DATASET") && is(points, "STRUCTURED_POINTS") => {}
+        _ => return None,
+    }
+    let (mut dims, mut origin, mut spacing) = (None, None, None);
+    for _ in 0..3 {
+        let words = keyword_line(&mut at)?;
+        let [key, x, y, z] = words.as_slice() else {
+            return None;
+        };
+        let floats = || Some([x.parse().ok()?, y.parse().ok()?, z.parse().ok()?]);
+        let slot: &mut Option<[f32; 3]> = if is(key, "DIMENSIONS") {
+            dims = match dims {
+                None => Some([x.parse().ok()?, y.parse().ok()?, z.parse().ok()?]),
+                Some(_) => return None,
+            };
+            continue;
+        } else if is(key, "ORIGIN") {
+            &mut origin
+        } else if is(key, "SPACING") || is(key, "ASPECT_RATIO") {
+            &mut spacing
+        } else {
+            return None;
+        };
+        if slot.replace(floats()?).is_some() {
+            return None;
+        }
+    }
+    let (dims, _, spacing): ([u32; 3], [f32; 3], [f32; 3]) = (dims?, origin?, spacing?);
+    let points = dims
+        .iter()
+        .try_fold(1u64, |n, &d| n.checked_mul(u64::from(d)))?;
+    match keyword_line(&mut at)?.as_slice() {
+        [key, n] if is(key, "POINT_DATA") && n.parse::<u64>().ok()? == points => {}
+        _ => return None,
+    }
+    let ty = match keyword_line(&mut at)?.as_slice() {
+        [key, _name, ty] | [key, _name, ty, "1"] if is(key, "SCALARS") => scalar_type(ty)?,
+        _ => return None,
+    };
+    // At once: a blank line here would be samples to `vtkio`.
+    match next_line(&mut at)?
+        .split_whitespace()
+        .collect::<Vec<_>>()
+        .as_slice()
+    {
+        [key, _table] if is(key, "LOOKUP_TABLE") => {}
+        _ => return None,
+    }
+    Some(LegacyHeader {
+        dims,
+        spacing,
+        ty,
+        samples_at: at,
+    })
+}
+
+/// The sample type a legacy `SCALARS` line names, of those the whole read takes (`vtkio`
+/// reads no `unsigned_short`, and `bit` and the 64-bit integers are refused by name).
+fn scalar_type(name: &str) -> Option<FileType> {
+    let is = |expected: &str| name.eq_ignore_ascii_case(expected);
+    Some(if is("unsigned_char") {
+        FileType::U8
+    } else if is("char") {
+        FileType::I8
+    } else if is("short") {
+        FileType::I16
+    } else if is("int") {
+        FileType::I32
+    } else if is("unsigned_int") {
+        FileType::U32
+    } else if is("float") {
+        FileType::F32
+    } else if is("double") {
+        FileType::F64
+    } else {
+        return None;
+    })
+}
+
 /// Load a VTK image-data volume. `spacing` overrides the file's.
 pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
     let at = |k| LoadError::new(path, k);
@@ -197,7 +368,171 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
 
 #[cfg(test)]
 mod tests {
-    use super::without_blank_header_lines;
+    use super::{legacy_header, without_blank_header_lines, FileType, LegacyHeader};
+    use crate::input::formats::{load, load_window, raw, streams, Format};
+
+    /// A binary legacy header of `nx × 3 × 4` points of `ty` with `lines` between the
+    /// dataset's line and `POINT_DATA`, its lines ended by `end`.
+    fn header(ty: &str, lines: &[&str], end: &str) -> String {
+        let mut text = [
+            "# vtk DataFile Version 3.0",
+            "samples",
+            "BINARY",
+            "DATASET STRUCTURED_POINTS",
+        ]
+        .join(end);
+        for line in lines {
+            text += end;
+            text += line;
+        }
+        text + end
+            + &[
+                "POINT_DATA 60",
+                &format!("SCALARS v {ty}"),
+                "LOOKUP_TABLE default",
+            ]
+            .join(end)
+            + end
+    }
+
+    const GEOMETRY: [&str; 3] = ["DIMENSIONS 5 3 4", "ORIGIN 0 0 0", "SPACING 1 2 0.5"];
+
+    #[test]
+    fn a_binary_header_says_where_its_samples_start() {
+        let text = header("short", &GEOMETRY, "\n");
+        assert_eq!(
+            legacy_header(text.as_bytes()),
+            Some(LegacyHeader {
+                dims: [5, 3, 4],
+                spacing: [1.0, 2.0, 0.5],
+                ty: FileType::I16,
+                samples_at: text.len(),
+            })
+        );
+        // Lines ended by CRLF, blank lines between keyword lines, keywords in another case and
+        // order, `ASPECT_RATIO`, a component count of one: read as `vtkio` reads them.
+        let loose = header(
+            "float 1",
+            &[
+                "",
+                "aspect_ratio 1 2 0.5",
+                "Origin 0 0 0",
+                "  ",
+                "dimensions 5 3 4",
+            ],
+            "\r\n",
+        );
+        let read = legacy_header(loose.as_bytes()).expect("a header");
+        assert_eq!((read.ty, read.samples_at), (FileType::F32, loose.len()));
+        assert_eq!((read.dims, read.spacing), ([5, 3, 4], [1.0, 2.0, 0.5]));
+        // What the whole read is left to decide: ASCII samples, an empty title (which `vtkio`
+        // refuses), a type it does not read, several components, a point count that is not
+        // the grid's, a geometry line twice or missing, no lookup table line, a blank line
+        // before it, and a header cut off.
+        let refused = [
+            header("short", &GEOMETRY, "\n").replace("BINARY", "ASCII"),
+            header("short", &GEOMETRY, "\n").replace("samples", ""),
+            header("unsigned_short", &GEOMETRY, "\n"),
+            header("long", &GEOMETRY, "\n"),
+            header("short 3", &GEOMETRY, "\n"),
+            header("short", &GEOMETRY, "\n").replace("POINT_DATA 60", "POINT_DATA 61"),
+            header(
+                "short",
+                &["DIMENSIONS 5 3 4", "DIMENSIONS 5 3 4", "SPACING 1 1 1"],
+                "\n",
+            ),
+            header("short", &GEOMETRY[..2], "\n"),
+            header("short", &GEOMETRY, "\n").replace("LOOKUP_TABLE default\n", ""),
+            header("short", &GEOMETRY, "\n").replace("\nLOOKUP", "\n\nLOOKUP"),
+            header("short", &GEOMETRY, "\n").replace("DataFile", "DataFiles"),
+        ];
+        for text in refused {
+            assert_eq!(legacy_header(text.as_bytes()), None, "{text}");
+        }
+        let text = header("short", &GEOMETRY, "\n");
+        assert_eq!(legacy_header(&text.as_bytes()[..text.len() - 1]), None);
+    }
+
+    /// A binary legacy file streamed by X planes is the whole read's planes, bit for bit, for
+    /// two- and four-byte big-endian samples, a line end after them, and a loose header; a
+    /// truncated file is refused by size, naming the file; files whose samples the
+    /// whole read must find (ASCII, no lookup table line) are read whole. A window whose
+    /// samples started two bytes late would differ: the check can fail.
+    #[test]
+    fn a_streamed_window_is_the_whole_read_s_planes() {
+        use super::super::windows::{assert_read_whole, assert_streamed, big_endian_u16, write};
+        let dir = tempfile::tempdir().expect("tempdir");
+        let samples = big_endian_u16(60);
+        let floats: Vec<u8> = (0..60u16)
+            .flat_map(|i| (f32::from(i) * 1.25 - 7.0).to_be_bytes())
+            .collect();
+        // Ended by the line end VTK's writers put after binary samples.
+        let shorts = write(
+            dir.path(),
+            "s.vtk",
+            &[header("short", &GEOMETRY, "\n").as_bytes(), &samples, b"\n"].concat(),
+        );
+        let loose = header(
+            "float 1",
+            &[
+                "aspect_ratio 1 2 0.5",
+                "",
+                "Origin 0 0 0",
+                "dimensions 5 3 4",
+            ],
+            "\r\n",
+        );
+        let loose = write(dir.path(), "f.vtk", &[loose.as_bytes(), &floats].concat());
+        for path in [&shorts, &loose] {
+            assert_streamed(path, Format::Vtk, 5);
+        }
+        let ascii_samples: Vec<String> = (0..60).map(|i| (i * 3).to_string()).collect();
+        let ascii = header("short", &GEOMETRY, "\n").replace("BINARY", "ASCII")
+            + &ascii_samples.join(" ")
+            + "\n";
+        let ascii = write(dir.path(), "a.vtk", ascii.as_bytes());
+        let untabled = header("short", &GEOMETRY, "\n").replace("LOOKUP_TABLE default\n", "");
+        let untabled = write(
+            dir.path(),
+            "u.vtk",
+            &[untabled.as_bytes(), &samples].concat(),
+        );
+        assert_read_whole(&ascii, Format::Vtk);
+        let whole = assert_read_whole(&untabled, Format::Vtk);
+        assert_eq!(whole, load(&shorts, Format::Vtk, None).unwrap());
+        // The negative control: the same layout two bytes later reads other planes.
+        let late = raw::RawLayout {
+            header_bytes: header("short", &GEOMETRY, "\n").len() as u64 + 2,
+            dims: [5, 3, 4],
+            ty: FileType::I16,
+            endian: super::Endian::Big,
+            spacing: voxcube_kernel::Vec3::new(1.0, 2.0, 0.5),
+            trailing: true,
+        };
+        let padded = [
+            header("short", &GEOMETRY, "\n").as_bytes(),
+            &samples,
+            &[0, 0],
+        ]
+        .concat();
+        let padded = write(dir.path(), "p.vtk", &padded);
+        let shifted = raw::load_window(&padded, &late, 0..2).unwrap();
+        assert_ne!(Some(shifted), whole.planes(0..2));
+        assert!(streams(&shorts, Format::Vtk, None).unwrap());
+        let cut = [header("short", &GEOMETRY, "\n").as_bytes(), &samples[1..]].concat();
+        let cut = write(dir.path(), "c.vtk", &cut);
+        let refused = load_window(&cut, Format::Vtk, None, 0..2)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            refused.contains("c.vtk") && refused.contains("truncated"),
+            "{refused}"
+        );
+        assert_eq!(
+            load_window(&shorts, Format::Vtk, None, 1..3).unwrap(),
+            whole.planes(1..3).unwrap()
+        );
+    }
 
     #[test]
     fn blank_header_lines_go_and_the_title_and_the_samples_stay() {
