@@ -98,8 +98,9 @@ pub fn lighting<T: Sample>(
 #[derive(Clone, Debug)]
 pub struct Unshadowed<'v> {
     view: &'v View,
-    /// Each light's direction toward it and its colour, when every light is directional;
-    /// `None` when some light is a point light, whose direction depends on the point.
+    /// Each light's direction toward it and its colour, when every light is directional and
+    /// no table is read; `None` when some light is a point light, whose direction depends on
+    /// the point, and where the table holds the lights.
     fixed: Option<heapless::Vec<(Vec3, Vec3), MAX_LIGHTS>>,
     /// The direction the points are seen along.
     view_dir: Vec3,
@@ -112,11 +113,16 @@ impl<'v> Unshadowed<'v> {
     /// The unshadowed lighting of `view`'s points seen along `view_dir` (a ray's direction).
     pub fn new(view: &'v View, view_dir: Vec3) -> Unshadowed<'v> {
         let fixed = |light: &Light| Some((light.toward_everywhere()?, light.color));
+        let table = view.shading_table().filter(|t| t.view_dir() == view_dir);
         Unshadowed {
             view,
-            fixed: view.spec().lights.iter().map(fixed).collect(),
+            // Collected for every ray segment: not where the table, built once, holds them.
+            fixed: match table {
+                Some(_) => None,
+                None => view.spec().lights.iter().map(fixed).collect(),
+            },
             view_dir,
-            table: view.shading_table().filter(|t| t.view_dir() == view_dir),
+            table,
         }
     }
 
