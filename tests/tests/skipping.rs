@@ -787,6 +787,64 @@ fn a_leap_map_built_for_another_octant_changes_the_image() {
     );
 }
 
+/// A ray reads its slab's blocks in place where they face its octant (the host turns them
+/// toward the view's primary rays) and turns a copy where they face another (maps for both
+/// octants in the blocks): the same image, the one without skipping, and the same counts.
+/// Which way the slab's blocks face is a matter of speed alone: a leap's box is checked
+/// sample by sample, so even blocks read facing the opposite octant unturned (tried: they
+/// leap by the blocks behind the ray) skip the same samples, in more turns, which no
+/// counter counts.
+#[test]
+fn blocks_facing_the_rays_or_turned_for_them_give_one_image() {
+    use voxcube_kernel::skip::blocks::Blocks;
+    use voxcube_kernel::skip::leaps;
+    use voxcube_kernel::skip::octant::Octant;
+    let volume = blobs([21, 19, 23], Vec3::ONE, 0x51_0a_07);
+    let centre = Vec3::new(10.0, 9.0, 11.0);
+    let cam = voxcube_tests::ortho(centre + Vec3::new(30.0, 11.0, 19.0), centre, Vec3::Y, 30.0);
+    let view = blob_view(cam, &volume);
+    let own = leaps::octants(&view);
+    assert_eq!(
+        own.count_ones(),
+        1,
+        "a parallel projection takes one octant"
+    );
+    let own = own.trailing_zeros() as usize;
+    let opposite = own ^ 0b111;
+    let (slab, ranges) = whole_slab_blocks(&volume);
+    let blocks = Blocks::new(slab.grid(), slab.stored(), &ranges).expect("storage");
+    let len = ranges.len();
+    let mut maps = vec![0u8; 2 * len];
+    // In octant order: the lower index's map first.
+    for (map, octant) in maps
+        .chunks_mut(len)
+        .zip([own.min(opposite), own.max(opposite)])
+    {
+        leaps::build(&blocks, &view, Octant::from_index(octant), map).expect("storage");
+    }
+    let label = (1u8 << own) | (1u8 << opposite);
+    let blocks = blocks.with_leaps(&maps, label).expect("storage");
+    let facing = blocks.toward(Octant::from_index(own));
+    let away = blocks.toward(Octant::from_index(opposite));
+    assert_eq!(facing.octant(), Octant::from_index(own));
+    assert_eq!(away.octant(), Octant::from_index(opposite));
+    let off = render_skipping(&volume, &view, SkipMode::OFF).expect("renders");
+    let traced = |blocks| {
+        let slab = slab.with_blocks(blocks);
+        let mut counters = Default::default();
+        let pixels: Vec<[u8; 4]> = (0..view.pixel_count() as u32)
+            .map(|p| rgba8(trace_pixel(&view, &slab, p, &mut counters)))
+            .collect();
+        (pixels, counters)
+    };
+    let (in_place, in_place_counts) = traced(facing);
+    let (turned, turned_counts) = traced(away);
+    assert!(in_place == off.pixels, "read in place");
+    assert!(turned == off.pixels, "turned per ray");
+    assert!(in_place_counts.skipped > 0, "{in_place_counts:?}");
+    assert_eq!(in_place_counts, turned_counts);
+}
+
 /// A machine's nodes get the same skipping storage whether each ring position's is built on
 /// one thread or split over several, more threads than block columns too.
 #[test]
