@@ -10,6 +10,7 @@
 //! in the same run, VTK's CPU ray caster on each volume of the sweep, framed the same
 //! ([`super::peer`]), where it is installed.
 
+use super::bench::{median, PAIR_FRAMES};
 use super::chart::{self, Line};
 use super::error::ExperimentError;
 use super::peer::{Frame, Peer, PeerMode, Request};
@@ -65,6 +66,9 @@ pub struct VtkRow {
     /// PSNR (dB) of VTK's image against voxcube's fast tier's: the same framing, two
     /// renderers' lighting and sampling.
     pub psnr: f64,
+    /// The fast tier on every core over VTK in paired rounds, each round's ratio, ascending
+    /// ([`super::bench::paired`]'s method: the two back to back, each first in turn).
+    pub paired: Vec<f64>,
 }
 
 /// What the sweep measured: voxcube's rows, VTK's where it ran, and why it did not.
@@ -120,12 +124,15 @@ fn span(n: u32) -> f32 {
 }
 
 /// VTK's median frame of `volume` (an `n`³ byte volume) framed as [`view`] frames it at the
-/// paper's image size, `runs` renders after a first, and its image's PSNR against `ours`.
+/// paper's image size, `runs` renders after a first, and its image's PSNR against `ours`;
+/// then `runs` paired rounds of VTK's median of [`PAIR_FRAMES`] frames against the median
+/// of as many of voxcube's `frame`s, back to back, VTK first in even rounds.
 fn vtk_on(
     volume: &Volume,
     n: u32,
     runs: usize,
     ours: &[[u8; 4]],
+    mut frame_ours: impl FnMut() -> Result<Duration, String>,
 ) -> Result<Option<VtkRow>, String> {
     let VolumeData::U8(samples) = &volume.data else {
         return Err("the scale sweep's volume is not bytes".into());
@@ -147,10 +154,37 @@ fn vtk_on(
         .pixels
         .as_deref()
         .map_or(f64::NAN, |p| super::accuracy::compare(p, ours).0);
+    let request = Request {
+        mode,
+        frame,
+        runs: PAIR_FRAMES,
+    };
+    let mut ours = || -> Result<f64, String> {
+        let frames = (0..PAIR_FRAMES)
+            .map(|_| frame_ours())
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(median(frames).as_secs_f64())
+    };
+    let mut paired = Vec::with_capacity(runs);
+    for round in 0..runs.max(1) {
+        let (mine, theirs) = match round % 2 {
+            0 => {
+                let theirs = peer.render(request, false)?.median.as_secs_f64();
+                (ours()?, theirs)
+            }
+            _ => {
+                let mine = ours()?;
+                (mine, peer.render(request, false)?.median.as_secs_f64())
+            }
+        };
+        paired.push(mine / theirs.max(1e-9));
+    }
+    paired.sort_by(f64::total_cmp);
     Ok(Some(VtkRow {
         volume: n,
         median: r.median,
         psnr,
+        paired,
     }))
 }
 
@@ -222,7 +256,14 @@ pub fn run(runs: usize, out: &mut String) -> Result<Scale, ExperimentError> {
                 }
             }
             if v.name == "fast" && image == IMAGES[0] && vtk_missing.is_none() {
-                let row = vtk_on(volume, n, runs, &pixels).map_err(ExperimentError::Missing)?;
+                let every_core = &machines[1].1;
+                let frame = || {
+                    render_on(volume, &built, every_core)
+                        .map(|r| r.wall)
+                        .map_err(|e| e.to_string())
+                };
+                let row =
+                    vtk_on(volume, n, runs, &pixels, frame).map_err(ExperimentError::Missing)?;
                 if let Some(row) = row {
                     let _ = writeln!(
                         out,
@@ -323,8 +364,8 @@ fn beside_vtk(scale: &Scale) -> String {
         return format!("-- beside VTK: {why}\n");
     }
     let mut out = format!(
-        "-- beside VTK (vtkFixedPointVolumeRayCastMapper, 2 threads, the same view and run) at {}x{}\n{:<7} {:>10} {:>9} {:>10} {:>10} {:>10} {:>10} {:>12}\n",
-        IMAGES[0].0, IMAGES[0].1, "volume", "VTK ms", "VTK x", "fast ms", "fast/VTK", "exact ms", "exact/VTK", "PSNR vs VTK"
+        "-- beside VTK (vtkFixedPointVolumeRayCastMapper, 2 threads, the same view and run) at {}x{}\n{:<7} {:>10} {:>9} {:>10} {:>10} {:>10} {:>10} {:>12} {:>24}\n",
+        IMAGES[0].0, IMAGES[0].1, "volume", "VTK ms", "VTK x", "fast ms", "fast/VTK", "exact ms", "exact/VTK", "PSNR vs VTK", "fast/VTK paired"
     );
     let first = scale.vtk.first().map(|f| f.median.as_secs_f64());
     for v in &scale.vtk {
@@ -339,9 +380,16 @@ fn beside_vtk(scale: &Scale) -> String {
         };
         let vtk = v.median.as_secs_f64();
         let (fast, exact) = (ours("fast"), ours("exact"));
+        let paired = match (v.paired.first(), v.paired.last()) {
+            (Some(least), Some(most)) => {
+                let mid = v.paired[v.paired.len() / 2];
+                format!("{mid:.2} ({least:.2}-{most:.2})")
+            }
+            _ => "-".into(),
+        };
         let _ = writeln!(
             out,
-            "{:<7} {:>10.1} {:>9.2} {:>10.1} {:>10.2} {:>10.1} {:>10.2} {:>9.1} dB",
+            "{:<7} {:>10.1} {:>9.2} {:>10.1} {:>10.2} {:>10.1} {:>10.2} {:>9.1} dB {:>24}",
             format!("{}³", v.volume),
             vtk * 1e3,
             first.map_or(f64::NAN, |f| vtk / f),
@@ -349,9 +397,13 @@ fn beside_vtk(scale: &Scale) -> String {
             fast / vtk,
             exact * 1e3,
             exact / vtk,
-            v.psnr
+            v.psnr,
+            paired
         );
     }
+    out += "fast/VTK paired: the fast tier on every core over VTK in paired rounds (each side's \
+            median of three frames, back to back, each first in turn), median (least-most); the \
+            other ratios set medians taken minutes apart side by side\n";
     out
 }
 
@@ -455,11 +507,13 @@ mod tests {
                     volume: 128,
                     median: Duration::from_millis(100),
                     psnr: 30.0,
+                    paired: vec![0.4, 0.55, 0.7],
                 },
                 VtkRow {
                     volume: 256,
                     median: Duration::from_millis(300),
                     psnr: 31.0,
+                    paired: vec![],
                 },
             ],
             vtk_missing: None,
@@ -471,14 +525,26 @@ mod tests {
                 .map(|l| l.split_whitespace().collect::<Vec<_>>())
                 .unwrap_or_default()
         };
-        // volume, VTK ms, VTK x, fast ms, fast/VTK, exact ms, exact/VTK, PSNR, dB
+        // volume, VTK ms, VTK x, fast ms, fast/VTK, exact ms, exact/VTK, PSNR, dB, paired
         assert_eq!(
             line("128³"),
-            ["128³", "100.0", "1.00", "50.0", "0.50", "100.0", "1.00", "30.0", "dB"]
+            [
+                "128³",
+                "100.0",
+                "1.00",
+                "50.0",
+                "0.50",
+                "100.0",
+                "1.00",
+                "30.0",
+                "dB",
+                "0.55",
+                "(0.40-0.70)"
+            ]
         );
         assert_eq!(
             line("256³"),
-            ["256³", "300.0", "3.00", "60.0", "0.20", "240.0", "0.80", "31.0", "dB"]
+            ["256³", "300.0", "3.00", "60.0", "0.20", "240.0", "0.80", "31.0", "dB", "-"]
         );
         let missing = Scale {
             vtk: vec![],
