@@ -69,6 +69,8 @@ pub struct VtkRow {
     /// The fast tier on every core over VTK in paired rounds, each round's ratio, ascending
     /// ([`super::bench::paired`]'s method: the two back to back, each first in turn).
     pub paired: Vec<f64>,
+    /// The rounds' medians of each side's frame, voxcube's then VTK's: which one moved.
+    pub paired_medians: Option<(Duration, Duration)>,
 }
 
 /// What the sweep measured: voxcube's rows, VTK's where it ran, and why it did not.
@@ -166,6 +168,7 @@ fn vtk_on(
         Ok(median(frames).as_secs_f64())
     };
     let mut paired = Vec::with_capacity(runs);
+    let mut sides = (Vec::with_capacity(runs), Vec::with_capacity(runs));
     for round in 0..runs.max(1) {
         let (mine, theirs) = match round % 2 {
             0 => {
@@ -178,13 +181,17 @@ fn vtk_on(
             }
         };
         paired.push(mine / theirs.max(1e-9));
+        sides.0.push(Duration::from_secs_f64(mine));
+        sides.1.push(Duration::from_secs_f64(theirs));
     }
     paired.sort_by(f64::total_cmp);
+    let paired_medians = Some((median(sides.0), median(sides.1)));
     Ok(Some(VtkRow {
         volume: n,
         median: r.median,
         psnr,
         paired,
+        paired_medians,
     }))
 }
 
@@ -270,6 +277,14 @@ pub fn run(runs: usize, out: &mut String) -> Result<Scale, ExperimentError> {
                         "measured {n}³ VTK: {:.1} ms",
                         row.median.as_secs_f64() * 1e3
                     );
+                    if let Some((ours, theirs)) = row.paired_medians {
+                        let _ = writeln!(
+                            out,
+                            "paired {n}³: the fast tier {:.1} ms against VTK's {:.1} ms (medians of the rounds)",
+                            ours.as_secs_f64() * 1e3,
+                            theirs.as_secs_f64() * 1e3
+                        );
+                    }
                     vtk.push(row);
                 }
             }
@@ -508,12 +523,14 @@ mod tests {
                     median: Duration::from_millis(100),
                     psnr: 30.0,
                     paired: vec![0.4, 0.55, 0.7],
+                    paired_medians: None,
                 },
                 VtkRow {
                     volume: 256,
                     median: Duration::from_millis(300),
                     psnr: 31.0,
                     paired: vec![],
+                    paired_medians: None,
                 },
             ],
             vtk_missing: None,
