@@ -502,17 +502,20 @@ fn ct_nifti(n: u16) -> Vec<u8> {
     put(112, &1f32.to_le_bytes());
     put(116, &(-1024f32).to_le_bytes());
     put(344, b"n+1\0");
-    let c = i32::from(n / 2);
-    for z in 0..i32::from(n) {
-        for y in 0..i32::from(n) {
-            for x in 0..i32::from(n) {
-                let d2 = (x - c).pow(2) + (y - c).pow(2) + (z - c).pow(2);
-                let stored = (250 - d2 / 2).max(0) + 1024;
-                h.extend_from_slice(&(stored as u16).to_le_bytes());
-            }
-        }
+    for v in ball(n) {
+        h.extend_from_slice(&((v.max(0) + 1024) as u16).to_le_bytes());
     }
     h
+}
+
+/// The values of a ball on `n`³ nodes, X fastest: 250 at its centre, falling with the
+/// squared distance from it.
+fn ball(n: u16) -> impl Iterator<Item = i32> {
+    let (n, c) = (i32::from(n), i32::from(n / 2));
+    (0..n * n * n).map(move |i| {
+        let (x, y, z) = (i % n, i / n % n, i / (n * n));
+        250 - ((x - c).pow(2) + (y - c).pow(2) + (z - c).pow(2)) / 2
+    })
 }
 
 /// A binary legacy VTK file of `n`³ big-endian `short` samples, X fastest: a ball whose values
@@ -525,14 +528,8 @@ fn ball_vtk(n: u16) -> Vec<u8> {
         u32::from(n).pow(3)
     )
     .into_bytes();
-    let c = i32::from(n / 2);
-    for z in 0..i32::from(n) {
-        for y in 0..i32::from(n) {
-            for x in 0..i32::from(n) {
-                let d2 = (x - c).pow(2) + (y - c).pow(2) + (z - c).pow(2);
-                file.extend_from_slice(&((250 - d2 / 2).max(-40) as i16).to_be_bytes());
-            }
-        }
+    for v in ball(n) {
+        file.extend_from_slice(&(v.max(-40) as i16).to_be_bytes());
     }
     file
 }

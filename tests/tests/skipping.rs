@@ -393,10 +393,19 @@ fn trace_typed<T: Sample + Sync>(
 
 /// Every pixel of `view`, traced on `slab` alone.
 fn trace_all<T: Sample>(view: &View, slab: &Slab<'_, T>) -> Vec<[u8; 4]> {
-    let mut counters = Default::default();
-    (0..view.pixel_count() as u32)
+    trace_counted(view, slab).0
+}
+
+/// [`trace_all`]'s pixels and what tracing them counted.
+fn trace_counted<T: Sample>(
+    view: &View,
+    slab: &Slab<'_, T>,
+) -> (Vec<[u8; 4]>, voxcube_kernel::counters::Counters) {
+    let mut counters = voxcube_kernel::counters::Counters::default();
+    let pixels = (0..view.pixel_count() as u32)
         .map(|p| rgba8(trace_pixel(view, slab, p, &mut counters)))
-        .collect()
+        .collect();
+    (pixels, counters)
 }
 
 /// Negative controls: the marcher really leaps by the map it is given, really skips the cells
@@ -829,16 +838,8 @@ fn blocks_facing_the_rays_or_turned_for_them_give_one_image() {
     assert_eq!(facing.octant(), Octant::from_index(own));
     assert_eq!(away.octant(), Octant::from_index(opposite));
     let off = render_skipping(&volume, &view, SkipMode::OFF).expect("renders");
-    let traced = |blocks| {
-        let slab = slab.with_blocks(blocks);
-        let mut counters = Default::default();
-        let pixels: Vec<[u8; 4]> = (0..view.pixel_count() as u32)
-            .map(|p| rgba8(trace_pixel(&view, &slab, p, &mut counters)))
-            .collect();
-        (pixels, counters)
-    };
-    let (in_place, in_place_counts) = traced(facing);
-    let (turned, turned_counts) = traced(away);
+    let (in_place, in_place_counts) = trace_counted(&view, &slab.with_blocks(facing));
+    let (turned, turned_counts) = trace_counted(&view, &slab.with_blocks(away));
     assert!(in_place == off.pixels, "read in place");
     assert!(turned == off.pixels, "turned per ray");
     assert!(in_place_counts.skipped > 0, "{in_place_counts:?}");

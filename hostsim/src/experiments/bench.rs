@@ -420,6 +420,37 @@ pub fn versus_vtk(rows: &[Row], vtk: Option<super::peer::VtkTimes>) -> String {
 /// Frames each side renders in a round of [`paired`] (the median is the round's time).
 pub const PAIR_FRAMES: usize = 3;
 
+/// One paired round, number `index`: VTK's time from `theirs` and voxcube's from `ours`,
+/// back to back, VTK first in even rounds and voxcube first in odd ones, so that neither side
+/// always meets the machine the other has just warmed or left. (voxcube's, VTK's).
+pub(super) fn paired_round<T, E>(
+    index: usize,
+    theirs: &mut impl FnMut() -> Result<T, E>,
+    ours: &mut impl FnMut() -> Result<T, E>,
+) -> Result<(T, T), E> {
+    match index % 2 {
+        0 => {
+            let theirs = theirs()?;
+            Ok((ours()?, theirs))
+        }
+        _ => {
+            let ours = ours()?;
+            Ok((ours, theirs()?))
+        }
+    }
+}
+
+/// The median of [`PAIR_FRAMES`] of voxcube's frames, each timed by `frame`: its side of a
+/// paired round.
+pub(super) fn median_frame<E>(
+    mut frame: impl FnMut() -> Result<Duration, E>,
+) -> Result<Duration, E> {
+    let frames = (0..PAIR_FRAMES)
+        .map(|_| frame())
+        .collect::<Result<Vec<_>, E>>()?;
+    Ok(median(frames))
+}
+
 /// What each compared view of SOD stands against in VTK, at each size: its mode.
 const COMPARED: [(&str, Size, PeerMode); 6] = [
     ("surfaces", Size::PAPER, PeerMode::Surface),
@@ -490,27 +521,15 @@ pub fn paired(rounds: usize, sizes: &[Size], sod: &Path) -> Result<Option<Vec<Pa
                     frame: size.frame(),
                     runs: PAIR_FRAMES,
                 };
-                let ours = || -> Result<Duration, String> {
-                    let mut frames = Vec::with_capacity(PAIR_FRAMES);
-                    for _ in 0..PAIR_FRAMES {
-                        let r =
-                            render_on(view.0, &view.1.view, &machine).map_err(|e| e.to_string())?;
-                        frames.push(r.wall);
-                    }
-                    Ok(median(frames))
+                let mut ours = || {
+                    median_frame(|| {
+                        render_on(view.0, &view.1.view, &machine)
+                            .map(|r| r.wall)
+                            .map_err(|e| e.to_string())
+                    })
                 };
-                // Who goes first alternates, so that neither side always meets the machine
-                // the other has just warmed or left.
-                let round = match round % 2 {
-                    0 => {
-                        let theirs = peer.render(request, false)?.median;
-                        (ours()?, theirs)
-                    }
-                    _ => {
-                        let ours = ours()?;
-                        (ours, peer.render(request, false)?.median)
-                    }
-                };
+                let mut theirs = || peer.render(request, false).map(|r| r.median);
+                let round = paired_round(round, &mut theirs, &mut ours)?;
                 match pairs
                     .iter_mut()
                     .find(|p| p.view == *name && p.size == *size)

@@ -11,7 +11,7 @@
 //! voxcube's views take a directional light along the camera's forward axis).
 
 use super::accuracy::{compare, p99_error};
-use super::bench::{cores, every_core_modern, median};
+use super::bench::{cores, every_core_modern, median, median_frame, paired_round, PAIR_FRAMES};
 use super::chart::{self, Line};
 use super::error::ExperimentError;
 use super::paper::{dataset_of, Source};
@@ -190,33 +190,21 @@ pub struct Frontier {
     pub paired: Vec<(Mode, Vec<f64>)>,
 }
 
-/// Frames each side renders in a round of [`paired_rounds`] (the median is the round's).
-pub const PAIR_FRAMES: usize = 3;
-
-/// The headline's two images timed again round by round, back to back: in each of `rounds`
-/// rounds VTK at its step ([`PAIR_FRAMES`] frames after a first, its median) and voxcube's
-/// best point `best` (the same), VTK first in even rounds, voxcube in odd ones. The sweep
-/// times each renderer's images minutes apart, and this machine's speed drifts by half over
-/// minutes; a round's two medians lie seconds apart. Each round's ratio, ascending.
+/// The headline's two images timed again round by round, back to back ([`paired_round`]):
+/// in each of `rounds` rounds VTK at its step ([`PAIR_FRAMES`] frames after a first, its
+/// median) and voxcube's best point `best` (the same). The sweep times each renderer's
+/// images minutes apart, and this machine's speed drifts by half over minutes; a round's two
+/// medians lie seconds apart. Each round's ratio, ascending.
 fn paired_rounds(
     rounds: usize,
     mut vtk: impl FnMut() -> Result<f64, ExperimentError>,
     mut best: impl FnMut() -> Result<f64, ExperimentError>,
 ) -> Result<Vec<f64>, ExperimentError> {
-    let mut ratios = Vec::with_capacity(rounds);
-    for round in 0..rounds.max(1) {
-        let (ours, theirs) = match round % 2 {
-            0 => {
-                let theirs = vtk()?;
-                (best()?, theirs)
-            }
-            _ => {
-                let ours = best()?;
-                (ours, vtk()?)
-            }
-        };
-        ratios.push(ours / theirs.max(1e-9));
-    }
+    let mut ratios = (0..rounds.max(1))
+        .map(|round| {
+            paired_round(round, &mut vtk, &mut best).map(|(ours, theirs)| ours / theirs.max(1e-9))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     ratios.sort_by(f64::total_cmp);
     Ok(ratios)
 }
@@ -401,11 +389,9 @@ pub fn sweep_over(
             if let Some(best) = best {
                 let view = variant(&base.view, &job, best.dt, best.renderer)?;
                 let ours = || {
-                    let mut times = Vec::with_capacity(PAIR_FRAMES);
-                    for _ in 0..PAIR_FRAMES {
-                        times.push(render_on(&job.volume, &view, &machine)?.wall);
-                    }
-                    Ok(median(times).as_secs_f64() * 1e3)
+                    median_frame(|| render_on(&job.volume, &view, &machine).map(|r| r.wall))
+                        .map(|t| t.as_secs_f64() * 1e3)
+                        .map_err(ExperimentError::from)
                 };
                 let theirs = || render(VTK_HEADLINE_STEP, PAIR_FRAMES).map(|(ms, _)| ms);
                 let ratios = paired_rounds(runs, theirs, ours)?;

@@ -10,7 +10,7 @@
 //! in the same run, VTK's CPU ray caster on each volume of the sweep, framed the same
 //! ([`super::peer`]), where it is installed.
 
-use super::bench::{median, PAIR_FRAMES};
+use super::bench::{median, median_frame, paired_round, PAIR_FRAMES};
 use super::chart::{self, Line};
 use super::error::ExperimentError;
 use super::peer::{Frame, Peer, PeerMode, Request};
@@ -127,8 +127,8 @@ fn span(n: u32) -> f32 {
 
 /// VTK's median frame of `volume` (an `n`³ byte volume) framed as [`view`] frames it at the
 /// paper's image size, `runs` renders after a first, and its image's PSNR against `ours`;
-/// then `runs` paired rounds of VTK's median of [`PAIR_FRAMES`] frames against the median
-/// of as many of voxcube's `frame`s, back to back, VTK first in even rounds.
+/// then `runs` paired rounds ([`paired_round`]) of VTK's median of [`PAIR_FRAMES`] frames
+/// against the median of as many of voxcube's `frame_ours`.
 fn vtk_on(
     volume: &Volume,
     n: u32,
@@ -161,28 +161,15 @@ fn vtk_on(
         frame,
         runs: PAIR_FRAMES,
     };
-    let mut ours = || -> Result<f64, String> {
-        let frames = (0..PAIR_FRAMES)
-            .map(|_| frame_ours())
-            .collect::<Result<Vec<_>, _>>()?;
-        Ok(median(frames).as_secs_f64())
-    };
+    let mut ours = || median_frame(&mut frame_ours);
+    let mut theirs = || peer.render(request, false).map(|r| r.median);
     let mut paired = Vec::with_capacity(runs);
     let mut sides = (Vec::with_capacity(runs), Vec::with_capacity(runs));
     for round in 0..runs.max(1) {
-        let (mine, theirs) = match round % 2 {
-            0 => {
-                let theirs = peer.render(request, false)?.median.as_secs_f64();
-                (ours()?, theirs)
-            }
-            _ => {
-                let mine = ours()?;
-                (mine, peer.render(request, false)?.median.as_secs_f64())
-            }
-        };
-        paired.push(mine / theirs.max(1e-9));
-        sides.0.push(Duration::from_secs_f64(mine));
-        sides.1.push(Duration::from_secs_f64(theirs));
+        let (mine, vtk) = paired_round(round, &mut theirs, &mut ours)?;
+        paired.push(mine.as_secs_f64() / vtk.as_secs_f64().max(1e-9));
+        sides.0.push(mine);
+        sides.1.push(vtk);
     }
     paired.sort_by(f64::total_cmp);
     let paired_medians = Some((median(sides.0), median(sides.1)));

@@ -268,24 +268,17 @@ fn legacy_header(bytes: &[u8]) -> Option<LegacyHeader> {
 /// The sample type a legacy `SCALARS` line names, of those the whole read takes (`vtkio`
 /// reads no `unsigned_short`, and `bit` and the 64-bit integers are refused by name).
 fn scalar_type(name: &str) -> Option<FileType> {
-    let is = |expected: &str| name.eq_ignore_ascii_case(expected);
-    Some(if is("unsigned_char") {
-        FileType::U8
-    } else if is("char") {
-        FileType::I8
-    } else if is("short") {
-        FileType::I16
-    } else if is("int") {
-        FileType::I32
-    } else if is("unsigned_int") {
-        FileType::U32
-    } else if is("float") {
-        FileType::F32
-    } else if is("double") {
-        FileType::F64
-    } else {
-        return None;
-    })
+    [
+        ("unsigned_char", FileType::U8),
+        ("char", FileType::I8),
+        ("short", FileType::I16),
+        ("int", FileType::I32),
+        ("unsigned_int", FileType::U32),
+        ("float", FileType::F32),
+        ("double", FileType::F64),
+    ]
+    .into_iter()
+    .find_map(|(named, ty)| name.eq_ignore_ascii_case(named).then_some(ty))
 }
 
 /// Load a VTK image-data volume. `spacing` overrides the file's.
