@@ -18,6 +18,7 @@ use crate::skip::node_leaps::NodeLeaps;
 use crate::trace::interior::Interior;
 use crate::trace::lattice::Lattice;
 use crate::trace::lighting::Unshadowed;
+use crate::trace::ray::Ray;
 use crate::trace::skipping::{skip_to, Probe, Skipper};
 use crate::trace::state::{RayState, Stop};
 use crate::trace::view::View;
@@ -46,14 +47,70 @@ pub(crate) fn composite<T: Sample>(
     let central = view.exact_node_gradients() && slab.nodes().is_some();
     match (view.classified(), lanes, central) {
         (Some(table), true, _) => {
-            samples(view, slab, &Tabled::of(table, ray), Lanes, ray, counters)
+            prefetching(view, slab, &Tabled::of(table, ray), Lanes, ray, counters)
         }
         (Some(table), false, _) => {
-            samples(view, slab, &Tabled::of(table, ray), Value, ray, counters)
+            prefetching(view, slab, &Tabled::of(table, ray), Value, ray, counters)
         }
-        (None, _, true) => samples(view, slab, &ByFunction(tf), GridLanes, ray, counters),
-        (None, true, false) => samples(view, slab, &ByFunction(tf), Lanes, ray, counters),
-        (None, false, false) => samples(view, slab, &ByFunction(tf), Value, ray, counters),
+        (None, _, true) => prefetching(view, slab, &ByFunction(tf), GridLanes, ray, counters),
+        (None, true, false) => prefetching(view, slab, &ByFunction(tf), Lanes, ray, counters),
+        (None, false, false) => prefetching(view, slab, &ByFunction(tf), Value, ray, counters),
+    }
+}
+
+/// [`samples`], asking for each evaluated sample's cell of the node field ahead where the
+/// slab holds a field larger than the caches ([`Slab::prefetches`]): then memory's latency
+/// passes while the loop works on the samples before it. Both tiers read the field where it
+/// is held (the fast tier its values and gradients, the exact tier its gradients), and it is
+/// eight times the slab's bytes, so its misses are the ones that count.
+#[inline(always)]
+fn prefetching<T: Sample, C: Classify, R: Reading<T>>(
+    view: &View,
+    slab: &Slab<'_, T>,
+    classify: &C,
+    read: R,
+    ray: &mut RayState,
+    counters: &mut Counters,
+) -> Stop {
+    let field = slab.nodes().map(|nodes| nodes.cells());
+    match field.filter(|cells| slab.prefetches(cells.bytes())) {
+        Some(cells) => samples(view, slab, classify, read, Asking(cells), ray, counters),
+        None => samples(view, slab, classify, read, NotAhead, ray, counters),
+    }
+}
+
+/// Whether a loop asks for cells ahead of its samples: a type, so that a loop that does not
+/// carries no test for it.
+trait Ahead: Copy {
+    /// Ask for the cell of sample `k + PREFETCH_AHEAD` of `ray` on `lattice`, at its lattice
+    /// position (computed, not stepped); outside the grid some cell, which a prefetch
+    /// passes over or asks for harmlessly.
+    fn ask(self, ray: &Ray, lattice: &Lattice, k: u32);
+}
+
+/// Samples read from storage that stays in the caches: nothing asked.
+#[derive(Clone, Copy)]
+struct NotAhead;
+
+impl Ahead for NotAhead {
+    #[inline(always)]
+    fn ask(self, _: &Ray, _: &Lattice, _: u32) {}
+}
+
+/// Samples read from `Cells` larger than the caches.
+#[derive(Clone, Copy)]
+struct Asking<'a, U>(Cells<'a, U>);
+
+/// How many samples ahead of an evaluated one a loop that prefetches asks for a cell: the
+/// requests in flight must cover memory's latency, and at 512³ two, four and eight ahead
+/// timed alike (docs/speed-log.md).
+const PREFETCH_AHEAD: u32 = 4;
+
+impl<U: Copy> Ahead for Asking<'_, U> {
+    #[inline(always)]
+    fn ask(self, ray: &Ray, lattice: &Lattice, k: u32) {
+        let q = ray.at4(lattice.t(k.saturating_add(PREFETCH_AHEAD)));
+        self.0.prefetch(field::interior_corner(q).1);
     }
 }
 
@@ -268,11 +325,12 @@ impl<T: Sample> Reading<T> for GridLanes {
 /// general step (where it lies, whose it is, what the skipping says of it), except in the
 /// slab's interior, where [`run`] takes them.
 #[inline(always)]
-fn samples<T: Sample, C: Classify, R: Reading<T>>(
+fn samples<T: Sample, C: Classify, R: Reading<T>, A: Ahead>(
     view: &View,
     slab: &Slab<'_, T>,
     classify: &C,
     read: R,
+    ahead: A,
     ray: &mut RayState,
     counters: &mut Counters,
 ) -> Stop {
@@ -324,7 +382,7 @@ fn samples<T: Sample, C: Classify, R: Reading<T>>(
                             view,
                             slab,
                             classify,
-                            read,
+                            (read, ahead),
                             &Inside {
                                 cells,
                                 test: $test,
@@ -368,6 +426,7 @@ fn samples<T: Sample, C: Classify, R: Reading<T>>(
             continue;
         }
         counters.samples += 1;
+        ahead.ask(&ray.ray, &ray.lattice, ray.k);
         let site = probe.corner.site(grid);
         let (v, gradient) = read.read(view, slab, &site, counters);
         let (alpha, base) = classify.classify(view, &ray.lattice, ray.k, v);
@@ -495,11 +554,11 @@ enum Run {
     reason = "inlined into one caller; the arguments are the loop's state"
 )]
 #[inline(always)]
-fn run<T: Sample, C: Classify, R: Reading<T>, E: CellTest>(
+fn run<T: Sample, C: Classify, R: Reading<T>, A: Ahead, E: CellTest>(
     view: &View,
     slab: &Slab<'_, T>,
     classify: &C,
-    read: R,
+    (read, ahead): (R, A),
     inside: &Inside<'_, '_, R::Node, E>,
     ray: &mut RayState,
     (light, color, weight): (&Unshadowed<'_>, &mut Vec3, &mut f32),
@@ -540,6 +599,7 @@ fn run<T: Sample, C: Classify, R: Reading<T>, E: CellTest>(
         };
         let frac = (q - cell).truncate();
         counters.samples += 1;
+        ahead.ask(&r, &lattice, k);
         let (v, gradient) = read.read_cell(slab, nodes, frac, counters);
         let (alpha, base) = classify.classify(view, &lattice, k, v);
         last_read = Some(v);

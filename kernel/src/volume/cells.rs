@@ -46,6 +46,26 @@ impl<'a, U: Copy> Cells<'a, U> {
         }
     }
 
+    /// Bytes of the storage.
+    pub fn bytes(&self) -> usize {
+        size_of_val(self.data)
+    }
+
+    /// A hint that the cell from `lo` is read soon: the four rows of its eight items, from
+    /// where the cell starts in each (a row's two items are mostly in one cache line).
+    /// Nothing for a row outside the storage; no value changes
+    /// ([`voxcube_simd::prefetch`]).
+    #[inline(always)]
+    pub fn prefetch(&self, [x, y, z]: [u32; 3]) {
+        let base = (x.wrapping_sub(self.first) as usize)
+            .wrapping_mul(self.plane)
+            .wrapping_add((z as usize).wrapping_mul(self.row))
+            .wrapping_add(y as usize);
+        for offset in [0, self.row, self.plane, self.plane + self.row] {
+            voxcube_simd::prefetch(self.data, base.wrapping_add(offset));
+        }
+    }
+
     /// The low X planes of the whole cells stored: both their planes are.
     pub fn cell_planes(&self) -> Range<u32> {
         self.first..self.end.saturating_sub(1).max(self.first)
@@ -91,6 +111,12 @@ impl<U: Copy> HeldCells<'_, U> {
     #[inline(always)]
     pub fn at(&self, lo: [u32; 3]) -> Option<[U; 8]> {
         self.at_index(self.index(lo))
+    }
+
+    /// [`Cells::prefetch`] of the storage's cell from `lo`.
+    #[inline(always)]
+    pub fn prefetch(&self, lo: [u32; 3]) {
+        self.cells.prefetch(lo);
     }
 
     /// Where the node `lo` is in the storage: what [`HeldCells::at_index`] reads the cell
