@@ -459,6 +459,15 @@ impl<'a> Blocks<'a> {
         self.cells
     }
 
+    /// The masks of the blocks of column `(bx, bz)`, by `by`: a column's blocks are together
+    /// in the storage order. Empty without masks or outside the slab's columns.
+    pub fn column_masks(&self, bx: u32, bz: u32) -> &'a [CellMask] {
+        let (Some(cells), Some(start)) = (self.cells, self.index((bx, 0, bz))) else {
+            return &[];
+        };
+        cells.get(start..start + self.ny as usize).unwrap_or(&[])
+    }
+
     /// The cells of block `(bx, by, bz)` the view cannot skip: every cell without masks or
     /// outside the slab's columns.
     #[inline]
@@ -706,6 +715,12 @@ mod tests {
                             (blocks.range(b), blocks.leap(b), blocks.cells(b)),
                             "{b:?}"
                         );
+                        // A column's masks as one slice: each block's as `cells` reads it.
+                        let column = blocks.column_masks(bx, bz);
+                        match column.get(by as usize) {
+                            Some(&mask) => assert_eq!(mask, blocks.cells(b), "{b:?}"),
+                            None => assert!(column.is_empty() && blocks.cells(b) == ALL, "{b:?}"),
+                        }
                         inside +=
                             usize::from(e.range != Range::UNKNOWN && e.leap.is_some_and(|d| d > 0));
                     }

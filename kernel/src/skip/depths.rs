@@ -298,17 +298,21 @@ fn place(
         false => n - 1 - i,
     };
     let mut passed_over = 0;
+    let rising_y = frame.rising[1];
     for ix in 0..cols {
         let bx = bx0 + toward(0, cols, ix);
         for iz in 0..nz {
             let bz = toward(2, nz, iz);
+            // Most blocks of a big volume keep no cell: a column's masks are read as one
+            // slice, a block's as [`Blocks::cells`] reads it.
+            let column = blocks.column_masks(bx, bz);
             for iy in 0..ny {
-                let by = toward(1, ny, iy);
-                let block = (bx, by, bz);
-                let mask = blocks.cells(block);
+                let by = if rising_y { iy } else { ny - 1 - iy };
+                let mask = column.get(by as usize).copied().unwrap_or(ALL);
                 if mask == 0 {
                     continue;
                 }
+                let block = (bx, by, bz);
                 let corner = DVec3::new(
                     f64::from(bx * BLOCK),
                     f64::from(by * BLOCK),
