@@ -24,6 +24,69 @@ pub use crate::volume::sample::Range;
 use core::fmt;
 use glam::Vec3;
 
+/// The blocks of a column whose masks keep a cell, in order along the column (rising or
+/// falling), as `(index, mask)`: most blocks of a big volume keep none, and these are passed
+/// over 64 at a time (a word of which-keep bits per 64 masks) instead of one by one.
+#[derive(Clone, Debug)]
+pub struct KeptBlocks<'a> {
+    column: &'a [CellMask],
+    rising: bool,
+    /// Words of the column taken so far, in the order of the walk.
+    taken: usize,
+    /// Index in the column of bit 0 of `bits`.
+    base: usize,
+    /// Which blocks of the current word keep a cell and are yet to be yielded.
+    bits: u64,
+}
+
+impl<'a> KeptBlocks<'a> {
+    /// The blocks of `column` that keep a cell, by rising index where `rising`.
+    pub fn new(column: &'a [CellMask], rising: bool) -> Self {
+        KeptBlocks {
+            column,
+            rising,
+            taken: 0,
+            base: 0,
+            bits: 0,
+        }
+    }
+}
+
+impl Iterator for KeptBlocks<'_> {
+    type Item = (u32, CellMask);
+
+    #[inline]
+    fn next(&mut self) -> Option<(u32, CellMask)> {
+        const WORD: usize = u64::BITS as usize;
+        while self.bits == 0 {
+            let words = self.column.len().div_ceil(WORD);
+            if self.taken >= words {
+                return None;
+            }
+            let word = match self.rising {
+                true => self.taken,
+                false => words - 1 - self.taken,
+            };
+            self.taken += 1;
+            self.base = word * WORD;
+            let masks = self.column.get(self.base..).unwrap_or(&[]);
+            self.bits = masks
+                .iter()
+                .take(WORD)
+                .enumerate()
+                .fold(0, |bits, (i, &mask)| bits | u64::from(mask != 0) << i);
+        }
+        let bit = match self.rising {
+            true => self.bits.trailing_zeros(),
+            false => u64::BITS - 1 - self.bits.leading_zeros(),
+        };
+        self.bits &= !(1u64 << bit);
+        let index = self.base + bit as usize;
+        let mask = self.column.get(index).copied().unwrap_or(0);
+        Some((u32::try_from(index).unwrap_or(u32::MAX), mask))
+    }
+}
+
 /// Cells per block edge.
 pub const BLOCK: u32 = 4;
 
@@ -468,6 +531,13 @@ impl<'a> Blocks<'a> {
         cells.get(start..start + self.ny as usize).unwrap_or(&[])
     }
 
+    /// The blocks of column `(bx, bz)` that keep a cell, as `(by, mask)`, by rising `by`
+    /// where `rising`, else by falling: [`KeptBlocks`]. None without masks or outside the
+    /// slab's columns.
+    pub fn kept_in_column(&self, bx: u32, bz: u32, rising: bool) -> KeptBlocks<'a> {
+        KeptBlocks::new(self.column_masks(bx, bz), rising)
+    }
+
     /// The cells of block `(bx, by, bz)` the view cannot skip: every cell without masks or
     /// outside the slab's columns.
     #[inline]
@@ -728,6 +798,40 @@ mod tests {
             }
         }
         assert!(inside >= 3, "{inside} entries with a range and a distance");
+    }
+
+    #[test]
+    fn a_column_s_kept_blocks_are_those_with_cells_in_order_either_way() {
+        let mut state = 0x9e37_79b9_u32;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state
+        };
+        let mut column = [0 as CellMask; 200];
+        for len in [0, 1, 2, 63, 64, 65, 127, 128, 129, 200] {
+            for density in [0, 1, 8, 32, 64] {
+                let column = &mut column[..len];
+                for mask in column.iter_mut() {
+                    // Masks of every bit, the top one too; most zero at low densities.
+                    let keep = density > 0 && next() % 64 < density;
+                    *mask = match keep {
+                        true => u64::from(next()) << (next() % 33) | 1 << (63 * (next() % 2)),
+                        false => 0,
+                    };
+                }
+                let kept: heapless::Vec<(u32, CellMask), 200> = (0..len as u32)
+                    .zip(column.iter().copied())
+                    .filter(|&(_, mask)| mask != 0)
+                    .collect();
+                let rising: heapless::Vec<_, 200> = KeptBlocks::new(column, true).collect();
+                assert_eq!(rising, kept, "{len} {density}");
+                let mut falling: heapless::Vec<_, 200> = KeptBlocks::new(column, false).collect();
+                falling.reverse();
+                assert_eq!(falling, kept, "{len} {density}");
+            }
+        }
     }
 
     #[test]

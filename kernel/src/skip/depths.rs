@@ -303,15 +303,8 @@ fn place(
         let bx = bx0 + toward(0, cols, ix);
         for iz in 0..nz {
             let bz = toward(2, nz, iz);
-            // Most blocks of a big volume keep no cell: a column's masks are read as one
-            // slice, a block's as [`Blocks::cells`] reads it.
-            let column = blocks.column_masks(bx, bz);
-            for iy in 0..ny {
-                let by = if rising_y { iy } else { ny - 1 - iy };
-                let mask = column.get(by as usize).copied().unwrap_or(ALL);
-                if mask == 0 {
-                    continue;
-                }
+            // Most blocks of a big volume keep no cell: passed over a word of them at a time.
+            for (by, mask) in blocks.kept_in_column(bx, bz, rising_y) {
                 let block = (bx, by, bz);
                 let corner = DVec3::new(
                     f64::from(bx * BLOCK),
