@@ -1,8 +1,8 @@
-//! A prefetch is a hint: slabs whose composited rays ask for every evaluated sample's cell a
-//! few samples ahead, and slabs whose rays never do, give every pixel the same bits and
-//! count the same work, in both tiers (the fast tier reads the node field, the exact tier
-//! the slab's samples), through the interior's runs and the general step, skipping or not,
-//! on the whole volume and on slabs of it.
+//! A prefetch is a hint: slabs whose composited rays ask for every evaluated sample's cell of
+//! the node field a few samples ahead, and slabs whose rays never do, give every pixel the
+//! same bits and count the same work, in both tiers (the fast tier reads the field's values
+//! and gradients, the exact tier its gradients), through the interior's runs and the general
+//! step, skipping or not, on the whole volume and on slabs of it.
 //!
 //! No negative control is possible: a prefetch takes its storage by shared reference and
 //! returns nothing, so it has no way to change a value; the test shows that the loops that
@@ -49,8 +49,8 @@ fn view(volume: &Volume, tier: Accuracy) -> View {
     View::new(s, &volume.grid).expect("valid view")
 }
 
-/// Every pixel's colour as bits, and the counters, of `view` on `slab` prefetching from
-/// storages of `from` bytes on (on a slab of part of the volume, each ray's part in it).
+/// Every pixel's colour as bits, and the counters, of `view` on `slab` prefetching node
+/// fields of `from` bytes and more (on a slab of part of the volume, each ray's part in it).
 fn traced(view: &View, slab: Slab<'_, u8>, from: usize) -> (Vec<[u32; 3]>, Counters) {
     let slab = slab.prefetching_from(from);
     let mut counters = Counters::default();
@@ -81,14 +81,17 @@ fn rays_that_prefetch_and_rays_that_do_not_give_every_colour_in_the_same_bits() 
     for tier in [Accuracy::Fast, Accuracy::Exact] {
         let view = view(&volume, tier);
         for owned in [0..nx, 3..nx / 2, nx / 3..nx] {
-            let stored = stored_planes(&grid, owned.clone(), 1);
+            // Two ghost planes: a node field reads one plane past the planes it holds.
+            let stored = stored_planes(&grid, owned.clone(), 2);
             let samples = &data[stored.start as usize * plane..stored.end as usize * plane];
-            let slab = Slab::new(grid, owned.clone(), 1, samples).expect("slab");
+            let slab = Slab::new(grid, owned.clone(), 2, samples).expect("slab");
             for mode in [SkipMode::ALL, no_depths, SkipMode::BLOCKS, SkipMode::OFF] {
                 let field = volume.built.field(&slab, holds_node_field(&view, mode), 1);
                 let ranges = SlabRanges::build(&slab, mode.ranges, 1);
                 let skipping = Skipping::build(&slab, &ranges, &view, mode);
                 let ready = skipping.apply(field.apply(slab));
+                // The field the rays ask for is held, in either tier.
+                assert!(ready.nodes().is_some(), "{tier:?} {owned:?} {mode:?}");
                 let (asked, counted) = traced(&view, ready, 0);
                 let (never, also) = traced(&view, ready, usize::MAX);
                 let what = format!("{tier:?} {owned:?} {mode:?}");

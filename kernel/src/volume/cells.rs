@@ -113,12 +113,6 @@ impl<U: Copy> HeldCells<'_, U> {
         self.at_index(self.index(lo))
     }
 
-    /// [`Cells::prefetch`] of the storage's cell from `lo`.
-    #[inline(always)]
-    pub fn prefetch(&self, lo: [u32; 3]) {
-        self.cells.prefetch(lo);
-    }
-
     /// Where the node `lo` is in the storage: what [`HeldCells::at_index`] reads the cell
     /// whose low corner it is from, and what a structure laid out as the storage (as
     /// [`crate::skip::node_leaps::NodeLeaps`]) reads the cell's entry at, one offset away.

@@ -72,16 +72,16 @@ pub struct Slab<'a, T: Sample> {
     data: &'a [T],
     blocks: Option<Blocks<'a>>,
     nodes: Option<Nodes<'a, T::Node>>,
-    /// The least bytes of the storage a sample loop reads from which it prefetches ahead.
+    /// The least bytes of a node field from which a sample loop prefetches it ahead.
     prefetch_from: usize,
 }
 
-/// The least bytes of the storage a composited ray's samples read (the node field, or the
-/// slab's samples) from which the ray asks for each evaluated sample's cell a few samples
-/// ahead ([`Slab::prefetches`]). Below it the storage stays in the caches between rays and
-/// the request costs its instructions for nothing: on the molecule resampled to 128³ (a
-/// node field of 16 MiB) and on SOD (8.7 MiB) it gained nothing measurable, at 256³ (128
-/// MiB) about a tenth of the frame, at 512³ (1 GiB) a fifth (docs/speed-log.md).
+/// The least bytes of a node field from which a composited ray asks for each evaluated
+/// sample's cell of it a few samples ahead ([`Slab::prefetches`]). Below it the field stays
+/// in the caches between rays and the request costs its instructions for nothing: on the
+/// molecule resampled to 128³ (a field of 16 MiB) and on SOD (8.7 MiB) it gained nothing
+/// measurable; at 256³ (128 MiB) it took a fifth off the fast tier's frame, at 512³ (1 GiB)
+/// a quarter off the fast tier's and a tenth off the exact tier's (docs/speed-log.md).
 pub const PREFETCH_FROM_BYTES: usize = 32 << 20;
 
 /// A neighbourhood of a slab's nodes checked once by [`Slab::window`]: rows addressed from its
@@ -167,7 +167,7 @@ impl<'a, T: Sample> Slab<'a, T> {
         }
     }
 
-    /// The same slab, prefetching from storages of `bytes` on rather than
+    /// The same slab, prefetching node fields of `bytes` and more rather than of
     /// [`PREFETCH_FROM_BYTES`]: a prefetch changes no pixel, so this is for tests and
     /// measurements that compare the two.
     pub fn prefetching_from(self, bytes: usize) -> Self {
@@ -177,7 +177,7 @@ impl<'a, T: Sample> Slab<'a, T> {
         }
     }
 
-    /// Whether a sample loop reading a storage of `bytes` asks for its cells ahead.
+    /// Whether a sample loop reading a node field of `bytes` asks for its cells ahead.
     #[inline]
     pub fn prefetches(&self, bytes: usize) -> bool {
         bytes >= self.prefetch_from
