@@ -152,6 +152,20 @@ pub fn trace_all(volume: &Volume, view: &View) -> (Vec<Vec3>, Counters) {
     }
 }
 
+/// Every pixel's unquantised colour of `view` traced on `slab` alone, as bits (for tests
+/// that compare two ways of computing it), and the counters.
+pub fn colour_bits<T: Sample>(view: &View, slab: &Slab<'_, T>) -> (Vec<[u32; 3]>, Counters) {
+    let mut c = Counters::default();
+    let colours = (0..view.pixel_count() as u32)
+        .map(|p| {
+            trace_pixel(view, slab, p, &mut c)
+                .to_array()
+                .map(f32::to_bits)
+        })
+        .collect();
+    (colours, c)
+}
+
 /// `view` of `volume` in tier `tier`, all else as it is.
 pub fn in_tier(view: &View, volume: &Volume, tier: voxcube_kernel::trace::view::Accuracy) -> View {
     let spec = ViewSpec {

@@ -99,14 +99,7 @@ fn colours(volume: &Volume, view: &View, held: bool) -> (Vec<[u32; 3]>, usize, C
         assert!(std::sync::Arc::ptr_eq(&field, &again) || !held);
         let slab = field.apply(slab);
         assert_eq!(slab.nodes().is_some(), held);
-        let mut c = Counters::default();
-        let colours = (0..view.pixel_count() as u32)
-            .map(|p| {
-                trace_pixel(view, &slab, p, &mut c)
-                    .to_array()
-                    .map(f32::to_bits)
-            })
-            .collect();
+        let (colours, c) = voxcube_tests::colour_bits(view, &slab);
         assert_eq!(c.slab_misses, 0);
         (colours, field.bytes(), c)
     }

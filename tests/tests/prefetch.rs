@@ -13,12 +13,11 @@ use voxcube::memory::ranges::SlabRanges;
 use voxcube::memory::storage::{holds_node_field, SkipMode, Skipping};
 use voxcube_kernel::counters::Counters;
 use voxcube_kernel::optics::shade::Light;
-use voxcube_kernel::trace::tracer::trace_pixel;
 use voxcube_kernel::trace::view::{Accuracy, View};
 use voxcube_kernel::volume::grid::Model;
 use voxcube_kernel::volume::slab::{stored_planes, Slab};
 use voxcube_kernel::Vec3;
-use voxcube_tests::{constant_transfer, lit, ortho, spec, volume_u8};
+use voxcube_tests::{colour_bits, constant_transfer, lit, ortho, spec, volume_u8};
 
 /// Two soft blobs and a ridge over a faint floor: empty space around them to skip, and
 /// cells of every value to composite.
@@ -52,16 +51,7 @@ fn view(volume: &Volume, tier: Accuracy) -> View {
 /// Every pixel's colour as bits, and the counters, of `view` on `slab` prefetching node
 /// fields of `from` bytes and more (on a slab of part of the volume, each ray's part in it).
 fn traced(view: &View, slab: Slab<'_, u8>, from: usize) -> (Vec<[u32; 3]>, Counters) {
-    let slab = slab.prefetching_from(from);
-    let mut counters = Counters::default();
-    let colours = (0..view.pixel_count() as u32)
-        .map(|p| {
-            trace_pixel(view, &slab, p, &mut counters)
-                .to_array()
-                .map(f32::to_bits)
-        })
-        .collect();
-    (colours, counters)
+    colour_bits(view, &slab.prefetching_from(from))
 }
 
 #[test]

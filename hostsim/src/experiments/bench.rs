@@ -440,6 +440,42 @@ pub(super) fn paired_round<T, E>(
     }
 }
 
+/// `rounds` paired rounds (one at least), each [`paired_round`]: (voxcube's, VTK's) each.
+pub(super) fn run_paired<T, E>(
+    rounds: usize,
+    theirs: &mut impl FnMut() -> Result<T, E>,
+    ours: &mut impl FnMut() -> Result<T, E>,
+) -> Result<Vec<(T, T)>, E> {
+    (0..rounds.max(1))
+        .map(|round| paired_round(round, theirs, ours))
+        .collect()
+}
+
+/// Each round's voxcube time over VTK's, ascending.
+pub(super) fn sorted_ratios(rounds: impl IntoIterator<Item = (f64, f64)>) -> Vec<f64> {
+    let mut ratios: Vec<f64> = rounds
+        .into_iter()
+        .map(|(ours, theirs)| ours / theirs.max(1e-9))
+        .collect();
+    ratios.sort_by(f64::total_cmp);
+    ratios
+}
+
+/// What a target is judged on, of ratios ascending: their median (the upper one of an even
+/// count), and the least and most beside it.
+pub(super) fn spread(ratios: &[f64]) -> Option<(f64, f64, f64)> {
+    Some((
+        *ratios.get(ratios.len() / 2)?,
+        *ratios.first()?,
+        *ratios.last()?,
+    ))
+}
+
+/// Seconds of both sides of a round.
+pub(super) fn seconds((ours, theirs): &(Duration, Duration)) -> (f64, f64) {
+    (ours.as_secs_f64(), theirs.as_secs_f64())
+}
+
 /// The median of [`PAIR_FRAMES`] of voxcube's frames, each timed by `frame`: its side of a
 /// paired round.
 pub(super) fn median_frame<E>(
@@ -475,13 +511,7 @@ pub struct Pair {
 impl Pair {
     /// Each round's voxcube time over VTK's, ascending.
     fn ratios(&self) -> Vec<f64> {
-        let mut ratios: Vec<f64> = self
-            .rounds
-            .iter()
-            .map(|(ours, theirs)| ours.as_secs_f64() / theirs.as_secs_f64().max(1e-9))
-            .collect();
-        ratios.sort_by(f64::total_cmp);
-        ratios
+        sorted_ratios(self.rounds.iter().map(seconds))
     }
 }
 
@@ -558,12 +588,7 @@ pub fn paired_table(pairs: &[Pair]) -> String {
     );
     let mut verdicts = Vec::new();
     for pair in pairs {
-        let ratios = pair.ratios();
-        let (Some(least), Some(most), Some(mid)) = (
-            ratios.first(),
-            ratios.last(),
-            middle(ratios.clone(), f64::total_cmp),
-        ) else {
+        let Some((mid, least, most)) = spread(&pair.ratios()) else {
             continue;
         };
         let ms = |pick: fn(&(Duration, Duration)) -> Duration| {

@@ -11,7 +11,9 @@
 //! voxcube's views take a directional light along the camera's forward axis).
 
 use super::accuracy::{compare, p99_error};
-use super::bench::{cores, every_core_modern, median, median_frame, paired_round, PAIR_FRAMES};
+use super::bench::{
+    cores, every_core_modern, median, median_frame, run_paired, sorted_ratios, spread, PAIR_FRAMES,
+};
 use super::chart::{self, Line};
 use super::error::ExperimentError;
 use super::paper::{dataset_of, Source};
@@ -190,8 +192,8 @@ pub struct Frontier {
     pub paired: Vec<(Mode, Vec<f64>)>,
 }
 
-/// The headline's two images timed again round by round, back to back ([`paired_round`]):
-/// in each of `rounds` rounds VTK at its step ([`PAIR_FRAMES`] frames after a first, its
+/// The headline's two images timed again round by round, back to back ([`run_paired`]): in
+/// each of `rounds` rounds VTK at its step ([`PAIR_FRAMES`] frames after a first, its
 /// median) and voxcube's best point `best` (the same). The sweep times each renderer's
 /// images minutes apart, and this machine's speed drifts by half over minutes; a round's two
 /// medians lie seconds apart. Each round's ratio, ascending.
@@ -200,13 +202,7 @@ fn paired_rounds(
     mut vtk: impl FnMut() -> Result<f64, ExperimentError>,
     mut best: impl FnMut() -> Result<f64, ExperimentError>,
 ) -> Result<Vec<f64>, ExperimentError> {
-    let mut ratios = (0..rounds.max(1))
-        .map(|round| {
-            paired_round(round, &mut vtk, &mut best).map(|(ours, theirs)| ours / theirs.max(1e-9))
-        })
-        .collect::<Result<Vec<_>, _>>()?;
-    ratios.sort_by(f64::total_cmp);
-    Ok(ratios)
+    Ok(sorted_ratios(run_paired(rounds, &mut vtk, &mut best)?))
 }
 
 /// The views: SOD's paper view as a surface and composited at 350×250, lit by a headlight.
@@ -533,8 +529,8 @@ fn headline_line(mode: Mode, h: &Headline, paired: Option<&[f64]>) -> String {
     );
     match (h.best, h.ratio()) {
         (Some(best), Some(ratio)) => {
-            let rounds = paired.filter(|r| !r.is_empty());
-            let judged = rounds.map_or(ratio, |r| r[r.len() / 2]);
+            let rounds = paired.and_then(|r| Some((r.len(), spread(r)?)));
+            let judged = rounds.map_or(ratio, |(_, (mid, ..))| mid);
             format!(
                 "{}: {vtk}; {} at dt {} is {} dB from its own in {:.1} ms: {ratio:.2}x VTK's time{}{}",
                 mode.name(),
@@ -542,11 +538,8 @@ fn headline_line(mode: Mode, h: &Headline, paired: Option<&[f64]>) -> String {
                 best.dt,
                 db(best.own),
                 best.ms,
-                rounds.map_or(String::new(), |r| format!(
-                    "; {} paired rounds: {judged:.2}x ({:.2}-{:.2})",
-                    r.len(),
-                    r[0],
-                    r[r.len() - 1]
+                rounds.map_or(String::new(), |(n, (_, least, most))| format!(
+                    "; {n} paired rounds: {judged:.2}x ({least:.2}-{most:.2})"
                 )),
                 match (mode, judged <= TARGET) {
                     (Mode::Composite, true) => format!(" (target: at most {TARGET}x, met)"),

@@ -10,7 +10,7 @@
 //! in the same run, VTK's CPU ray caster on each volume of the sweep, framed the same
 //! ([`super::peer`]), where it is installed.
 
-use super::bench::{median, median_frame, paired_round, PAIR_FRAMES};
+use super::bench::{median, median_frame, run_paired, seconds, sorted_ratios, spread, PAIR_FRAMES};
 use super::chart::{self, Line};
 use super::error::ExperimentError;
 use super::peer::{Frame, Peer, PeerMode, Request};
@@ -127,7 +127,7 @@ fn span(n: u32) -> f32 {
 
 /// VTK's median frame of `volume` (an `n`³ byte volume) framed as [`view`] frames it at the
 /// paper's image size, `runs` renders after a first, and its image's PSNR against `ours`;
-/// then `runs` paired rounds ([`paired_round`]) of VTK's median of [`PAIR_FRAMES`] frames
+/// then `runs` paired rounds ([`run_paired`]) of VTK's median of [`PAIR_FRAMES`] frames
 /// against the median of as many of voxcube's `frame_ours`.
 fn vtk_on(
     volume: &Volume,
@@ -163,16 +163,10 @@ fn vtk_on(
     };
     let mut ours = || median_frame(&mut frame_ours);
     let mut theirs = || peer.render(request, false).map(|r| r.median);
-    let mut paired = Vec::with_capacity(runs);
-    let mut sides = (Vec::with_capacity(runs), Vec::with_capacity(runs));
-    for round in 0..runs.max(1) {
-        let (mine, vtk) = paired_round(round, &mut theirs, &mut ours)?;
-        paired.push(mine.as_secs_f64() / vtk.as_secs_f64().max(1e-9));
-        sides.0.push(mine);
-        sides.1.push(vtk);
-    }
-    paired.sort_by(f64::total_cmp);
-    let paired_medians = Some((median(sides.0), median(sides.1)));
+    let rounds = run_paired(runs, &mut theirs, &mut ours)?;
+    let paired = sorted_ratios(rounds.iter().map(seconds));
+    let (mine, vtk): (Vec<_>, Vec<_>) = rounds.into_iter().unzip();
+    let paired_medians = Some((median(mine), median(vtk)));
     Ok(Some(VtkRow {
         volume: n,
         median: r.median,
@@ -382,13 +376,9 @@ fn beside_vtk(scale: &Scale) -> String {
         };
         let vtk = v.median.as_secs_f64();
         let (fast, exact) = (ours("fast"), ours("exact"));
-        let paired = match (v.paired.first(), v.paired.last()) {
-            (Some(least), Some(most)) => {
-                let mid = v.paired[v.paired.len() / 2];
-                format!("{mid:.2} ({least:.2}-{most:.2})")
-            }
-            _ => "-".into(),
-        };
+        let paired = spread(&v.paired).map_or("-".into(), |(mid, least, most)| {
+            format!("{mid:.2} ({least:.2}-{most:.2})")
+        });
         let _ = writeln!(
             out,
             "{:<7} {:>10.1} {:>9.2} {:>10.1} {:>10.2} {:>10.1} {:>10.2} {:>9.1} dB {:>24}",

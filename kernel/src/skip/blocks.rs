@@ -802,13 +802,7 @@ mod tests {
 
     #[test]
     fn a_column_s_kept_blocks_are_those_with_cells_in_order_either_way() {
-        let mut state = 0x9e37_79b9_u32;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 17;
-            state ^= state << 5;
-            state
-        };
+        let mut next = crate::testing::xorshift(0x9e37_79b9);
         let mut column = [0 as CellMask; 200];
         for len in [0, 1, 2, 63, 64, 65, 127, 128, 129, 200] {
             for density in [0, 1, 8, 32, 64] {

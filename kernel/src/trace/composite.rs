@@ -59,7 +59,7 @@ pub(crate) fn composite<T: Sample>(
 }
 
 /// [`samples`], asking for each evaluated sample's cell of the node field ahead where the
-/// slab holds a field larger than the caches ([`Slab::prefetches`]): then memory's latency
+/// slab holds a field larger than the caches ([`Slab::prefetched_field`]): then memory's latency
 /// passes while the loop works on the samples before it. Both tiers read the field where it
 /// is held (the fast tier its values and gradients, the exact tier its gradients), and it is
 /// eight times the slab's bytes, so its misses are the ones that count.
@@ -72,8 +72,7 @@ fn prefetching<T: Sample, C: Classify, R: Reading<T>>(
     ray: &mut RayState,
     counters: &mut Counters,
 ) -> Stop {
-    let field = slab.nodes().map(|nodes| nodes.cells());
-    match field.filter(|cells| slab.prefetches(cells.bytes())) {
+    match slab.prefetched_field() {
         Some(cells) => samples(view, slab, classify, read, Asking(cells), ray, counters),
         None => samples(view, slab, classify, read, NotAhead, ray, counters),
     }

@@ -77,7 +77,7 @@ pub struct Slab<'a, T: Sample> {
 }
 
 /// The least bytes of a node field from which a composited ray asks for each evaluated
-/// sample's cell of it a few samples ahead ([`Slab::prefetches`]). Below it the field stays
+/// sample's cell of it a few samples ahead ([`Slab::prefetched_field`]). Below it the field stays
 /// in the caches between rays and the request costs its instructions for nothing: on the
 /// molecule resampled to 128³ (a field of 16 MiB) and on SOD (8.7 MiB) it gained nothing
 /// measurable; at 256³ (128 MiB) it took a fifth off the fast tier's frame, at 512³ (1 GiB)
@@ -177,10 +177,12 @@ impl<'a, T: Sample> Slab<'a, T> {
         }
     }
 
-    /// Whether a sample loop reading a node field of `bytes` asks for its cells ahead.
+    /// The node field's cells where a sample loop asks for them ahead: where the slab holds a
+    /// field of [`PREFETCH_FROM_BYTES`] or more (or as [`Slab::prefetching_from`] says).
     #[inline]
-    pub fn prefetches(&self, bytes: usize) -> bool {
-        bytes >= self.prefetch_from
+    pub fn prefetched_field(&self) -> Option<Cells<'a, T::Node>> {
+        let cells = self.nodes.as_ref()?.cells();
+        (cells.bytes() >= self.prefetch_from).then_some(cells)
     }
 
     /// The fast tier's node field, where this slab holds one.
