@@ -8,6 +8,7 @@
 
 pub mod budget;
 pub mod built;
+pub mod huge;
 pub mod nodes;
 pub mod parts;
 pub mod ranges;

@@ -5,6 +5,7 @@
 //! Invariant: holding the field or not changes no pixel (the kernel computes the same lanes
 //! on the fly), so a node that cannot hold it, or whose build fails, renders without it.
 
+use crate::memory::huge::HugeBuffer;
 use crate::memory::parts::{even_parts, run_parts, split_sizes, Part};
 use std::ops::Range;
 use voxcube_kernel::volume::lanes::{Lanes, Nodes};
@@ -12,11 +13,12 @@ use voxcube_kernel::volume::nodes;
 use voxcube_kernel::volume::sample::Sample;
 use voxcube_kernel::volume::slab::Slab;
 
-/// A node field over a slab's planes, or none.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct NodeField<N> {
+/// A node field over a slab's planes, or none. Its lanes are held in huge pages where the
+/// kernel gives them ([`HugeBuffer`]): rays read a field all over, and at 512³ it is 1 GiB.
+#[derive(Debug, Default, PartialEq)]
+pub struct NodeField<N: Lanes> {
     planes: Range<u32>,
-    lanes: Vec<N>,
+    lanes: HugeBuffer<N>,
 }
 
 impl<N: Lanes> NodeField<N> {
@@ -26,7 +28,9 @@ impl<N: Lanes> NodeField<N> {
     pub fn build<T: Sample<Node = N> + Sync>(slab: &Slab<'_, T>, threads: usize) -> NodeField<N> {
         let grid = slab.grid();
         let planes = nodes::planes_for(grid, slab.owned());
-        let mut lanes = vec![N::default(); nodes::len_for(grid, slab.owned())];
+        let Some(mut lanes) = HugeBuffer::zeroed(nodes::len_for(grid, slab.owned())) else {
+            return NodeField::default();
+        };
         let parts = even_parts(planes.len() as u32, threads.max(1) as u32);
         let sizes = parts.iter().map(|p| p.len() * grid.plane_len());
         let jobs = split_sizes(&mut lanes, sizes)

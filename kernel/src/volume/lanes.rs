@@ -11,8 +11,9 @@ use core::fmt;
 use core::ops::Range;
 use glam::Vec4;
 
-/// How a node's four lanes (value, then the differences along X, Y, Z) are stored.
-pub trait Lanes: Copy + Default + fmt::Debug + Send + Sync + 'static {
+/// How a node's four lanes (value, then the differences along X, Y, Z) are stored: plain
+/// bytes (`Pod`), so that a host may hold a field in whatever memory serves it best.
+pub trait Lanes: Copy + Default + fmt::Debug + Send + Sync + bytemuck::Pod + 'static {
     /// The lanes stored: exact for every node of the sample kind that stores them this way.
     fn pack(lanes: Vec4) -> Self;
     /// The lanes as [`Lanes::pack`] took them.
