@@ -59,18 +59,142 @@ pub fn build_columns<T: Sample>(
     BlocksError::check_storage(ranges.len(), out.len())?;
     let (_, ny, nz) = blocks.shape();
     let x0 = blocks.first_column() + columns.start;
-    let mut out = out.iter_mut();
+    // A grid has a block along every axis; `max` keeps a chunk size of zero from panicking.
+    let mut out = out.chunks_mut((ny as usize).max(1));
     for bx in x0..x0 + columns.len() as u32 {
         for bz in 0..nz {
-            for by in 0..ny {
-                let Some(cells) = out.next() else {
-                    return Ok(());
-                };
-                *cells = of_block(slab, [bx, by, bz]).unwrap_or_default();
+            let Some(column) = out.next() else {
+                return Ok(());
+            };
+            if !of_column(slab, bx, bz, column) {
+                for (by, cells) in (0..).zip(column.iter_mut()) {
+                    *cells = of_block(slab, [bx, by, bz]).unwrap_or_default();
+                }
             }
         }
     }
     Ok(())
+}
+
+/// Blocks along Y that [`of_column`] takes at a time: the nodes it keeps on the stack.
+const CHUNK_BLOCKS: usize = 16;
+/// Nodes along Y of a chunk of blocks: their cells' corners.
+const CHUNK_NODES: usize = CHUNK_BLOCKS * EDGE + 1;
+
+/// The cells of the column of blocks `(bx, bz)` into `out` (its blocks in Y order), in the
+/// same bits as [`of_block`] gives each: the same corners, picked in the same order (along
+/// X, then Z, then Y). A line of cells along Y at a time, so that the picks run over long
+/// rows of nodes. `false`, with `out` untouched, where a plane of the column's nodes is not
+/// stored or a row of them is not whole: [`of_block`] tells those cells apart.
+fn of_column<T: Sample>(slab: &Slab<'_, T>, bx: u32, bz: u32, out: &mut [BlockCells<T>]) -> bool {
+    let dims = slab.grid().dims();
+    let ny = dims[1] as usize;
+    // The column's nodes along X and Z, as `of_block` counts them: at most five.
+    let span = |b: u32, n: u32| {
+        let first = b * BLOCK;
+        (
+            first,
+            ((b + 1) * BLOCK).min(n.saturating_sub(1)) + 1 - first,
+        )
+    };
+    let ((x0, nx), (z0, nz)) = (span(bx, dims[0]), span(bz, dims[2]));
+    let stored = slab.stored();
+    if !(stored.contains(&x0) && stored.contains(&(x0 + nx - 1))) {
+        return false;
+    }
+    // Each row of the column's nodes, clamped to its last as `of_block` pads an axis.
+    let mut rows: [[&[T]; NODES]; NODES] = [[&[]; NODES]; NODES];
+    for (x, plane) in rows.iter_mut().enumerate() {
+        for (z, row) in plane.iter_mut().enumerate() {
+            let at = (x0 + (x as u32).min(nx - 1), z0 + (z as u32).min(nz - 1));
+            match slab.row(at.0, at.1) {
+                Some(whole) if whole.len() == ny => *row = whole,
+                _ => return false,
+            }
+        }
+    }
+    let cells = [nx, nz].map(|n| (n.saturating_sub(1).max(1)) as usize);
+    for (by, block) in (0u32..).zip(out.iter_mut()) {
+        let (_, n) = span(by, dims[1]);
+        let cells_y = (n.saturating_sub(1).max(1)) as usize;
+        let present = match cells == [EDGE; 2] && cells_y == EDGE {
+            true => ALL,
+            false => {
+                let mut present: CellMask = 0;
+                for x in 0..cells[0] {
+                    for z in 0..cells[1] {
+                        for y in 0..cells_y {
+                            present |= 1 << (x + EDGE * (y + EDGE * z));
+                        }
+                    }
+                }
+                present
+            }
+        };
+        *block = BlockCells {
+            present,
+            unknown: 0,
+            ..BlockCells::default()
+        };
+    }
+    for x in 0..cells[0] {
+        for z in 0..cells[1] {
+            let corners = [
+                rows[x][z],
+                rows[x + 1][z],
+                rows[x][z + 1],
+                rows[x + 1][z + 1],
+            ];
+            for (chunk, blocks) in out.chunks_mut(CHUNK_BLOCKS).enumerate() {
+                let y0 = chunk * CHUNK_BLOCKS * EDGE;
+                line(&corners, y0, blocks, x + EDGE * EDGE * z, dims[1]);
+            }
+        }
+    }
+    true
+}
+
+/// The cells at X and Z offset `at` (`x + 16·z`) of `blocks` (their first node along Y is
+/// `y0`, of a grid `ny` nodes long), from the four rows of their corners along X and Z.
+#[inline(always)]
+fn line<T: Sample>(rows: &[&[T]; 4], y0: usize, blocks: &mut [BlockCells<T>], at: usize, ny: u32) {
+    let ny = ny as usize;
+    // The nodes this chunk's cells read: through its last block's last node, or the grid's.
+    let end = (y0 + blocks.len() * EDGE + 1).min(ny);
+    let mut lo = [T::default(); CHUNK_NODES];
+    let mut hi = [T::default(); CHUNK_NODES];
+    let [a, b, c, d] = rows.map(|r| r.get(y0..end).unwrap_or_default());
+    let nodes = lo.iter_mut().zip(hi.iter_mut());
+    for ((l, h), (((&a, &b), &c), &d)) in nodes.zip(a.iter().zip(b).zip(c).zip(d)) {
+        *l = a.lesser(b).lesser(c.lesser(d));
+        *h = a.greater(b).greater(c.greater(d));
+    }
+    let last = end - y0 - 1;
+    for (k, block) in blocks.iter_mut().enumerate() {
+        // A block whose five nodes along Y the chunk holds (all but a grid's last, short
+        // one): its cells' corners without a clamp.
+        if let (Some(lo), Some(hi)) = (
+            lo.get(k * EDGE..=k * EDGE + EDGE),
+            hi.get(k * EDGE..=k * EDGE + EDGE),
+        ) {
+            if k * EDGE + EDGE <= last && block.present == ALL {
+                for y in 0..EDGE {
+                    block.lo[at + EDGE * y] = lo[y].lesser(lo[y + 1]);
+                    block.hi[at + EDGE * y] = hi[y].greater(hi[y + 1]);
+                }
+                continue;
+            }
+        }
+        for y in 0..EDGE {
+            if block.present >> (at + EDGE * y) & 1 == 0 {
+                continue;
+            }
+            // A cell's two corner nodes along Y, the grid's last padding a short block.
+            let (p, q) = ((k * EDGE + y).min(last), (k * EDGE + y + 1).min(last));
+            block.lo[at + EDGE * y] = lo[p].lesser(lo[q]);
+            block.hi[at + EDGE * y] = hi[p].greater(hi[q]);
+        }
+    }
 }
 
 /// The cells of block `b`; `None` when a row of its nodes on a stored plane is not there.
@@ -181,6 +305,69 @@ mod tests {
     use super::*;
     use crate::volume::grid::Grid;
     use glam::Vec3;
+
+    /// The build by columns of blocks gives each block what [`of_block`] gives it, in every
+    /// bit: whole slabs and partial ones (whose columns at the slab's ends touch planes not
+    /// stored, which [`of_block`] takes), grids whose blocks end short along each axis, one
+    /// node thick along Y, and longer than a chunk of blocks along Y; bytes and floats
+    /// (signed zeros and NaN among them, where the order of the picks shows).
+    #[test]
+    fn the_build_by_columns_gives_each_block_what_of_block_gives_it() {
+        use crate::skip::blocks::{Blocks, Range};
+        fn check<T: Sample>(dims: [u32; 3], data: &[T], owned: core::ops::Range<u32>, ghost: u32) {
+            let grid = Grid::new(dims, Vec3::ONE).unwrap();
+            let stored = crate::volume::slab::stored_planes(&grid, owned.clone(), ghost);
+            let plane = (dims[1] * dims[2]) as usize;
+            let held = &data[stored.start as usize * plane..stored.end as usize * plane];
+            let slab = Slab::new(grid, owned, ghost, held).unwrap();
+            let (_, _, len) = crate::skip::minmax::extent(&slab);
+            let mut ranges = [Range::UNKNOWN; 64];
+            crate::skip::minmax::build(&slab, &mut ranges[..len]).unwrap();
+            let blocks = Blocks::new(slab.grid(), slab.stored(), &ranges[..len]).unwrap();
+            let (cols, ny, nz) = blocks.shape();
+            let mut built = [BlockCells::<T>::default(); 64];
+            build_columns(&slab, &blocks, 0..cols, &mut built[..len]).unwrap();
+            let mut i = 0;
+            let x0 = blocks.first_column();
+            for bx in x0..x0 + cols {
+                for bz in 0..nz {
+                    for by in 0..ny {
+                        let want = of_block(&slab, [bx, by, bz]).unwrap_or_default();
+                        let bits = |c: &BlockCells<T>| {
+                            let f = |v: &[T; PER_BLOCK]| v.map(|t| t.to_f32().to_bits());
+                            (f(&c.lo), f(&c.hi), c.present, c.unknown)
+                        };
+                        assert_eq!(
+                            bits(&built[i]),
+                            bits(&want),
+                            "{dims:?} block {bx} {by} {bz}"
+                        );
+                        i += 1;
+                    }
+                }
+            }
+        }
+        let mut next = crate::testing::xorshift(0xc01_0b10c);
+        for dims in [
+            [9u32, 10, 11],
+            [13, 1, 6],
+            [6, 70, 5],
+            [17, 17, 17],
+            [5, 2, 9],
+        ] {
+            let n = dims.iter().product::<u32>() as usize;
+            let (mut bytes, mut floats) = ([0u8; 17 * 17 * 17], [0f32; 17 * 17 * 17]);
+            let specials = [0.0, -0.0, f32::NAN, 1.5, -2.0];
+            for (b, f) in bytes.iter_mut().zip(floats.iter_mut()) {
+                *b = next() as u8;
+                *f = specials[next() as usize % specials.len()];
+            }
+            for (owned, ghost) in [(0..dims[0], 0), (2..5, 1), (0..3, 1), (3..dims[0], 0)] {
+                check(dims, &bytes[..n], owned.clone(), ghost);
+                check(dims, &floats[..n], owned, ghost);
+            }
+        }
+    }
 
     /// Each block's cells against their eight corners read one by one: present exactly where
     /// the cell lies in the grid, its range the least and greatest corner, the rest as a
