@@ -43,6 +43,8 @@ pub struct Classified {
     pub verdicts: ByteVerdicts,
     /// The masks, one per block.
     pub masks: Arc<Vec<CellMask>>,
+    /// Their which-keep words (`voxcube_kernel::skip::blocks::kept_bits`).
+    pub kept_bits: Arc<Vec<u64>>,
     /// The cell leap maps built from them, one set per set of octants views have taken
     /// (an orthographic view takes one octant: at most eight sets).
     pub maps: Vec<KeptMaps>,

@@ -360,6 +360,12 @@ impl Skipping {
             (None, true) => Arc::new(masks(slab, ranges, &blocks, view, held, threads)),
             (None, false) => Arc::default(),
         };
+        // Which blocks keep a cell, a bit each, made once with the masks: the depth bounds
+        // of every frame walk the columns by them rather than by every mask.
+        let kept_bits = match &kept {
+            Some(kept) => Arc::clone(&kept.kept_bits),
+            None => Arc::new(which_keep_words(&cells, blocks.shape().1)),
+        };
         // Then everything that reads the whole slab's blocks or masks, in one set of parts, in
         // this order: the depth bounds in parts of rows, a leap map for each octant the
         // view's rays take, and a cell leap map in parts of planes for each octant of the
@@ -386,7 +392,8 @@ impl Skipping {
         };
         let mut cell_leaps = vec![0; building.count_ones() as usize * per_map];
         let (width, height) = (view.spec().width as usize, view.spec().height);
-        let bounded = with_masks.as_ref().filter(|_| has_depths(view, mode));
+        let worded = with_masks.and_then(|blocks| blocks.with_kept(&kept_bits).ok());
+        let bounded = worded.as_ref().filter(|_| has_depths(view, mode));
         let held = rows.count(height);
         let mut depths = match bounded {
             Some(_) => vec![0.0; held as usize * width],
@@ -508,6 +515,7 @@ impl Skipping {
             ranges.keep(Classified {
                 verdicts,
                 masks: Arc::clone(&cells),
+                kept_bits: Arc::clone(&kept_bits),
                 maps,
                 block_maps,
             });
@@ -615,6 +623,18 @@ fn node_layout<T: voxcube_kernel::volume::sample::Sample>(
 /// columns on up to `threads` OS threads (each part reads its own blocks' cells): classified
 /// from the cells' ranges where they are `held`, else read from the nodes; none where a part
 /// fails.
+/// The which-keep words of `masks` (columns of `ny` blocks, `skip::blocks::kept_bits`);
+/// none for no masks, or where they do not fill whole columns.
+fn which_keep_words(masks: &[voxcube_kernel::skip::cells::CellMask], ny: u32) -> Vec<u64> {
+    use voxcube_kernel::skip::blocks::{kept_bits, kept_words};
+    let columns = masks.len().checked_div(ny as usize).unwrap_or(0);
+    let mut words = vec![0; columns * kept_words(ny)];
+    match kept_bits(masks, ny, &mut words) {
+        Ok(()) => words,
+        Err(_) => Vec::new(),
+    }
+}
+
 fn masks<T: voxcube_kernel::volume::sample::Sample + Sync>(
     slab: &voxcube_kernel::volume::slab::Slab<'_, T>,
     ranges: &SlabRanges<T>,

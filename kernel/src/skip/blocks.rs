@@ -26,10 +26,14 @@ use glam::Vec3;
 
 /// The blocks of a column whose masks keep a cell, in order along the column (rising or
 /// falling), as `(index, mask)`: most blocks of a big volume keep none, and these are passed
-/// over 64 at a time (a word of which-keep bits per 64 masks) instead of one by one.
+/// over 64 at a time (a word of which-keep bits per 64 masks) instead of one by one. The
+/// words are read from the column's [`kept_bits`] where the blocks carry them, else made
+/// from its masks as the walk comes to them.
 #[derive(Clone, Debug)]
 pub struct KeptBlocks<'a> {
     column: &'a [CellMask],
+    /// The column's which-keep words, where given: `column.len().div_ceil(64)` of them.
+    words: Option<&'a [u64]>,
     rising: bool,
     /// Words of the column taken so far, in the order of the walk.
     taken: usize,
@@ -44,6 +48,7 @@ impl<'a> KeptBlocks<'a> {
     pub fn new(column: &'a [CellMask], rising: bool) -> Self {
         KeptBlocks {
             column,
+            words: None,
             rising,
             taken: 0,
             base: 0,
@@ -69,12 +74,10 @@ impl Iterator for KeptBlocks<'_> {
             };
             self.taken += 1;
             self.base = word * WORD;
-            let masks = self.column.get(self.base..).unwrap_or(&[]);
-            self.bits = masks
-                .iter()
-                .take(WORD)
-                .enumerate()
-                .fold(0, |bits, (i, &mask)| bits | u64::from(mask != 0) << i);
+            self.bits = match self.words {
+                Some(words) => words.get(word).copied().unwrap_or(0),
+                None => word_of(self.column.get(self.base..).unwrap_or(&[])),
+            };
         }
         let bit = match self.rising {
             true => self.bits.trailing_zeros(),
@@ -85,6 +88,40 @@ impl Iterator for KeptBlocks<'_> {
         let mask = self.column.get(index).copied().unwrap_or(0);
         Some((u32::try_from(index).unwrap_or(u32::MAX), mask))
     }
+}
+
+/// Bit `i` set where the `i`-th of (up to) the first 64 `masks` keeps a cell.
+#[inline]
+fn word_of(masks: &[CellMask]) -> u64 {
+    masks
+        .iter()
+        .take(u64::BITS as usize)
+        .enumerate()
+        .fold(0, |bits, (i, &mask)| bits | u64::from(mask != 0) << i)
+}
+
+/// Which-keep words per column of `ny` blocks ([`kept_bits`]).
+pub fn kept_words(ny: u32) -> usize {
+    (ny as usize).div_ceil(u64::BITS as usize)
+}
+
+/// Fill `out` with the which-keep words of `masks` (a slab's, in storage order, columns of
+/// `ny` blocks): [`kept_words`] per column, bit `i` of a column's word `w` set where its block
+/// `64·w + i` keeps a cell. They depend on the masks alone, so they are made once with them
+/// and read by every later walk over the columns ([`KeptBlocks`]) instead of every mask.
+pub fn kept_bits(masks: &[CellMask], ny: u32, out: &mut [u64]) -> Result<(), BlocksError> {
+    let per = kept_words(ny);
+    let columns = masks.len().checked_div(ny as usize).unwrap_or(0);
+    BlocksError::check_storage(columns * per, out.len())?;
+    for (column, words) in masks
+        .chunks_exact(ny.max(1) as usize)
+        .zip(out.chunks_exact_mut(per.max(1)))
+    {
+        for (i, word) in words.iter_mut().enumerate() {
+            *word = word_of(column.get(i * u64::BITS as usize..).unwrap_or(&[]));
+        }
+    }
+    Ok(())
 }
 
 /// Cells per block edge.
@@ -181,6 +218,8 @@ pub struct Blocks<'a> {
     leaps: Option<&'a [u8]>,
     /// One view's cell masks ([`crate::skip::cells`]), when the marcher may skip single cells.
     cells: Option<&'a [CellMask]>,
+    /// Their which-keep words ([`kept_bits`]), where the host made them.
+    kept: Option<&'a [u64]>,
     /// One view's cell leap maps ([`crate::skip::cell_leaps`]), one per octant in `cell_octants`,
     /// and the one of the octant traced, when there is one.
     cell_maps: &'a [u8],
@@ -371,6 +410,7 @@ impl<'a> Blocks<'a> {
             toward: Octant::default(),
             leaps: None,
             cells: None,
+            kept: None,
             cell_maps: &[],
             cell_octants: 0,
             cell_leaps: None,
@@ -495,6 +535,8 @@ impl<'a> Blocks<'a> {
         BlocksError::check_storage(self.data.len(), cells.len())?;
         Ok(Blocks {
             cells: Some(cells),
+            // Words made from other masks say nothing of these.
+            kept: None,
             ..self
         })
     }
@@ -535,7 +577,32 @@ impl<'a> Blocks<'a> {
     /// where `rising`, else by falling: [`KeptBlocks`]. None without masks or outside the
     /// slab's columns.
     pub fn kept_in_column(&self, bx: u32, bz: u32, rising: bool) -> KeptBlocks<'a> {
-        KeptBlocks::new(self.column_masks(bx, bz), rising)
+        let column = self.column_masks(bx, bz);
+        let per = kept_words(self.ny);
+        let words = match (self.kept, self.index((bx, 0, bz))) {
+            (Some(kept), Some(start)) if !column.is_empty() => {
+                let first = start / self.ny.max(1) as usize * per;
+                kept.get(first..first + per)
+            }
+            _ => None,
+        };
+        KeptBlocks {
+            words,
+            ..KeptBlocks::new(column, rising)
+        }
+    }
+
+    /// The same blocks, their masks' which-keep words ([`kept_bits`] of them) read by
+    /// [`Blocks::kept_in_column`]; refused where `kept` is not as long as their masks' words
+    /// (none without masks).
+    pub fn with_kept(self, kept: &'a [u64]) -> Result<Blocks<'a>, BlocksError> {
+        let masks = self.cells.map_or(0, <[CellMask]>::len);
+        let columns = masks.checked_div(self.ny as usize).unwrap_or(0);
+        BlocksError::check_storage(columns * kept_words(self.ny), kept.len())?;
+        Ok(Blocks {
+            kept: Some(kept),
+            ..self
+        })
     }
 
     /// The cells of block `(bx, by, bz)` the view cannot skip: every cell without masks or
@@ -819,13 +886,65 @@ mod tests {
                     .zip(column.iter().copied())
                     .filter(|&(_, mask)| mask != 0)
                     .collect();
-                let rising: heapless::Vec<_, 200> = KeptBlocks::new(column, true).collect();
-                assert_eq!(rising, kept, "{len} {density}");
-                let mut falling: heapless::Vec<_, 200> = KeptBlocks::new(column, false).collect();
-                falling.reverse();
-                assert_eq!(falling, kept, "{len} {density}");
+                // The words made as the walk comes to them, and read from `kept_bits`.
+                let mut words = [0u64; 4];
+                let words = &mut words[..kept_words(len as u32)];
+                if len > 0 {
+                    kept_bits(column, len as u32, words).unwrap();
+                }
+                for given in [None, Some(&*words)] {
+                    let walk = |rising| KeptBlocks {
+                        words: given,
+                        ..KeptBlocks::new(column, rising)
+                    };
+                    let rising: heapless::Vec<_, 200> = walk(true).collect();
+                    assert_eq!(rising, kept, "{len} {density}");
+                    let mut falling: heapless::Vec<_, 200> = walk(false).collect();
+                    falling.reverse();
+                    assert_eq!(falling, kept, "{len} {density}");
+                }
             }
         }
+    }
+
+    /// Blocks carrying their masks' which-keep words walk each column as those without do;
+    /// words of another length are refused, and new masks drop the words made of the old.
+    #[test]
+    fn kept_words_walk_every_column_as_the_masks_do() {
+        let grid = Grid::new([30, 300, 9], Vec3::ONE).unwrap();
+        let data = [0u8; 30 * 300 * 9];
+        let slab = Slab::whole(grid, &data).unwrap();
+        let (_, _, n) = extent(&slab);
+        let mut ranges = [Range::UNKNOWN; 8 * 75 * 2];
+        crate::skip::minmax::build(&slab, &mut ranges[..n]).unwrap();
+        let blocks = Blocks::new(&grid, slab.stored(), &ranges[..n]).unwrap();
+        let (cols, ny, nz) = blocks.shape();
+        let mut next = crate::testing::xorshift(0x0bad_cafe);
+        let mut masks = [0 as CellMask; 8 * 75 * 2];
+        for mask in masks[..n].iter_mut() {
+            *mask = match next() % 5 {
+                0 => u64::from(next()) | 1,
+                _ => 0,
+            };
+        }
+        let masked = blocks.with_cells(&masks[..n]).unwrap();
+        let mut words = [0u64; 8 * 2 * 2];
+        let len = (cols * nz) as usize * kept_words(ny);
+        kept_bits(&masks[..n], ny, &mut words[..len]).unwrap();
+        let worded = masked.with_kept(&words[..len]).unwrap();
+        for bx in 0..cols {
+            for bz in 0..nz {
+                for rising in [true, false] {
+                    let a: heapless::Vec<_, 80> = masked.kept_in_column(bx, bz, rising).collect();
+                    let b: heapless::Vec<_, 80> = worded.kept_in_column(bx, bz, rising).collect();
+                    assert_eq!(a, b, "column {bx} {bz}");
+                }
+            }
+        }
+        assert!(masked.with_kept(&words[..len - 1]).is_err());
+        assert!(worded.with_cells(&masks[..n]).unwrap().kept.is_none());
+        let mut longer = [0u64; 8 * 2 * 2 + 1];
+        assert!(kept_bits(&masks[..n], ny, &mut longer[..len + 1]).is_err());
     }
 
     #[test]
