@@ -280,16 +280,13 @@ fn place(
     let every_row = places == (0..held);
     let w = frame.width as usize;
     let (bx0, bx1) = (blocks.first_column(), blocks.first_column() + cols);
-    // The masks of the block in front along each axis (none past the blocks: no obstacle).
-    let front = |block: (u32, u32, u32), axis: usize| -> CellMask {
-        let (mut b, rising) = ([block.0, block.1, block.2], frame.rising[axis]);
+    // The block in front of block `b` along `axis` (none past the blocks: no obstacle).
+    let ahead = |b: u32, axis: usize| -> Option<u32> {
         let bounds = [(bx0, bx1), (0, ny), (0, nz)][axis];
-        match rising {
-            true if b[axis] > bounds.0 => b[axis] -= 1,
-            false if b[axis] + 1 < bounds.1 => b[axis] += 1,
-            _ => return 0,
+        match frame.rising[axis] {
+            true => b.checked_sub(1).filter(|&n| n >= bounds.0),
+            false => Some(b + 1).filter(|&n| n < bounds.1),
         }
-        blocks.cells((b[0], b[1], b[2]))
     };
     // Blocks nearer the eye first along every axis the rays move along, so that the bounds
     // of the blocks in front are in place when a block behind them comes.
@@ -303,9 +300,26 @@ fn place(
         let bx = bx0 + toward(0, cols, ix);
         for iz in 0..nz {
             let bz = toward(2, nz, iz);
+            // This column's masks and those of the columns in front along X and Z, read as
+            // slices: a block's neighbours in front are then at its own index, or one over.
+            let column = |x: Option<u32>, z: Option<u32>| match (x, z) {
+                (Some(x), Some(z)) => blocks.column_masks(x, z),
+                _ => &[],
+            };
+            let fronts = [
+                column(ahead(bx, 0), Some(bz)),
+                blocks.column_masks(bx, bz),
+                column(Some(bx), ahead(bz, 2)),
+            ];
+            let front = |by: u32, axis: usize| -> CellMask {
+                let at = match axis {
+                    1 => ahead(by, 1),
+                    _ => Some(by),
+                };
+                at.and_then(|i| fronts[axis].get(i as usize)).copied().unwrap_or(0)
+            };
             // Most blocks of a big volume keep no cell: passed over a word of them at a time.
             for (by, mask) in blocks.kept_in_column(bx, bz, rising_y) {
-                let block = (bx, by, bz);
                 let corner = DVec3::new(
                     f64::from(bx * BLOCK),
                     f64::from(by * BLOCK),
@@ -318,7 +332,7 @@ fn place(
                 // The cells whose front neighbour is an obstacle, along every moving axis.
                 let mut hidden = ALL;
                 for axis in (0..3).filter(|&a| frame.moving[a]) {
-                    hidden &= in_front(mask, front(block, axis), axis, frame.rising[axis]);
+                    hidden &= in_front(mask, front(by, axis), axis, frame.rising[axis]);
                 }
                 let mut visible = mask & !hidden;
                 if visible == 0 {
