@@ -90,16 +90,18 @@ fn of_column<T: Sample>(slab: &Slab<'_, T>, bx: u32, bz: u32, out: &mut [BlockCe
     let dims = slab.grid().dims();
     let ny = dims[1] as usize;
     // The column's nodes along X and Z, as `of_block` counts them: at most five.
+    // None for a block past the grid, which `Blocks` never holds.
     let span = |b: u32, n: u32| {
-        let first = b * BLOCK;
-        (
-            first,
-            ((b + 1) * BLOCK).min(n.saturating_sub(1)) + 1 - first,
-        )
+        let first = b.saturating_mul(BLOCK);
+        let nodes = (b.saturating_add(1).saturating_mul(BLOCK))
+            .min(n.saturating_sub(1))
+            .saturating_add(1)
+            .saturating_sub(first);
+        (first, nodes)
     };
     let ((x0, nx), (z0, nz)) = (span(bx, dims[0]), span(bz, dims[2]));
     let stored = slab.stored();
-    if !(stored.contains(&x0) && stored.contains(&(x0 + nx - 1))) {
+    if nx == 0 || nz == 0 || !(stored.contains(&x0) && stored.contains(&(x0 + nx - 1))) {
         return false;
     }
     // Each row of the column's nodes, clamped to its last as `of_block` pads an axis.
@@ -169,7 +171,8 @@ fn line<T: Sample>(rows: &[&[T]; 4], y0: usize, blocks: &mut [BlockCells<T>], at
         *l = a.lesser(b).lesser(c.lesser(d));
         *h = a.greater(b).greater(c.greater(d));
     }
-    let last = end - y0 - 1;
+    // At least one node: a chunk's first lies in the grid (`saturating` where it would not).
+    let last = end.saturating_sub(y0 + 1);
     for (k, block) in blocks.iter_mut().enumerate() {
         // A block whose five nodes along Y the chunk holds (all but a grid's last, short
         // one): its cells' corners without a clamp.

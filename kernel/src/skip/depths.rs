@@ -316,7 +316,9 @@ fn place(
                     1 => ahead(by, 1),
                     _ => Some(by),
                 };
-                at.and_then(|i| fronts[axis].get(i as usize)).copied().unwrap_or(0)
+                at.and_then(|i| fronts[axis].get(i as usize))
+                    .copied()
+                    .unwrap_or(0)
             };
             // Most blocks of a big volume keep no cell: passed over a word of them at a time.
             for (by, mask) in blocks.kept_in_column(bx, bz, rising_y) {
