@@ -72,7 +72,8 @@ pub fn worker_bytes() -> usize {
 /// Bytes of the structures a slab owning planes `owned` of `grid` keeps beside its planes (and
 /// ghost planes of `needs`):
 /// its min/max blocks, with the leap maps of `needs` (a byte per block each,
-/// [`voxcube_kernel::skip::leaps`]), its view's cell mask ([`voxcube_kernel::skip::cells`]),
+/// [`voxcube_kernel::skip::leaps`]), its view's cell mask ([`voxcube_kernel::skip::cells`])
+/// and which blocks keep a cell (a bit each, [`voxcube_kernel::skip::blocks::kept_bits`]),
 /// its cell leap maps (a byte per cell each, [`voxcube_kernel::skip::cell_leaps`]), its depth
 /// bounds ([`voxcube_kernel::skip::depths`]), its node field
 /// ([`voxcube_kernel::volume::nodes`]) and its cells' value ranges
@@ -80,12 +81,13 @@ pub fn worker_bytes() -> usize {
 pub fn structure_bytes(grid: &Grid, owned: std::ops::Range<u32>, needs: ViewNeeds) -> usize {
     let stored = stored_planes(grid, owned.clone(), needs.ghost);
     needs.node_bytes * voxcube_kernel::volume::nodes::len_for(grid, owned)
-        + voxcube_kernel::skip::blocks::extent_for(grid, stored).2
+        + voxcube_kernel::skip::blocks::extent_for(grid, stored.clone()).2
             * (size_of::<voxcube_kernel::skip::blocks::Range>()
                 + needs.maps * size_of::<u8>()
                 + size_of::<voxcube_kernel::skip::cells::CellMask>()
                 + needs.cell_maps * voxcube_kernel::skip::cell_leaps::PER_BLOCK
                 + needs.cell_ranges)
+        + voxcube_kernel::skip::blocks::kept_bytes(grid, stored)
         + needs.depths
 }
 
@@ -350,7 +352,12 @@ mod tests {
             node_bytes: 0,
             cell_ranges: 0,
         };
-        assert_eq!(structure_bytes(&grid, 3..7, needs(1, 0)), blocks * 17);
+        // Per block its range (8 bytes), a leap map's byte and a mask (8); per column of
+        // blocks along Y (24 of them: one word) its which-keep word.
+        assert_eq!(
+            structure_bytes(&grid, 3..7, needs(1, 0)),
+            blocks * 17 + 3 * 29 * 8
+        );
         // A node field of 8 bytes a node over the owned planes and one more each side.
         let with_field = ViewNeeds {
             node_bytes: 8,

@@ -619,10 +619,6 @@ fn node_layout<T: voxcube_kernel::volume::sample::Sample>(
     }
 }
 
-/// The cell masks of `slab` (`blocks` from its `ranges`) for `view`, in parts of the block
-/// columns on up to `threads` OS threads (each part reads its own blocks' cells): classified
-/// from the cells' ranges where they are `held`, else read from the nodes; none where a part
-/// fails.
 /// The which-keep words of `masks` (columns of `ny` blocks, `skip::blocks::kept_bits`);
 /// none for no masks, or where they do not fill whole columns.
 fn which_keep_words(masks: &[voxcube_kernel::skip::cells::CellMask], ny: u32) -> Vec<u64> {
@@ -635,6 +631,10 @@ fn which_keep_words(masks: &[voxcube_kernel::skip::cells::CellMask], ny: u32) ->
     }
 }
 
+/// The cell masks of `slab` (`blocks` from its `ranges`) for `view`, in parts of the block
+/// columns on up to `threads` OS threads (each part reads its own blocks' cells): classified
+/// from the cells' ranges where they are `held`, else read from the nodes; none where a part
+/// fails.
 fn masks<T: voxcube_kernel::volume::sample::Sample + Sync>(
     slab: &voxcube_kernel::volume::slab::Slab<'_, T>,
     ranges: &SlabRanges<T>,

@@ -105,6 +105,14 @@ pub fn kept_words(ny: u32) -> usize {
     (ny as usize).div_ceil(u64::BITS as usize)
 }
 
+/// Bytes of the which-keep words ([`kept_bits`]) of the masks of a slab storing planes
+/// `stored` of `grid`: for a node's budget.
+pub fn kept_bytes(grid: &Grid, stored: core::ops::Range<u32>) -> usize {
+    let [_, ny, nz] = grid.dims();
+    let (x0, x1, _) = extent_for(grid, stored);
+    (x1 - x0) as usize * count(nz) as usize * kept_words(count(ny)) * size_of::<u64>()
+}
+
 /// Fill `out` with the which-keep words of `masks` (a slab's, in storage order, columns of
 /// `ny` blocks): [`kept_words`] per column, bit `i` of a column's word `w` set where its block
 /// `64·w + i` keeps a cell. They depend on the masks alone, so they are made once with them
