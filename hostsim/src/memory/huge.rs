@@ -33,12 +33,12 @@ enum Held {
 }
 
 impl<N: Pod> HugeBuffer<N> {
-    /// `len` zeroed items; `None` where their bytes overflow `usize` or the memory is not
-    /// given.
+    /// `len` zeroed items; `None` where their bytes overflow `usize`, an item asks more than
+    /// eight bytes' alignment, or the memory is not given.
     pub fn zeroed(len: usize) -> Option<HugeBuffer<N>> {
         let bytes = len.checked_mul(size_of::<N>())?;
         // A mapping is page-aligned, more than any item asks; the heap's words suffice for
-        // the lanes' and the cells' items.
+        // items of up to eight bytes' alignment (a node's lanes ask two or four).
         if align_of::<N>() > align_of::<u64>() {
             return None;
         }

@@ -89,15 +89,11 @@ const CHUNK_NODES: usize = CHUNK_BLOCKS * EDGE + 1;
 fn of_column<T: Sample>(slab: &Slab<'_, T>, bx: u32, bz: u32, out: &mut [BlockCells<T>]) -> bool {
     let dims = slab.grid().dims();
     let ny = dims[1] as usize;
-    // The column's nodes along X and Z, as `of_block` counts them: at most five.
-    // None for a block past the grid, which `Blocks` never holds.
+    // The column's first node along X and Z and how many (at most five), as `Blocks` counts
+    // them; none for a block past the grid, which `Blocks` never holds.
     let span = |b: u32, n: u32| {
-        let first = b.saturating_mul(BLOCK);
-        let nodes = (b.saturating_add(1).saturating_mul(BLOCK))
-            .min(n.saturating_sub(1))
-            .saturating_add(1)
-            .saturating_sub(first);
-        (first, nodes)
+        let nodes = crate::skip::blocks::nodes(b, n);
+        (nodes.start, nodes.len() as u32)
     };
     let ((x0, nx), (z0, nz)) = (span(bx, dims[0]), span(bz, dims[2]));
     let stored = slab.stored();
