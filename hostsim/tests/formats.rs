@@ -458,16 +458,33 @@ fn every_format_loads_the_same_samples_as_the_raw_file() {
     let loaded = Scene::from_file(&file)
         .and_then(Scene::load)
         .unwrap_or_else(|e| panic!("{e}"));
+    use voxcube::input::dataset::VolumeData;
     let raw = &loaded[0].volume;
-    assert!(matches!(
-        raw.data,
-        voxcube::input::dataset::VolumeData::F32(_)
-    ));
+    assert!(matches!(raw.data, VolumeData::I16(_)));
+    // Every value, whatever kind holds it.
+    let values = |data: &VolumeData| -> Vec<f32> {
+        match data {
+            VolumeData::U8(v) => v.iter().map(|&x| f32::from(x)).collect(),
+            VolumeData::U16(v) => v.iter().map(|&x| f32::from(x)).collect(),
+            VolumeData::I16(v) => v.iter().map(|&x| f32::from(x)).collect(),
+            VolumeData::F32(v) => v.clone(),
+        }
+    };
     for (d, (name, _)) in loaded.iter().zip(&datasets) {
         assert_eq!(d.volume.grid, raw.grid, "{name}: grid");
-        assert!(
-            d.volume.data == raw.data,
+        assert_eq!(
+            values(&d.volume.data),
+            values(&raw.data),
             "{name}: samples differ from the raw file's"
+        );
+        // Signed 16-bit files stay 16-bit. Float files stay floats, and so does the scaled
+        // one: u16 shifted by -1024 could reach 64,511, beyond i16, whatever values it holds.
+        let floats = ["-scaled", "-f32", "-f16"].iter().any(|k| name.contains(k));
+        assert_eq!(
+            matches!(d.volume.data, VolumeData::F32(_)),
+            floats,
+            "{name}: kind {:?}",
+            d.volume.data.kind()
         );
     }
 }
@@ -1004,7 +1021,7 @@ fn info_describes_a_volume_and_its_scene_renders_something_on_the_first_try() {
     assert!(ok, "{err}");
     for part in [
         "24 x 20 x 16 samples, spacing 1 x 1 x 1.5",
-        "f32",
+        "i16",
         "min -1000 max 900",
         "histogram",
         "iso values",

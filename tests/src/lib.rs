@@ -148,6 +148,7 @@ pub fn trace_all(volume: &Volume, view: &View) -> (Vec<Vec3>, Counters) {
     match &volume.data {
         VolumeData::U8(d) => go(volume.grid, d, view),
         VolumeData::U16(d) => go(volume.grid, d, view),
+        VolumeData::I16(d) => go(volume.grid, d, view),
         VolumeData::F32(d) => go(volume.grid, d, view),
     }
 }

@@ -40,8 +40,21 @@ fn volumes() -> Vec<Volume> {
             _ => unreachable!("a byte volume"),
         }),
     );
-    vec![bytes, floats, words]
+    // Signed, as CT's Hounsfield units: every value at or below zero.
+    let signed = Volume::new(bytes.grid, VolumeData::I16(signed_of(&bytes)));
+    vec![bytes, floats, words, signed]
 }
+
+/// A byte volume's samples times [`SIGNED`], in `i16`.
+fn signed_of(bytes: &Volume) -> Vec<i16> {
+    match &bytes.data {
+        VolumeData::U8(d) => d.iter().map(|&v| i16::from(v) * SIGNED as i16).collect(),
+        _ => unreachable!("a byte volume"),
+    }
+}
+
+/// The scale of the signed volume's values: negative, so its gradients turn about too.
+const SIGNED: f32 = -97.0;
 
 /// Fast-tier views of `volume` that read gradients from the node field: composited and
 /// surfaces, parallel and perspective, a directional and a point light.
@@ -50,6 +63,7 @@ fn views(volume: &Volume) -> Vec<View> {
     let centre = Vec3::new(nx * 0.5, ny * 0.4, nz * 0.65);
     let scale = match &volume.data {
         VolumeData::U16(_) => 257.0,
+        VolumeData::I16(_) => SIGNED,
         VolumeData::F32(_) => 0.37,
         VolumeData::U8(_) => 1.0,
     };
@@ -106,6 +120,7 @@ fn colours(volume: &Volume, view: &View, held: bool) -> (Vec<[u32; 3]>, usize, C
     match &volume.data {
         VolumeData::U8(d) => go(volume, d, view, held),
         VolumeData::U16(d) => go(volume, d, view, held),
+        VolumeData::I16(d) => go(volume, d, view, held),
         VolumeData::F32(d) => go(volume, d, view, held),
     }
 }
@@ -125,6 +140,34 @@ fn held_or_computed_on_the_fly_the_node_field_gives_every_colour_in_the_same_bit
             let lit = held.iter().filter(|c| **c != [0; 3]).count();
             assert!(lit > held.len() / 10, "{kind:?}: {lit} pixels lit");
             assert!(held == fly, "{kind:?}: a colour differs");
+        }
+    }
+}
+
+#[test]
+fn a_signed_16_bit_volume_gives_what_its_values_as_floats_give_in_every_bit() {
+    // The same values in the kind a scaled file gets: each read, range and lane converts to
+    // f32 exactly, so every colour is the same bits, field held or not, in each tier.
+    let bytes = &volumes()[0];
+    let signed = signed_of(bytes);
+    let words = Volume::new(bytes.grid, VolumeData::I16(signed.clone()));
+    let floats = Volume::new(
+        bytes.grid,
+        VolumeData::F32(signed.iter().map(|&v| f32::from(v)).collect()),
+    );
+    for view in views(&words) {
+        for accuracy in [Accuracy::Fast, Accuracy::Exact] {
+            let mut spec = view.spec().clone();
+            spec.accuracy = accuracy;
+            let view = View::new(spec, &bytes.grid).expect("valid view");
+            for held in [true, false] {
+                let (a, bytes16, _) = colours(&words, &view, held);
+                let (b, bytes32, _) = colours(&floats, &view, held);
+                assert!(a == b, "{accuracy:?}, field held {held}: a colour differs");
+                assert_eq!(bytes16, bytes32, "both hold four f32 lanes a node");
+                let lit = a.iter().filter(|c| **c != [0; 3]).count();
+                assert!(lit > a.len() / 10, "{lit} pixels lit");
+            }
         }
     }
 }

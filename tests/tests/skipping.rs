@@ -374,6 +374,7 @@ fn trace_with_skipping_of(
     match &volume.data {
         VolumeData::U8(d) => trace_typed(volume.grid, d, traced, built_for, mode),
         VolumeData::U16(d) => trace_typed(volume.grid, d, traced, built_for, mode),
+        VolumeData::I16(d) => trace_typed(volume.grid, d, traced, built_for, mode),
         VolumeData::F32(d) => trace_typed(volume.grid, d, traced, built_for, mode),
     }
 }

@@ -55,6 +55,7 @@ impl Histogram {
         match &volume.data {
             VolumeData::U8(v) => v.iter().for_each(|&x| add(x.into())),
             VolumeData::U16(v) => v.iter().for_each(|&x| add(x.into())),
+            VolumeData::I16(v) => v.iter().for_each(|&x| add(x.into())),
             VolumeData::F32(v) => v.iter().for_each(|&x| add(x.into())),
         }
         Histogram { min, max, counts }
@@ -122,6 +123,7 @@ fn type_name(data: &VolumeData) -> &'static str {
     match data {
         VolumeData::U8(_) => "u8",
         VolumeData::U16(_) => "u16",
+        VolumeData::I16(_) => "i16",
         VolumeData::F32(_) => "f32",
     }
 }
@@ -269,6 +271,7 @@ fn structures(volume: &Volume, isos: &[f64]) -> Result<String, InfoError> {
     match &volume.data {
         VolumeData::U8(d) => structures_of(volume, d, isos),
         VolumeData::U16(d) => structures_of(volume, d, isos),
+        VolumeData::I16(d) => structures_of(volume, d, isos),
         VolumeData::F32(d) => structures_of(volume, d, isos),
     }
 }

@@ -536,6 +536,7 @@ pub fn serve(
     match &volume.data {
         VolumeData::U8(d) => serve_typed(world, volume, d, view, cfg),
         VolumeData::U16(d) => serve_typed(world, volume, d, view, cfg),
+        VolumeData::I16(d) => serve_typed(world, volume, d, view, cfg),
         VolumeData::F32(d) => serve_typed(world, volume, d, view, cfg),
     }
 }

@@ -208,6 +208,7 @@ pub fn run_with_progress(
     match &volume.data {
         VolumeData::U8(d) => run_typed(volume, d, view, cfg, threads, progress),
         VolumeData::U16(d) => run_typed(volume, d, view, cfg, threads, progress),
+        VolumeData::I16(d) => run_typed(volume, d, view, cfg, threads, progress),
         VolumeData::F32(d) => run_typed(volume, d, view, cfg, threads, progress),
     }
 }

@@ -18,7 +18,9 @@ pub enum VolumeData {
     U8(Vec<u8>),
     /// Unsigned 16-bit.
     U16(Vec<u16>),
-    /// 32-bit float (also holds signed integer files, converted exactly).
+    /// Signed 16-bit (CT series in Hounsfield units, for one).
+    I16(Vec<i16>),
+    /// 32-bit float (also holds files of other types, converted: exactly for `i8`).
     F32(Vec<f32>),
 }
 
@@ -28,6 +30,7 @@ impl VolumeData {
         match self {
             VolumeData::U8(_) => SampleKind::U8,
             VolumeData::U16(_) => SampleKind::U16,
+            VolumeData::I16(_) => SampleKind::I16,
             VolumeData::F32(_) => SampleKind::F32,
         }
     }
@@ -37,6 +40,7 @@ impl VolumeData {
         match self {
             VolumeData::U8(v) => v.len(),
             VolumeData::U16(v) => v.len(),
+            VolumeData::I16(v) => v.len(),
             VolumeData::F32(v) => v.len(),
         }
     }
@@ -127,6 +131,7 @@ impl Volume {
         match &self.data {
             VolumeData::U8(v) => of(v),
             VolumeData::U16(v) => of(v),
+            VolumeData::I16(v) => of(v),
             VolumeData::F32(v) => of(v),
         }
     }
@@ -150,6 +155,7 @@ impl Volume {
         self.built.summary(self.held(), || match &self.data {
             VolumeData::U8(v) => of(v, u8::min, u8::max),
             VolumeData::U16(v) => of(v, u16::min, u16::max),
+            VolumeData::I16(v) => of(v, i16::min, i16::max),
             VolumeData::F32(v) => of(v, f32::min, f32::max),
         })
     }
@@ -165,6 +171,7 @@ impl Volume {
         match &self.data {
             VolumeData::U8(v) => of(v, mean),
             VolumeData::U16(v) => of(v, mean),
+            VolumeData::I16(v) => of(v, mean),
             VolumeData::F32(v) => of(v, mean),
         }
     }
@@ -184,6 +191,7 @@ impl Volume {
         let data = match &self.data {
             VolumeData::U8(v) => VolumeData::U8(cut(v, r)?),
             VolumeData::U16(v) => VolumeData::U16(cut(v, r)?),
+            VolumeData::I16(v) => VolumeData::I16(cut(v, r)?),
             VolumeData::F32(v) => VolumeData::F32(cut(v, r)?),
         };
         Some(Volume::window(self.grid, planes.start, data))

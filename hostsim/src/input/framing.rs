@@ -77,6 +77,7 @@ impl Showing {
         match &volume.data {
             VolumeData::U8(v) => Showing::of_samples(v, volume, view),
             VolumeData::U16(v) => Showing::of_samples(v, volume, view),
+            VolumeData::I16(v) => Showing::of_samples(v, volume, view),
             VolumeData::F32(v) => Showing::of_samples(v, volume, view),
         }
     }

@@ -136,6 +136,7 @@ pub fn cell_range_bytes(view: &View, mode: SkipMode, kind: SampleKind) -> usize 
         true => match kind {
             SampleKind::U8 => size_of::<BlockCells<u8>>(),
             SampleKind::U16 => size_of::<BlockCells<u16>>(),
+            SampleKind::I16 => size_of::<BlockCells<i16>>(),
             SampleKind::F32 => size_of::<BlockCells<f32>>(),
         },
         false => 0,

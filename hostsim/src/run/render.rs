@@ -243,6 +243,7 @@ fn render_direct(
     match &volume.data {
         VolumeData::U8(d) => render_typed(volume, d, view, mode, progress),
         VolumeData::U16(d) => render_typed(volume, d, view, mode, progress),
+        VolumeData::I16(d) => render_typed(volume, d, view, mode, progress),
         VolumeData::F32(d) => render_typed(volume, d, view, mode, progress),
     }
 }

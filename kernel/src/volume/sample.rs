@@ -1,7 +1,7 @@
 //! Sample types a dataset can hold, and their one conversion to the `f32` the tracer works in.
 //!
-//! Invariant: the conversion is exact for `u8` and `u16` and the identity for `f32`, so a
-//! value read on any node is the same bit pattern.
+//! Invariant: the conversion is exact for `u8`, `u16` and `i16` and the identity for `f32`,
+//! so a value read on any node is the same bit pattern.
 
 /// The kind of a stored sample, as a scene or file header names it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -10,6 +10,8 @@ pub enum SampleKind {
     U8,
     /// Unsigned 16-bit.
     U16,
+    /// Signed 16-bit (CT's Hounsfield units, for one).
+    I16,
     /// IEEE 754 single precision (finite values only: hosts reject NaN and infinities).
     F32,
 }
@@ -19,7 +21,7 @@ impl SampleKind {
     pub const fn bytes(self) -> usize {
         match self {
             SampleKind::U8 => 1,
-            SampleKind::U16 => 2,
+            SampleKind::U16 | SampleKind::I16 => 2,
             SampleKind::F32 => 4,
         }
     }
@@ -30,6 +32,7 @@ impl SampleKind {
         match self {
             SampleKind::U8 => size_of::<<u8 as Sample>::Node>(),
             SampleKind::U16 => size_of::<<u16 as Sample>::Node>(),
+            SampleKind::I16 => size_of::<<i16 as Sample>::Node>(),
             SampleKind::F32 => size_of::<<f32 as Sample>::Node>(),
         }
     }
@@ -66,8 +69,8 @@ pub trait Sample: Copy + Default + Send + Sync + 'static {
     }
 }
 
-/// The three sample types differ only in their kind and their order: every conversion is
-/// the standard library's own (`f32::from` is exact for `u8` and `u16`, the identity for
+/// The sample types differ only in their kind and their order: every conversion is the
+/// standard library's own (`f32::from` is exact for `u8`, `u16` and `i16`, the identity for
 /// `f32`), and so is every comparison (`Ord` for the integers, `f32::min` and `f32::max`,
 /// which the tracer uses on converted values too).
 macro_rules! sample {
@@ -102,7 +105,7 @@ macro_rules! sample {
 }
 
 // A byte node's value and differences lie in [-255, 255]: exact in i16, half the bytes of f32.
-// A u16 node's differences need 17 bits, and f32's are f32: both keep four f32 lanes.
+// A 16-bit node's differences need 17 bits, and f32's are f32: they keep four f32 lanes.
 sample!(
     u8,
     U8,
@@ -118,6 +121,7 @@ sample!(
     }
 );
 sample!(u16, U16, core::cmp::min, core::cmp::max, [f32; 4]);
+sample!(i16, I16, core::cmp::min, core::cmp::max, [f32; 4]);
 sample!(f32, F32, f32::min, f32::max, [f32; 4]);
 
 /// The values a field can take over a region (a min/max block's, for skipping).
@@ -176,6 +180,10 @@ mod tests {
         assert_eq!(u16::read_le(&three), None);
         assert_eq!(u8::read_le(&[]), None);
         assert_eq!((200u8.to_f32(), 65535u16.to_f32()), (200.0, 65535.0));
+        (-1024i16).write_le(&mut two);
+        assert_eq!(two, [0x00, 0xfc]);
+        assert_eq!(i16::read_le(&two), Some(-1024));
+        assert_eq!((i16::MIN.to_f32(), i16::MAX.to_f32()), (-32768.0, 32767.0));
     }
 
     #[test]
@@ -190,6 +198,7 @@ mod tests {
             let (a, b) = (next(), next());
             agree(a as u8, b as u8);
             agree(a as u16, b as u16);
+            agree(a as i16, b as i16);
             agree(
                 (a % 2001) as f32 * 0.5 - 500.0,
                 (b % 2001) as f32 * 0.5 - 500.0,

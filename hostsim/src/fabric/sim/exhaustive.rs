@@ -77,6 +77,7 @@ pub fn explore(
     match &volume.data {
         VolumeData::U8(d) => explore_typed(volume, d, view, cfg, max_states),
         VolumeData::U16(d) => explore_typed(volume, d, view, cfg, max_states),
+        VolumeData::I16(d) => explore_typed(volume, d, view, cfg, max_states),
         VolumeData::F32(d) => explore_typed(volume, d, view, cfg, max_states),
     }
 }

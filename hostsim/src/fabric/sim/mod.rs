@@ -58,6 +58,7 @@ pub fn run_with_progress(
     match &volume.data {
         VolumeData::U8(d) => run_typed(volume, d, view, cfg, progress),
         VolumeData::U16(d) => run_typed(volume, d, view, cfg, progress),
+        VolumeData::I16(d) => run_typed(volume, d, view, cfg, progress),
         VolumeData::F32(d) => run_typed(volume, d, view, cfg, progress),
     }
 }

@@ -424,13 +424,19 @@ pub fn load(path: &Path, spacing: Option<Vec3>) -> Result<Volume, LoadError> {
             .collect();
         VolumeData::U16(to_plane_major(&v, dims))
     } else {
-        let v: Vec<f32> = frames
-            .iter()
-            .flat_map(|(v, (slope, inter), _)| {
-                v.iter()
-                    .map(move |&x| (f64::from(x) * slope + inter) as f32)
+        let rescaled = || {
+            frames.iter().flat_map(|(v, (slope, inter), _)| {
+                v.iter().map(move |&x| f64::from(x) * slope + inter)
             })
-            .collect();
+        };
+        // A CT series' Hounsfield units (signed values, or unsigned with an intercept of
+        // -1024) are whole numbers a 16-bit signed sample holds: half a float's bytes, the
+        // same values.
+        if rescaled().all(super::whole_i16) {
+            let v: Vec<i16> = rescaled().map(|y| y as i16).collect();
+            return Ok(Volume::new(grid, VolumeData::I16(to_plane_major(&v, dims))));
+        }
+        let v: Vec<f32> = rescaled().map(|y| y as f32).collect();
         if v.iter().any(|x| !x.is_finite()) {
             return Err(at(header_err(
                 "RescaleSlope/RescaleIntercept give values beyond 32-bit floats",

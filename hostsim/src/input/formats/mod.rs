@@ -33,7 +33,7 @@ pub enum FileType {
     U16,
     /// Signed 8-bit (converted to f32 exactly).
     I8,
-    /// Signed 16-bit (converted to f32 exactly).
+    /// Signed 16-bit.
     I16,
     /// 32-bit IEEE float.
     F32,
@@ -265,8 +265,11 @@ pub(crate) fn samples_start(
 }
 
 /// Apply a file's linear value scaling `v·slope + intercept` (NIfTI `scl_slope`/`scl_inter`,
-/// DICOM rescale). The identity keeps the samples' type; any other scaling makes them f32,
-/// computed in f64 and rounded once.
+/// DICOM rescale). The identity keeps the samples' type. A scaling that takes every value
+/// the samples' type can hold to a whole number in `i16`'s range (8-bit samples shifted to
+/// Hounsfield units, say) makes them `i16`: decided by the type and the scaling alone, so a
+/// window of planes gets the kind the whole volume gets. Any other makes them f32, computed
+/// in f64 and rounded once.
 pub fn rescale(volume: Volume, slope: f64, intercept: f64) -> Result<Volume, LoadErrorKind> {
     if slope == 1.0 && intercept == 0.0 {
         return Ok(volume);
@@ -276,23 +279,41 @@ pub fn rescale(volume: Volume, slope: f64, intercept: f64) -> Result<Volume, Loa
             "value scaling slope {slope}, intercept {intercept}: expected finite numbers and a slope other than 0"
         )));
     }
-    let f = |x: f64| (x * slope + intercept) as f32;
-    let data = match volume.data {
-        VolumeData::U8(v) => v.iter().map(|&x| f(x.into())).collect(),
-        VolumeData::U16(v) => v.iter().map(|&x| f(x.into())).collect(),
-        VolumeData::F32(v) => v.iter().map(|&x| f(x.into())).collect::<Vec<f32>>(),
+    let y = |x: f64| x * slope + intercept;
+    let range = match volume.data {
+        VolumeData::U8(_) => Some((0.0, 255.0)),
+        VolumeData::U16(_) => Some((0.0, 65_535.0)),
+        VolumeData::I16(_) => Some((-32_768.0, 32_767.0)),
+        VolumeData::F32(_) => None,
     };
-    if data.iter().any(|x| !x.is_finite()) {
-        return Err(LoadErrorKind::Header(format!(
-            "value scaling slope {slope}, intercept {intercept} overflows 32-bit floats"
-        )));
+    // The scaling is linear: its ends bound it.
+    let narrow = range.is_some_and(|(lo, hi)| whole_i16(y(lo)) && whole_i16(y(hi)));
+    fn map<T: Copy + Into<f64>, U>(v: &[T], f: impl Fn(f64) -> U) -> Vec<U> {
+        v.iter().map(|&x| f(x.into())).collect()
+    }
+    let data = match (&volume.data, narrow) {
+        (VolumeData::U8(v), true) => VolumeData::I16(map(v, |x| y(x) as i16)),
+        (VolumeData::U16(v), true) => VolumeData::I16(map(v, |x| y(x) as i16)),
+        (VolumeData::I16(v), true) => VolumeData::I16(map(v, |x| y(x) as i16)),
+        (VolumeData::U8(v), _) => VolumeData::F32(map(v, |x| y(x) as f32)),
+        (VolumeData::U16(v), _) => VolumeData::F32(map(v, |x| y(x) as f32)),
+        (VolumeData::I16(v), _) => VolumeData::F32(map(v, |x| y(x) as f32)),
+        (VolumeData::F32(v), _) => VolumeData::F32(map(v, |x| y(x) as f32)),
+    };
+    if let VolumeData::F32(v) = &data {
+        if v.iter().any(|x| !x.is_finite()) {
+            return Err(LoadErrorKind::Header(format!(
+                "value scaling slope {slope}, intercept {intercept} overflows 32-bit floats"
+            )));
+        }
     }
     // A window of planes stays that window.
-    Ok(Volume::window(
-        volume.grid,
-        volume.first,
-        VolumeData::F32(data),
-    ))
+    Ok(Volume::window(volume.grid, volume.first, data))
+}
+
+/// Whether `y` is a whole number a 16-bit signed sample holds exactly.
+pub(crate) fn whole_i16(y: f64) -> bool {
+    y.fract() == 0.0 && (-32_768.0..=32_767.0).contains(&y)
 }
 
 /// Byte order of multi-byte samples.
@@ -511,7 +532,7 @@ pub fn sample_f32(b: &[u8], ty: FileType, endian: Endian) -> f32 {
 
 /// The samples of X planes `planes` of a `dims` grid of `ty` in `endian` order, read from
 /// `reader` at the first sample (file order: X fastest, then Y, then Z), a row at a time,
-/// into plane-major order: `u8` and `u16` kept, every other type as `f32`
+/// into plane-major order: `u8`, `u16` and `i16` kept, every other type as `f32`
 /// ([`sample_f32`]), a non-finite one refused at its node. The one conversion of every
 /// reader, whole ([`decode`]) or by planes (`raw::load_window`).
 pub(crate) fn decode_planes(
@@ -531,6 +552,9 @@ pub(crate) fn decode_planes(
         FileType::U16 => {
             VolumeData::U16(columns(reader, dims, size, planes, |b, _| Ok(u16_of(b)))?)
         }
+        FileType::I16 => VolumeData::I16(columns(reader, dims, size, planes, |b, _| {
+            Ok(u16_of(b).cast_signed())
+        })?),
         _ => VolumeData::F32(columns(reader, dims, size, planes, |b, at| {
             let v = sample_f32(b, ty, endian);
             match v.is_finite() {
@@ -637,5 +661,40 @@ pub(super) mod windows {
         let whole = load(path, format, None).unwrap();
         assert_eq!(load_window(path, format, None, 1..2).unwrap(), whole);
         whole
+    }
+}
+
+#[cfg(test)]
+mod rescaling {
+    use super::{rescale, VolumeData};
+    use crate::input::dataset::Volume;
+    use voxcube_kernel::volume::grid::Grid;
+
+    fn volume(data: VolumeData) -> Volume {
+        let grid = Grid::new([2, 1, 1], voxcube_kernel::Vec3::ONE).unwrap();
+        Volume::new(grid, data)
+    }
+
+    #[test]
+    fn a_scaling_to_whole_numbers_within_i16_keeps_sixteen_bits_and_any_other_makes_floats() {
+        // Bytes shifted to Hounsfield units: every byte lands on a whole number in i16.
+        let shifted = rescale(volume(VolumeData::U8(vec![0, 255])), 1.0, -1024.0).unwrap();
+        assert_eq!(shifted.data, VolumeData::I16(vec![-1024, -769]));
+        let doubled = rescale(volume(VolumeData::I16(vec![-3, 7])), 2.0, 1.0).unwrap();
+        assert_eq!(
+            doubled.data,
+            VolumeData::F32(vec![-5.0, 15.0]),
+            "±65,535 is beyond i16"
+        );
+        // Decided by the type, not the values: 0 and 1 would fit, 65,535 - 1024 would not.
+        let wide = rescale(volume(VolumeData::U16(vec![0, 1])), 1.0, -1024.0).unwrap();
+        assert_eq!(wide.data, VolumeData::F32(vec![-1024.0, -1023.0]));
+        let halves = rescale(volume(VolumeData::U8(vec![1, 2])), 0.5, 0.0).unwrap();
+        assert_eq!(halves.data, VolumeData::F32(vec![0.5, 1.0]));
+        let floats = rescale(volume(VolumeData::F32(vec![1.0, 2.0])), 1.0, 3.0).unwrap();
+        assert_eq!(floats.data, VolumeData::F32(vec![4.0, 5.0]));
+        // The identity keeps the type, i16 among them.
+        let same = rescale(volume(VolumeData::I16(vec![-2, 2])), 1.0, 0.0).unwrap();
+        assert_eq!(same.data, VolumeData::I16(vec![-2, 2]));
     }
 }

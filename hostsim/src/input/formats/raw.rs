@@ -152,7 +152,7 @@ mod tests {
         .unwrap();
         assert_eq!(v.data, VolumeData::U16(vec![256, 2]));
         let v = parse(&[0xff, 0xff], &layout([1, 1, 1], FileType::I16, 0)).unwrap();
-        assert_eq!(v.data, VolumeData::F32(vec![-1.0]));
+        assert_eq!(v.data, VolumeData::I16(vec![-1]));
         let nan = f32::NAN.to_le_bytes();
         let bytes = [0.0f32.to_le_bytes(), nan].concat();
         let e = parse(&bytes, &layout([2, 1, 1], FileType::F32, 0))
