@@ -3,11 +3,14 @@
 //!   (Gaussian atoms along a folded chain, two heavy-metal peaks), from a fixed seed;
 //! - `marschner-lobb`: the Marschner–Lobb test function sampled on 41³, f32;
 //! - `sphere`: a 64³ f32 signed distance to a sphere of radius 24 cells centred in the grid,
-//!   positive inside, for analytic tests of silhouettes (iso value 0).
+//!   positive inside, for analytic tests of silhouettes (iso value 0);
+//! - `head`: a 128³ i16 CT-like head in Hounsfield units, after Shepp and Logan's phantom
+//!   (ellipsoids of scalp, skull, brain, ventricles and lesions, their edges a sample wide as
+//!   a scanner's partial volume blurs them, and a scanner's noise), for CT's sample kind.
 //!
 //! Each can also be generated at any edge `n` (a scene's `size`), so that a volume of any
 //! size renders without a download: the molecule resampled onto `n`³, the Marschner–Lobb
-//! function sampled on `n`³, the sphere on `n`³ with its radius scaled alike.
+//! function sampled on `n`³, the sphere and the head on `n`³ scaled alike.
 //!
 //! Invariant: every volume is the same bits on every machine: a fixed seed, integer-exact
 //! arithmetic where possible, and libm (not the platform's maths library) for the rest.
@@ -19,7 +22,7 @@ use voxcube_kernel::volume::grid::Grid;
 use voxcube_kernel::Vec3;
 
 /// The names `builtin = "…"` accepts.
-pub const NAMES: [&str; 3] = ["molecule", "marschner-lobb", "sphere"];
+pub const NAMES: [&str; 4] = ["molecule", "marschner-lobb", "sphere", "head"];
 
 /// The smallest `size`: a cell needs two samples a side.
 pub const MIN_SIZE: u32 = 2;
@@ -34,6 +37,7 @@ pub fn volume(name: &str, size: Option<u32>) -> Option<Volume> {
         ("marschner-lobb", n) => Some(marschner_lobb(n.unwrap_or(41))),
         ("sphere", None) => Some(sphere(64, 24.0)),
         ("sphere", Some(n)) => Some(sphere(n, 0.375 * f64::from(n))),
+        ("head", n) => Some(head(n.unwrap_or(HEAD_SIZE))),
         _ => None,
     }
 }
@@ -46,6 +50,7 @@ pub fn grid(name: &str, size: Option<u32>) -> Option<Grid> {
         ("molecule", None) => [97, 97, 116],
         ("marschner-lobb", n) => [n.unwrap_or(41); 3],
         ("sphere", n) => [n.unwrap_or(64); 3],
+        ("head", n) => [n.unwrap_or(HEAD_SIZE); 3],
         ("molecule", Some(n)) => [n; 3],
         _ => return None,
     };
@@ -66,6 +71,7 @@ pub fn window(name: &str, size: Option<u32>, planes: Range<u32>) -> Option<Volum
         ("molecule", Some(n)) => Some(molecule_planes(n, planes)),
         ("marschner-lobb", Some(n)) => Some(marschner_lobb_planes(n, planes)),
         ("sphere", Some(n)) => Some(sphere_planes(n, 0.375 * f64::from(n), planes)),
+        ("head", n) => Some(head_planes(n.unwrap_or(HEAD_SIZE), planes)),
         // The volumes of their own size are small: generated whole, then cut.
         _ => volume(name, size)?.planes(planes),
     }
@@ -280,6 +286,89 @@ fn sphere_planes(n: u32, radius: f64, planes: Range<u32>) -> Volume {
     window_from([n; 3], first, VolumeData::F32(data))
 }
 
+/// The head's edge, samples, where a scene gives no `size`.
+const HEAD_SIZE: u32 = 128;
+
+/// One ellipsoid of the head: its centre and semi-axes in the head's frame (`[-1, 1]` across
+/// the grid; X from ear to ear, Y up, Z from front to back), its turn about Y, and what it
+/// adds inside, Hounsfield units.
+struct Ellipsoid {
+    centre: [f64; 3],
+    semi: [f64; 3],
+    turn_degrees: f64,
+    adds: f64,
+}
+
+/// Shepp and Logan's ellipses (modified, as Toft gives them) laid in the axial plane (their
+/// y along Z), each given a height, the brain's a little smaller so that the skull is two
+/// samples thick at 64³, under a scalp; their densities as tissues: air -1000 HU outside,
+/// scalp +40, skull +1000, brain +40, ventricles +10 (fluid), small lesions +70 to +80.
+#[rustfmt::skip] // One ellipsoid a row reads as the phantom's table.
+const HEAD: [Ellipsoid; 11] = [
+    Ellipsoid { centre: [0.0, 0.0, 0.0], semi: [0.74, 0.95, 0.97], turn_degrees: 0.0, adds: 1040.0 },
+    Ellipsoid { centre: [0.0, 0.0, 0.0], semi: [0.69, 0.9, 0.92], turn_degrees: 0.0, adds: 960.0 },
+    Ellipsoid { centre: [0.0, 0.0, -0.0184], semi: [0.64, 0.86, 0.85], turn_degrees: 0.0, adds: -960.0 },
+    Ellipsoid { centre: [0.22, 0.0, 0.0], semi: [0.11, 0.25, 0.31], turn_degrees: -18.0, adds: -30.0 },
+    Ellipsoid { centre: [-0.22, 0.0, 0.0], semi: [0.16, 0.3, 0.41], turn_degrees: 18.0, adds: -30.0 },
+    Ellipsoid { centre: [0.0, 0.1, 0.35], semi: [0.21, 0.2, 0.25], turn_degrees: 0.0, adds: 30.0 },
+    Ellipsoid { centre: [0.0, 0.0, 0.1], semi: [0.046, 0.046, 0.046], turn_degrees: 0.0, adds: 30.0 },
+    Ellipsoid { centre: [0.0, 0.0, -0.1], semi: [0.046, 0.046, 0.046], turn_degrees: 0.0, adds: 30.0 },
+    Ellipsoid { centre: [-0.08, -0.25, -0.605], semi: [0.046, 0.04, 0.023], turn_degrees: 0.0, adds: 40.0 },
+    Ellipsoid { centre: [0.0, -0.25, -0.606], semi: [0.023, 0.04, 0.023], turn_degrees: 0.0, adds: 40.0 },
+    Ellipsoid { centre: [0.06, -0.25, -0.605], semi: [0.023, 0.04, 0.046], turn_degrees: 0.0, adds: 40.0 },
+];
+
+/// The head phantom on `n`³ samples (at least [`MIN_SIZE`]).
+pub fn head(n: u32) -> Volume {
+    let n = n.max(MIN_SIZE);
+    head_planes(n, 0..n)
+}
+
+/// [`head`]'s X planes `planes` alone. Each sample depends on its node alone (the noise is
+/// a hash of the node's index), so a window is the whole volume's planes.
+fn head_planes(n: u32, planes: Range<u32>) -> Volume {
+    let n = n.max(MIN_SIZE);
+    let half = f64::from(n - 1) / 2.0;
+    let at = |i: u32| (f64::from(i) - half) / half;
+    // A sample's width in the head's frame: each edge ramps over about one sample.
+    let sample = 1.0 / half;
+    let turned: Vec<(f64, f64)> = HEAD
+        .iter()
+        .map(|e| {
+            let t = e.turn_degrees.to_radians();
+            (libm::cos(t), libm::sin(t))
+        })
+        .collect();
+    let first = planes.start;
+    let data = plane_major_window([n; 3], planes, |x, y, z| {
+        let p = [at(x), at(y), at(z)];
+        let mut hu = -1000.0;
+        for (e, &(c, s)) in HEAD.iter().zip(&turned) {
+            let d = [p[0] - e.centre[0], p[1] - e.centre[1], p[2] - e.centre[2]];
+            // Past the bounding sphere and its ramp, nothing to add.
+            let reach = e.semi[0].max(e.semi[1]).max(e.semi[2]) + sample;
+            if d.iter().any(|v| v.abs() > reach) {
+                continue;
+            }
+            let (u, w) = (c * d[0] - s * d[2], s * d[0] + c * d[2]);
+            let r = libm::sqrt(
+                (u / e.semi[0]).powi(2) + (d[1] / e.semi[1]).powi(2) + (w / e.semi[2]).powi(2),
+            );
+            // Inside by the distance to the surface along the least semi-axis, in samples:
+            // full beyond half a sample in, none beyond half a sample out.
+            let least = e.semi[0].min(e.semi[1]).min(e.semi[2]);
+            let inside = ((1.0 - r) * least / sample + 0.5).clamp(0.0, 1.0);
+            hu += e.adds * inside;
+        }
+        // A scanner's noise, a triangle of ±20 HU from two uniform draws keyed by the node.
+        let key = (u64::from(z) * u64::from(n) + u64::from(y)) * u64::from(n) + u64::from(x);
+        let mut rng = SplitMix(key ^ 0x6865_6164);
+        let noise = 10.0 * (rng.signed() + rng.signed());
+        (hu + noise).round().clamp(-32_768.0, 32_767.0) as i16
+    });
+    window_from([n; 3], first, VolumeData::I16(data))
+}
+
 fn volume_from(dims: [u32; 3], data: VolumeData) -> Volume {
     window_from(dims, 0, data)
 }
@@ -295,6 +384,36 @@ fn window_from(dims: [u32; 3], first: u32, data: VolumeData) -> Volume {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_head_is_a_ct_in_hounsfield_units() {
+        let n = 64;
+        let h = head(n);
+        let VolumeData::I16(v) = &h.data else {
+            panic!("the head is i16")
+        };
+        let at = |x: u32, y: u32, z: u32| v[((x * n + z) * n + y) as usize];
+        let noisy = |got: i16, tissue: i16| (got - tissue).abs() <= 20;
+        let c = n / 2;
+        // Air at a corner, scalp where it crosses the X axis (0.69 to 0.74 of the
+        // half-width), brain inside, bone between 0.64 and 0.69, fluid in a ventricle.
+        assert!(noisy(at(0, 0, 0), -1000), "{}", at(0, 0, 0));
+        let scalp = at(c - 23, c, c);
+        assert!(noisy(scalp, 40), "{scalp}");
+        assert!(
+            noisy(at(c, c + 10, c - 10), 40),
+            "{}",
+            at(c, c + 10, c - 10)
+        );
+        let skull = (0..c).map(|x| at(x, c, c)).max().unwrap_or(0);
+        assert!(skull > 700, "bone, however the samples fall: {skull}");
+        let ventricle = at(c + 7, c, c);
+        assert!(noisy(ventricle, 10), "{ventricle}");
+        // Noise: not one value everywhere in the brain.
+        let brain: std::collections::BTreeSet<i16> =
+            (0..8).map(|d| at(c + d, c + 10, c - 10)).collect();
+        assert!(brain.len() > 2, "{brain:?}");
+    }
 
     #[test]
     fn builtins_have_their_documented_shape() {
