@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""VTK's CPU ray caster (vtkFixedPointVolumeRayCastMapper) on a raw u8 volume, framed as voxcube frames it.
+"""VTK's CPU ray caster (vtkFixedPointVolumeRayCastMapper) on a raw u8 or i16 volume, framed as voxcube frames it.
 
 voxcube's experiments run this with the virtualenv `setup.sh` makes; it is the yardstick's side of
 `voxcube bench` and `voxcube accuracy --frontier`. The camera: orthographic, looking at the volume's
@@ -14,7 +14,8 @@ the last image.
 import argparse, json, os, time
 
 ap = argparse.ArgumentParser()
-ap.add_argument("--raw", required=True, help="u8 samples, X fastest, no header")
+ap.add_argument("--raw", required=True, help="samples of --type, X fastest, no header, little-endian")
+ap.add_argument("--type", choices=["u8", "i16"], default="u8")
 ap.add_argument("--dims", type=int, nargs=3, default=[97, 97, 116])
 ap.add_argument("--mode", choices=["surface", "composite"], default="surface")
 ap.add_argument("--iso", type=float, default=50.0)
@@ -40,7 +41,7 @@ vtk.vtkObject.GlobalWarningDisplayOff()
 vtk.vtkMultiThreader.SetGlobalMaximumNumberOfThreads(a.threads)
 vtk.vtkMultiThreader.SetGlobalDefaultNumberOfThreads(a.threads)
 nx, ny, nz = a.dims
-samples = np.fromfile(a.raw, dtype=np.uint8)
+samples = np.fromfile(a.raw, dtype={"u8": np.uint8, "i16": np.dtype("<i2")}[a.type])
 if samples.size < nx * ny * nz:
     raise SystemExit(f"{a.raw}: {samples.size} samples, {nx}x{ny}x{nz} expected")
 grid = vtk.vtkImageData()

@@ -104,6 +104,11 @@ pub struct Peer {
     folder: tempfile::TempDir,
     /// The volume's nodes along X, Y and Z.
     dims: [u32; 3],
+    /// The samples' type, as the script's `--type` names it.
+    kind: &'static str,
+    /// The composited views' transfer function in the script's `--transfer` form, where it
+    /// is not the script's default (SOD's).
+    transfer: Option<String>,
 }
 
 impl Peer {
@@ -124,24 +129,56 @@ impl Peer {
     /// VTK for a byte volume of `dims` nodes whose `samples` run X fastest, then Y, then Z;
     /// `Ok(None)` when the virtualenv is not installed.
     pub fn of_samples(samples: &[u8], dims: [u32; 3]) -> Result<Option<Peer>, String> {
+        Peer::of_bytes(samples, samples.len(), "u8", dims)
+    }
+
+    /// [`Peer::of_samples`] for signed 16-bit samples (a CT's Hounsfield units).
+    pub fn of_i16(samples: &[i16], dims: [u32; 3]) -> Result<Option<Peer>, String> {
+        let bytes: Vec<u8> = samples.iter().flat_map(|v| v.to_le_bytes()).collect();
+        Peer::of_bytes(&bytes, samples.len(), "i16", dims)
+    }
+
+    /// The same VTK, compositing with `points` (value, colour, opacity per unit length)
+    /// instead of SOD's transfer function.
+    pub fn with_transfer(self, points: &[(f32, [f32; 3], f32)]) -> Peer {
+        let text = points
+            .iter()
+            .map(|(v, [r, g, b], o)| format!("{v}:{r},{g},{b}:{o}"))
+            .collect::<Vec<_>>()
+            .join(";");
+        Peer {
+            transfer: Some(text),
+            ..self
+        }
+    }
+
+    fn of_bytes(
+        bytes: &[u8],
+        count: usize,
+        kind: &'static str,
+        dims: [u32; 3],
+    ) -> Result<Option<Peer>, String> {
         if !Path::new(VENV_PYTHON).is_file() {
             return Ok(None);
         }
+        let samples = bytes;
         let nodes = dims.iter().map(|&d| d as usize).product::<usize>();
-        if samples.len() != nodes {
+        if count != nodes {
             return Err(format!(
-                "{} samples for VTK, {}x{}x{} = {nodes} expected",
-                samples.len(),
-                dims[0],
-                dims[1],
-                dims[2]
+                "{count} samples for VTK, {}x{}x{} = {nodes} expected",
+                dims[0], dims[1], dims[2]
             ));
         }
         let folder = tempfile::Builder::new()
             .prefix("voxcube-peer-")
             .tempdir()
             .map_err(|e| format!("a scratch folder for VTK: {e}"))?;
-        let peer = Peer { folder, dims };
+        let peer = Peer {
+            folder,
+            dims,
+            kind,
+            transfer: None,
+        };
         for (path, bytes) in [(peer.raw(), samples), (peer.script(), SCRIPT.as_bytes())] {
             std::fs::write(&path, bytes).map_err(|e| format!("{}: {e}", path.display()))?;
         }
@@ -175,7 +212,12 @@ impl Peer {
             .arg("--dt")
             .arg(frame.dt.to_string())
             .arg("--span")
-            .arg(frame.span.to_string());
+            .arg(frame.span.to_string())
+            .args(["--type", self.kind]);
+        if let Some(transfer) = &self.transfer {
+            // Joined, as a first value below zero would otherwise read as an option.
+            command.arg(format!("--transfer={transfer}"));
+        }
         if image {
             command.arg("--png").arg(&png);
         }

@@ -8,7 +8,9 @@
 //! masks and cell leap map; the fast view after it, its node field), so it shows what a
 //! single frame of a new volume costs, and the median what a further one does. Beside them,
 //! in the same run, VTK's CPU ray caster on each volume of the sweep, framed the same
-//! ([`super::peer`]), where it is installed.
+//! ([`super::peer`]), where it is installed. Then the same beside VTK for a CT-like volume,
+//! the built-in head in Hounsfield units (`i16`, CT's sample kind) at 256³ and 512³, with a
+//! transfer function of skin and bone.
 
 use super::bench::{median, median_frame, run_paired, seconds, sorted_ratios, spread, PAIR_FRAMES};
 use super::chart::{self, Line};
@@ -26,12 +28,68 @@ use std::time::Duration;
 
 /// Volume edges measured at the paper's image size.
 pub const VOLUMES: [u32; 3] = [128, 256, 512];
+/// Edges of the CT-like head measured at the paper's image size.
+pub const HEADS: [u32; 2] = [256, 512];
+
+/// The head's transfer function (value in HU, colour, opacity per unit length): air and
+/// fat clear, soft tissue faint, bone opaque, so a ray crosses skin, brain and skull.
+pub const HEAD_TRANSFER: [(f32, [f32; 3], f32); 5] = [
+    (-400.0, [0.8, 0.5, 0.4], 0.0),
+    (0.0, [0.9, 0.6, 0.5], 0.01),
+    (80.0, [0.9, 0.6, 0.5], 0.02),
+    (300.0, [1.0, 0.95, 0.85], 0.15),
+    (1100.0, [1.0, 1.0, 0.95], 0.8),
+];
+
+/// Which volume a row measured.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Dataset {
+    /// The molecule resampled to n³ (u8).
+    Molecule,
+    /// The CT-like head on n³ (i16).
+    Head,
+}
+
+impl Dataset {
+    /// The volume on `n`³ samples.
+    fn volume(self, n: u32) -> Volume {
+        match self {
+            Dataset::Molecule => builtin::molecule_at(n),
+            Dataset::Head => builtin::head(n),
+        }
+    }
+
+    /// Its composited views' transfer function, as a scene's tables.
+    fn transfer(self) -> String {
+        match self {
+            Dataset::Molecule => COMPOSITE_TRANSFER.to_string(),
+            Dataset::Head => HEAD_TRANSFER
+                .iter()
+                .map(|(v, c, o)| {
+                    format!(
+                        "[[datasets.views.transfer]]\nvalue = {v:?}\ncolor = {c:?}\nopacity = {o:?}\n"
+                    )
+                })
+                .collect(),
+        }
+    }
+
+    /// A row's volume, as the tables name it.
+    fn label(self, n: u32) -> String {
+        match self {
+            Dataset::Molecule => format!("{n}³"),
+            Dataset::Head => format!("head {n}³"),
+        }
+    }
+}
 /// Images measured on the 128³ volume.
 pub const IMAGES: [(u32, u32); 4] = [(350, 250), (700, 500), (1400, 1000), (2048, 1536)];
 
 /// One measured frame.
 #[derive(Clone, Debug)]
 pub struct ScaleRow {
+    /// The volume measured.
+    pub dataset: Dataset,
     /// Volume edge, samples.
     pub volume: u32,
     /// Image size.
@@ -59,6 +117,8 @@ pub struct ScaleRow {
 /// VTK's composited frame of one volume of the sweep, in the same run.
 #[derive(Clone, Debug)]
 pub struct VtkRow {
+    /// The volume measured.
+    pub dataset: Dataset,
     /// Volume edge, samples.
     pub volume: u32,
     /// Median wall time of its renders after a first one (which builds its gradients).
@@ -97,7 +157,7 @@ impl ScaleRow {
 /// The composited view of an `n`³ volume in `tier`: the paper's direction (azimuth 45°), the
 /// camera placed outright (the scene's placeholder volume has another size) so the cube
 /// fills about 86% of the image's width.
-fn view(tier: &str, (width, height): (u32, u32), n: u32) -> String {
+fn view(tier: &str, (width, height): (u32, u32), n: u32, dataset: Dataset) -> String {
     let c = (n - 1) as f32 / 2.0;
     let far = 2.0 * n as f32;
     let side = far * core::f32::consts::FRAC_1_SQRT_2;
@@ -115,7 +175,8 @@ accuracy = "{tier}"
 eye = {eye:?}
 look_at = [{c:?}, {c:?}, {c:?}]
 width = {span:?}
-{COMPOSITE_TRANSFER}"#
+{}"#,
+        dataset.transfer()
     )
 }
 
@@ -125,22 +186,29 @@ fn span(n: u32) -> f32 {
     1.65 * n as f32
 }
 
-/// VTK's median frame of `volume` (an `n`³ byte volume) framed as [`view`] frames it at the
+/// VTK's median frame of `volume` (an `n`³ byte or head volume) framed as [`view`] frames it at the
 /// paper's image size, `runs` renders after a first, and its image's PSNR against `ours`;
 /// then `runs` paired rounds ([`run_paired`]) of VTK's median of [`PAIR_FRAMES`] frames
 /// against the median of as many of voxcube's `frame_ours`.
 fn vtk_on(
-    volume: &Volume,
+    (dataset, volume): (Dataset, &Volume),
     n: u32,
     runs: usize,
     ours: &[[u8; 4]],
     mut frame_ours: impl FnMut() -> Result<Duration, String>,
 ) -> Result<Option<VtkRow>, String> {
-    let VolumeData::U8(samples) = &volume.data else {
-        return Err("the scale sweep's volume is not bytes".into());
-    };
     let dims = volume.grid.dims();
-    let Some(peer) = Peer::of_samples(&to_file_order(samples, dims), dims)? else {
+    let peer = match (&volume.data, dataset) {
+        (VolumeData::U8(samples), Dataset::Molecule) => {
+            Peer::of_samples(&to_file_order(samples, dims), dims)?
+        }
+        (VolumeData::I16(samples), Dataset::Head) => {
+            Peer::of_i16(&to_file_order(samples, dims), dims)?
+                .map(|p| p.with_transfer(&HEAD_TRANSFER))
+        }
+        _ => return Err(format!("the scale sweep's {dataset:?} is not of its kind")),
+    };
+    let Some(peer) = peer else {
         return Ok(None);
     };
     let (width, height) = IMAGES[0];
@@ -168,6 +236,7 @@ fn vtk_on(
     let (mine, vtk): (Vec<_>, Vec<_>) = rounds.into_iter().unzip();
     let paired_medians = Some((median(mine), median(vtk)));
     Ok(Some(VtkRow {
+        dataset,
         volume: n,
         median: r.median,
         psnr,
@@ -198,8 +267,11 @@ pub fn run(runs: usize, out: &mut String) -> Result<Scale, ExperimentError> {
             on(Machine::new(Fabric::Threads, cores, cores, 1)),
         ),
     ];
-    let mut work: Vec<(u32, (u32, u32))> = VOLUMES.iter().map(|&n| (n, IMAGES[0])).collect();
-    work.extend(IMAGES[1..].iter().map(|&i| (VOLUMES[0], i)));
+    let molecule = |(n, image)| (Dataset::Molecule, n, image);
+    let mut work: Vec<(Dataset, u32, (u32, u32))> =
+        VOLUMES.iter().map(|&n| molecule((n, IMAGES[0]))).collect();
+    work.extend(IMAGES[1..].iter().map(|&i| molecule((VOLUMES[0], i))));
+    work.extend(HEADS.iter().map(|&n| (Dataset::Head, n, IMAGES[0])));
     let mut rows = Vec::new();
     let mut vtk = Vec::new();
     let vtk_missing = (!Path::new(super::peer::VENV_PYTHON).is_file()).then(|| {
@@ -208,20 +280,26 @@ pub fn run(runs: usize, out: &mut String) -> Result<Scale, ExperimentError> {
             super::peer::VENV_PYTHON
         )
     });
-    let mut volume: Option<Volume> = None;
-    for (n, image) in work {
-        if volume.as_ref().is_none_or(|v| v.grid.dims()[0] != n) {
-            volume = Some(builtin::molecule_at(n));
+    let mut volume: Option<(Dataset, Volume)> = None;
+    for (dataset, n, image) in work {
+        if volume
+            .as_ref()
+            .is_none_or(|(d, v)| *d != dataset || v.grid.dims()[0] != n)
+        {
+            // The one before is dropped first: two 512³ volumes and their fields are not
+            // held at once.
+            drop(volume.take());
+            volume = Some((dataset, dataset.volume(n)));
         }
-        let Some(volume) = volume.as_ref() else {
+        let Some((_, volume)) = volume.as_ref() else {
             continue;
         };
         // A placeholder dataset carries the views through the scene checks; they are then
         // built on the resampled grid.
         let text = format!(
             "[[datasets]]\nname = \"m\"\nbuiltin = \"sphere\"\n{}{}",
-            view("exact", image, n),
-            view("fast", image, n)
+            view("exact", image, n, dataset),
+            view("fast", image, n, dataset)
         );
         let jobs = Scene::parse(&text, "<bench --scale>", Path::new("."))?.load()?;
         for v in jobs.iter().flat_map(|j| &j.views) {
@@ -250,18 +328,19 @@ pub fn run(runs: usize, out: &mut String) -> Result<Scale, ExperimentError> {
                         .map(|r| r.wall)
                         .map_err(|e| e.to_string())
                 };
-                let row =
-                    vtk_on(volume, n, runs, &pixels, frame).map_err(ExperimentError::Missing)?;
+                let row = vtk_on((dataset, volume), n, runs, &pixels, frame)
+                    .map_err(ExperimentError::Missing)?;
+                let label = dataset.label(n);
                 if let Some(row) = row {
                     let _ = writeln!(
                         out,
-                        "measured {n}³ VTK: {:.1} ms",
+                        "measured {label} VTK: {:.1} ms",
                         row.median.as_secs_f64() * 1e3
                     );
                     if let Some((ours, theirs)) = row.paired_medians {
                         let _ = writeln!(
                             out,
-                            "paired {n}³: the fast tier {:.1} ms against VTK's {:.1} ms (medians of the rounds)",
+                            "paired {label}: the fast tier {:.1} ms against VTK's {:.1} ms (medians of the rounds)",
                             ours.as_secs_f64() * 1e3,
                             theirs.as_secs_f64() * 1e3
                         );
@@ -274,6 +353,7 @@ pub fn run(runs: usize, out: &mut String) -> Result<Scale, ExperimentError> {
                 t.sort();
                 let (median, setup) = t[t.len() / 2];
                 let row = ScaleRow {
+                    dataset,
                     volume: n,
                     image,
                     tier: if v.name == "fast" { "fast" } else { "exact" },
@@ -286,8 +366,8 @@ pub fn run(runs: usize, out: &mut String) -> Result<Scale, ExperimentError> {
                 };
                 let _ = writeln!(
                     out,
-                    "measured {}³ {}x{} {} on {}: {:.1} ms",
-                    n,
+                    "measured {} {}x{} {} on {}: {:.1} ms",
+                    dataset.label(n),
                     image.0,
                     image.1,
                     row.tier,
@@ -311,14 +391,21 @@ pub fn run(runs: usize, out: &mut String) -> Result<Scale, ExperimentError> {
 pub fn table(scale: &Scale, runs: usize) -> String {
     let rows = &scale.rows;
     let mut out = format!(
-        "How the cost grows (composited molecule resampled to n³, dt 1/2, the cube across 86% of the width; medians of {runs} frames after the first, which builds what the volume keeps; set-up: of the median frame, before any ray):\n{:<7} {:<10} {:<6} {:<24} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10} {:>9} {:>9}\n",
+        "How the cost grows (composited molecule resampled to n³, dt 1/2, the cube across 86% of the width; medians of {runs} frames after the first, which builds what the volume keeps; set-up: of the median frame, before any ray):\n{:<9} {:<10} {:<6} {:<24} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10} {:>9} {:>9}\n",
         "volume", "image", "tier", "machine", "first ms", "ms", "set-up ms", "samples", "ns/sample", "us/pixel", "time x", "samples x"
     );
-    for sweep in ["volume", "image"] {
-        let _ = writeln!(out, "-- growing the {sweep}");
+    for sweep in ["volume", "image", "head"] {
+        let _ = match sweep {
+            "head" => writeln!(
+                out,
+                "-- the CT-like head (i16, Hounsfield units; skin and bone), growing the volume"
+            ),
+            _ => writeln!(out, "-- growing the {sweep}"),
+        };
         let in_sweep = |r: &&ScaleRow| match sweep {
-            "volume" => r.image == IMAGES[0],
-            _ => r.volume == VOLUMES[0],
+            "volume" => r.dataset == Dataset::Molecule && r.image == IMAGES[0],
+            "image" => r.dataset == Dataset::Molecule && r.volume == VOLUMES[0],
+            _ => r.dataset == Dataset::Head,
         };
         for r in rows.iter().filter(in_sweep) {
             let first = rows
@@ -333,8 +420,8 @@ pub fn table(scale: &Scale, runs: usize) -> String {
             });
             let _ = writeln!(
                 out,
-                "{:<7} {:<10} {:<6} {:<24} {:>10.1} {:>10.1} {:>10.1} {:>10} {:>10.2} {:>10.3} {:>9.2} {:>9.2}",
-                format!("{}³", r.volume),
+                "{:<9} {:<10} {:<6} {:<24} {:>10.1} {:>10.1} {:>10.1} {:>10} {:>10.2} {:>10.3} {:>9.2} {:>9.2}",
+                r.dataset.label(r.volume),
                 format!("{}x{}", r.image.0, r.image.1),
                 r.tier,
                 r.config,
@@ -354,23 +441,31 @@ pub fn table(scale: &Scale, runs: usize) -> String {
 }
 
 /// voxcube on every core (threads) against VTK on two threads, per volume at the paper's
-/// image size, and each one's growth over its 128³ frame.
+/// image size, and each one's growth over the first of its dataset's sweep.
 fn beside_vtk(scale: &Scale) -> String {
     if let Some(why) = &scale.vtk_missing {
         return format!("-- beside VTK: {why}\n");
     }
     let mut out = format!(
-        "-- beside VTK (vtkFixedPointVolumeRayCastMapper, 2 threads, the same view and run) at {}x{}\n{:<7} {:>10} {:>9} {:>10} {:>10} {:>10} {:>10} {:>12} {:>24}\n",
+        "-- beside VTK (vtkFixedPointVolumeRayCastMapper, 2 threads, the same view and run) at {}x{}\n{:<9} {:>10} {:>9} {:>10} {:>10} {:>10} {:>10} {:>12} {:>24}\n",
         IMAGES[0].0, IMAGES[0].1, "volume", "VTK ms", "VTK x", "fast ms", "fast/VTK", "exact ms", "exact/VTK", "PSNR vs VTK", "fast/VTK paired"
     );
-    let first = scale.vtk.first().map(|f| f.median.as_secs_f64());
     for v in &scale.vtk {
+        let first = scale
+            .vtk
+            .iter()
+            .find(|f| f.dataset == v.dataset)
+            .map(|f| f.median.as_secs_f64());
         let ours = |tier: &str| {
             scale
                 .rows
                 .iter()
                 .find(|r| {
-                    r.volume == v.volume && r.image == IMAGES[0] && r.tier == tier && r.every_core
+                    r.dataset == v.dataset
+                        && r.volume == v.volume
+                        && r.image == IMAGES[0]
+                        && r.tier == tier
+                        && r.every_core
                 })
                 .map_or(f64::NAN, |r| r.median.as_secs_f64())
         };
@@ -381,8 +476,8 @@ fn beside_vtk(scale: &Scale) -> String {
         });
         let _ = writeln!(
             out,
-            "{:<7} {:>10.1} {:>9.2} {:>10.1} {:>10.2} {:>10.1} {:>10.2} {:>9.1} dB {:>24}",
-            format!("{}³", v.volume),
+            "{:<9} {:>10.1} {:>9.2} {:>10.1} {:>10.2} {:>10.1} {:>10.2} {:>9.1} dB {:>24}",
+            v.dataset.label(v.volume),
             vtk * 1e3,
             first.map_or(f64::NAN, |f| vtk / f),
             fast * 1e3,
@@ -406,10 +501,14 @@ pub fn plot(path: &Path, scale: &Scale) -> Result<(), String> {
     root.fill(&WHITE).map_err(|e| e.to_string())?;
     let (left, right) = root.split_horizontally(550);
     let swept: Vec<&ScaleRow> = scale.rows.iter().filter(|r| r.image == IMAGES[0]).collect();
-    let series = |tier: &str, every_core: bool, y: &dyn Fn(&ScaleRow) -> f64| -> Vec<(f64, f64)> {
+    let series = |dataset: Dataset,
+                  tier: &str,
+                  every_core: bool,
+                  y: &dyn Fn(&ScaleRow) -> f64|
+     -> Vec<(f64, f64)> {
         swept
             .iter()
-            .filter(|r| r.tier == tier && r.every_core == every_core)
+            .filter(|r| r.dataset == dataset && r.tier == tier && r.every_core == every_core)
             .map(|r| (f64::from(r.volume), y(r)))
             .collect()
     };
@@ -425,29 +524,52 @@ pub fn plot(path: &Path, scale: &Scale) -> Result<(), String> {
         ),
         (&right, "ns per evaluated sample (voxcube)", "ns", &ns),
     ] {
+        let (molecule, head) = (Dataset::Molecule, Dataset::Head);
         let mut lines = vec![
-            ("fast, every core", "fast", true, GREEN),
-            ("exact, every core", "exact", true, BLUE),
-            ("fast, one node", "fast", false, CYAN),
-            ("exact, one node", "exact", false, MAGENTA),
+            ("fast, every core", molecule, "fast", true, GREEN),
+            ("exact, every core", molecule, "exact", true, BLUE),
+            ("fast, one node", molecule, "fast", false, CYAN),
+            ("exact, one node", molecule, "exact", false, MAGENTA),
+            (
+                "head fast, every core",
+                head,
+                "fast",
+                true,
+                RGBColor(0, 110, 0),
+            ),
+            (
+                "head fast, one node",
+                head,
+                "fast",
+                false,
+                RGBColor(0, 140, 140),
+            ),
         ]
         .into_iter()
-        .map(|(label, tier, every_core, colour)| Line {
-            points: series(tier, every_core, y),
+        .map(|(label, dataset, tier, every_core, colour)| Line {
+            points: series(dataset, tier, every_core, y),
             colour,
             label: format!("voxcube {label}"),
         })
+        .filter(|l| !l.points.is_empty())
         .collect::<Vec<_>>();
-        if unit == "ms" && !scale.vtk.is_empty() {
-            lines.push(Line {
-                points: scale
-                    .vtk
-                    .iter()
-                    .map(|v| (f64::from(v.volume), v.median.as_secs_f64() * 1e3))
-                    .collect(),
-                colour: RED,
-                label: "VTK, 2 threads".into(),
-            });
+        for (dataset, colour, label) in [
+            (molecule, RED, "VTK, 2 threads"),
+            (head, RGBColor(150, 0, 0), "VTK head, 2 threads"),
+        ] {
+            let points: Vec<(f64, f64)> = scale
+                .vtk
+                .iter()
+                .filter(|v| v.dataset == dataset)
+                .map(|v| (f64::from(v.volume), v.median.as_secs_f64() * 1e3))
+                .collect();
+            if unit == "ms" && !points.is_empty() {
+                lines.push(Line {
+                    points,
+                    colour,
+                    label: label.into(),
+                });
+            }
         }
         let top = lines
             .iter()
@@ -472,6 +594,7 @@ mod tests {
 
     fn row(volume: u32, tier: &'static str, config: &str, ms: u64) -> ScaleRow {
         ScaleRow {
+            dataset: Dataset::Molecule,
             volume,
             image: IMAGES[0],
             tier,
@@ -493,9 +616,19 @@ mod tests {
                 row(128, "exact", "threads, 2 clusters of 1", 100),
                 row(256, "fast", "threads, 2 clusters of 1", 60),
                 row(256, "exact", "threads, 2 clusters of 1", 240),
+                // The head's rows, at sizes the molecule's share: compared apart.
+                ScaleRow {
+                    dataset: Dataset::Head,
+                    ..row(256, "fast", "threads, 2 clusters of 1", 80)
+                },
+                ScaleRow {
+                    dataset: Dataset::Head,
+                    ..row(512, "fast", "threads, 2 clusters of 1", 200)
+                },
             ],
             vtk: vec![
                 VtkRow {
+                    dataset: Dataset::Molecule,
                     volume: 128,
                     median: Duration::from_millis(100),
                     psnr: 30.0,
@@ -503,9 +636,26 @@ mod tests {
                     paired_medians: None,
                 },
                 VtkRow {
+                    dataset: Dataset::Molecule,
                     volume: 256,
                     median: Duration::from_millis(300),
                     psnr: 31.0,
+                    paired: vec![],
+                    paired_medians: None,
+                },
+                VtkRow {
+                    dataset: Dataset::Head,
+                    volume: 256,
+                    median: Duration::from_millis(200),
+                    psnr: 25.0,
+                    paired: vec![0.3],
+                    paired_medians: None,
+                },
+                VtkRow {
+                    dataset: Dataset::Head,
+                    volume: 512,
+                    median: Duration::from_millis(500),
+                    psnr: 26.0,
                     paired: vec![],
                     paired_medians: None,
                 },
@@ -539,6 +689,28 @@ mod tests {
         assert_eq!(
             line("256³"),
             ["256³", "300.0", "3.00", "60.0", "0.20", "240.0", "0.80", "31.0", "dB", "-"]
+        );
+        // The head grows from its own first volume and has no exact row here.
+        assert_eq!(
+            line("head 256³"),
+            [
+                "head",
+                "256³",
+                "200.0",
+                "1.00",
+                "80.0",
+                "0.40",
+                "NaN",
+                "NaN",
+                "25.0",
+                "dB",
+                "0.30",
+                "(0.30-0.30)"
+            ]
+        );
+        assert_eq!(
+            line("head 512³"),
+            ["head", "512³", "500.0", "2.50", "200.0", "0.40", "NaN", "NaN", "26.0", "dB", "-"]
         );
         let missing = Scale {
             vtk: vec![],
