@@ -3,12 +3,13 @@
 //! alone, so they are built once per volume and set of stored planes ([`super::built`]); a
 //! view's skipping ([`crate::memory::storage::Skipping`]) classifies them.
 //!
-//! A byte volume's cell masks and cell leap maps are a function of its cells' ranges and a
-//! view's verdicts on byte ranges (`voxcube_kernel::skip::cells::ByteVerdicts`), so the last
-//! masks a view classified are kept here too, with a cell leap map and a block leap map for
-//! each octant views of them have taken, for the next view with the same verdicts: an
-//! orbit's next frame (its frames turn through the octants and come back to each), a bench's
-//! next repetition, a view of the same transfer function from elsewhere.
+//! A slab's cell masks and cell leap maps are a function of its cells' ranges and a view's
+//! verdicts on ranges ([`Verdicts`]: for bytes, the verdict on every byte range; for other
+//! samples, everything the view's verdict reads), so the last masks a view classified are
+//! kept here too, with a cell leap map and a block leap map for each octant views of them
+//! have taken, for the next view with the same verdicts: an orbit's next frame (its frames
+//! turn through the octants and come back to each), a bench's next repetition, a view of
+//! the same transfer function from elsewhere.
 //!
 //! Invariant: a build split over threads by block columns gives the same bits as one pass
 //! (each column's blocks and cells read its own nodes only); a build that fails holds no
@@ -20,6 +21,7 @@ use std::sync::{Arc, Mutex, PoisonError};
 use voxcube_kernel::skip::blocks::{column_len, Blocks, CellMask, Range};
 use voxcube_kernel::skip::cell_ranges::{self, BlockCells};
 use voxcube_kernel::skip::cells::ByteVerdicts;
+use voxcube_kernel::trace::view::Emptiness;
 use voxcube_kernel::volume::sample::Sample;
 use voxcube_kernel::volume::slab::Slab;
 
@@ -31,16 +33,26 @@ pub struct SlabRanges<T> {
     pub blocks: Arc<Vec<Range>>,
     /// Each block's cells' ranges.
     pub cells: Vec<BlockCells<T>>,
-    /// The last masks classified from them, with their cell and block leap maps, for byte
-    /// samples.
+    /// The last masks classified from them, with their cell and block leap maps.
     kept: Mutex<Option<Classified>>,
 }
 
-/// A byte volume's cell masks for some verdicts, and the cell leap maps built from them.
+/// What a view's masks of a slab depend on besides the slab's ranges: two views with equal
+/// verdicts give the same masks and leap maps, bit for bit.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Verdicts {
+    /// A byte volume's: the verdict on every range of byte values, which views with other
+    /// transfer functions may share.
+    Bytes(Box<ByteVerdicts>),
+    /// Other samples': everything the view's verdict on a range reads (a kilobyte or so).
+    Of(Box<Emptiness>),
+}
+
+/// A slab's cell masks for some verdicts, and the cell leap maps built from them.
 #[derive(Clone, Debug)]
 pub struct Classified {
     /// The verdicts they were classified by.
-    pub verdicts: ByteVerdicts,
+    pub verdicts: Verdicts,
     /// The masks, one per block.
     pub masks: Arc<Vec<CellMask>>,
     /// Their which-keep words (`voxcube_kernel::skip::blocks::kept_bits`).
@@ -123,7 +135,7 @@ impl<T: Sample + Sync> SlabRanges<T> {
 
     /// The masks (and maps) kept for `verdicts`, if the last ones kept were classified by
     /// them.
-    pub fn kept(&self, verdicts: &ByteVerdicts) -> Option<Classified> {
+    pub fn kept(&self, verdicts: &Verdicts) -> Option<Classified> {
         let kept = self.kept.lock().unwrap_or_else(PoisonError::into_inner);
         kept.as_ref().filter(|k| k.verdicts == *verdicts).cloned()
     }

@@ -6,7 +6,7 @@
 //! stores alone, so they are the same bits however the build is split or where it runs.
 
 use crate::memory::parts::{even_parts, run_parts, split_sizes, Part};
-use crate::memory::ranges::{Classified, KeptMaps, SlabRanges};
+use crate::memory::ranges::{Classified, KeptMaps, SlabRanges, Verdicts};
 use std::borrow::Cow;
 use std::ops::Range;
 use std::sync::Arc;
@@ -206,12 +206,12 @@ pub fn cell_leap_octants(view: &View, mode: SkipMode, kept: bool) -> u8 {
 /// then costs a fifth fewer instructions, its first about the same.
 pub const MAP_SAMPLES_PER_CELL: f64 = 16.0;
 
-/// Whether the cell leap maps a node builds for a volume of `kind` outlive the frame: a byte
-/// volume's are kept beside its classified cell masks for the next view with the same
-/// verdicts (where its cells' value ranges are held, `mode.ranges`), so each octant's map
-/// is built once for all of them; other volumes' are built for each frame.
-pub fn maps_kept(kind: SampleKind, mode: SkipMode) -> bool {
-    kind == SampleKind::U8 && mode.ranges
+/// Whether the cell leap maps a node builds outlive the frame: they are kept beside the
+/// classified cell masks for the next view with the same verdicts where its cells' value
+/// ranges are held (`mode.ranges`), so each octant's map is built once for all of them;
+/// otherwise they are built for each frame. The same for every sample kind.
+pub fn maps_kept(mode: SkipMode) -> bool {
+    mode.ranges
 }
 
 /// The samples a cell must hold, on average, for a composited view with depth bounds to take
@@ -348,13 +348,17 @@ impl Skipping {
         let Ok(blocks) = Blocks::new(slab.grid(), slab.stored(), &ranges.blocks) else {
             return Skipping::default();
         };
-        // First the cell masks: without them no single cell is skipped. A byte volume's are
-        // kept with its ranges for the next view with the same verdicts, and its cell leap
-        // maps beside them.
+        // First the cell masks: without them no single cell is skipped. They are kept with
+        // the ranges for the next view with the same verdicts, and their cell leap maps
+        // beside them.
         let by_cell = has_cell_masks(view, mode);
         let held = ranges.holds_cells() && mode.ranges;
-        let verdicts = (by_cell && held && T::KIND == SampleKind::U8)
-            .then(|| voxcube_kernel::skip::cells::ByteVerdicts::of(view));
+        let verdicts = (by_cell && held).then(|| match T::KIND {
+            SampleKind::U8 => Verdicts::Bytes(Box::new(
+                voxcube_kernel::skip::cells::ByteVerdicts::of(view),
+            )),
+            _ => Verdicts::Of(Box::new(view.emptiness())),
+        });
         let kept = verdicts.as_ref().and_then(|v| ranges.kept(v));
         let cells = match (&kept, by_cell) {
             (Some(kept), _) => Arc::clone(&kept.masks),
@@ -815,6 +819,90 @@ mod tests {
     }
 
     #[test]
+    fn frames_of_a_signed_or_float_volume_share_one_classification_and_another_function_its_own() {
+        let (bytes, first) = view_from(45.0);
+        let (_, turned) = view_from(135.0);
+        let VolumeData::U8(data) = &bytes.data else {
+            unreachable!("the molecule is bytes")
+        };
+        // The molecule in Hounsfield-like units, and as floats: the same verdicts on its
+        // values shifted, by a transfer function shifted alike.
+        let shifted = |v: &View| {
+            let mut spec = v.spec().clone();
+            if let voxcube_kernel::trace::view::Mode::Composite(tf) = &spec.mode {
+                let points: Vec<_> = tf
+                    .points()
+                    .iter()
+                    .map(|p| voxcube_kernel::optics::transfer::ControlPoint {
+                        value: p.value - 1000.0,
+                        ..*p
+                    })
+                    .collect();
+                let tf = voxcube_kernel::optics::transfer::TransferFunction::new(&points);
+                spec.mode = voxcube_kernel::trace::view::Mode::Composite(
+                    tf.unwrap_or_else(|e| panic!("{e}")),
+                );
+            }
+            View::new(spec, &bytes.grid).unwrap_or_else(|e| panic!("{e}"))
+        };
+        let (first, turned) = (shifted(&first), shifted(&turned));
+        let words: Vec<i16> = data.iter().map(|&v| i16::from(v) - 1000).collect();
+        let floats: Vec<f32> = words.iter().map(|&v| f32::from(v)).collect();
+        fn check<T: voxcube_kernel::volume::sample::Sample + Sync>(
+            grid: Grid,
+            data: &[T],
+            first: &View,
+            turned: &View,
+        ) {
+            let slab = voxcube_kernel::volume::slab::Slab::whole(grid, data)
+                .unwrap_or_else(|e| panic!("{e}"));
+            let ranges = SlabRanges::build(&slab, true, 1);
+            let a = Skipping::build(&slab, &ranges, first, SkipMode::ALL);
+            let b = Skipping::build(&slab, &ranges, turned, SkipMode::ALL);
+            let again = Skipping::build(&slab, &ranges, first, SkipMode::ALL);
+            assert!(!a.cells.is_empty());
+            assert!(
+                Arc::ptr_eq(&a.cells, &b.cells),
+                "{:?}: one classification",
+                T::KIND
+            );
+            assert!(Arc::ptr_eq(&a.cell_leaps, &again.cell_leaps));
+            // The same bits as a classification afresh.
+            let fresh = Skipping::build(
+                &slab,
+                &SlabRanges::build(&slab, true, 1),
+                first,
+                SkipMode::ALL,
+            );
+            assert_eq!(fresh.cells, a.cells);
+            assert_eq!(fresh.cell_leaps, a.cell_leaps);
+            assert_eq!(fresh.leaps, a.leaps);
+            // Another transfer function (clear up to a value 40 higher): masks of its own.
+            let mut spec = first.spec().clone();
+            if let voxcube_kernel::trace::view::Mode::Composite(tf) = &spec.mode {
+                let points: Vec<_> = tf
+                    .points()
+                    .iter()
+                    .map(|p| voxcube_kernel::optics::transfer::ControlPoint {
+                        value: p.value + 40.0,
+                        ..*p
+                    })
+                    .collect();
+                spec.mode = voxcube_kernel::trace::view::Mode::Composite(
+                    voxcube_kernel::optics::transfer::TransferFunction::new(&points)
+                        .unwrap_or_else(|e| panic!("{e}")),
+                );
+            }
+            let other = View::new(spec, &grid).unwrap_or_else(|e| panic!("{e}"));
+            let c = Skipping::build(&slab, &ranges, &other, SkipMode::ALL);
+            assert!(!Arc::ptr_eq(&a.cells, &c.cells));
+            assert_ne!(a.cells, c.cells, "the sweep's masks see the move");
+        }
+        check(bytes.grid, &words, &first, &turned);
+        check(bytes.grid, &floats, &first, &turned);
+    }
+
+    #[test]
     fn an_orbit_s_frames_share_one_map_per_octant() {
         let (volume, first) = view_from(45.0);
         let (_, turned) = view_from(135.0);
@@ -851,7 +939,9 @@ mod tests {
         assert_eq!(fresh.cell_leaps, a.cell_leaps);
         assert_eq!(fresh.node_leaps, a.node_leaps);
         // The block leap maps too: one kept per octant, copied into a view of it.
-        let verdicts = voxcube_kernel::skip::cells::ByteVerdicts::of(&first);
+        let verdicts = Verdicts::Bytes(Box::new(voxcube_kernel::skip::cells::ByteVerdicts::of(
+            &first,
+        )));
         let kept = ranges.kept(&verdicts).unwrap_or_else(|| panic!("kept"));
         assert_eq!(kept.block_maps.len(), 2);
         assert!(!a.leaps.is_empty());

@@ -27,6 +27,15 @@ struct Entry {
     alpha: f32,
 }
 
+/// Of a table, what tells whether a range is empty ([`Classified::shown`]): where its index
+/// starts and how it scales (their bits), and how many entries before each show.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Shown {
+    lo: u32,
+    per_unit: u32,
+    shown: [u16; ENTRIES + 1],
+}
+
 /// A view's pre-classified transfer function.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Classified {
@@ -93,6 +102,16 @@ impl Classified {
     pub fn per_edge(&self, v: f32) -> (Vec3, f32) {
         let e = &self.entries[self.index(v)];
         (e.color, e.opacity)
+    }
+
+    /// What [`Classified::empty`] reads of the table, apart from it: two tables with equal
+    /// ones call every range alike.
+    pub fn shown(&self) -> Shown {
+        Shown {
+            lo: self.lo.to_bits(),
+            per_unit: self.per_unit.to_bits(),
+            shown: self.shown,
+        }
     }
 
     /// Whether every value in `[min, max]` reads an entry of zero opacity.

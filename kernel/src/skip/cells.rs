@@ -360,6 +360,82 @@ mod tests {
         ]
     }
 
+    #[test]
+    fn views_of_equal_emptiness_call_every_range_alike_and_a_moved_verdict_is_told_apart() {
+        use crate::trace::view::Accuracy;
+        let grid = Grid::new([9, 9, 9], Vec3::ONE).unwrap();
+        let with = |v: &View, f: &dyn Fn(&mut crate::trace::view::ViewSpec)| {
+            let mut spec = v.spec().clone();
+            f(&mut spec);
+            View::new(spec, &grid).unwrap()
+        };
+        let fast = |v: &View| with(v, &|s| s.accuracy = Accuracy::Fast);
+        // Another camera and step (the exact tier reads neither), another colour in the fast
+        // tier (its table's opacities alone tell).
+        let elsewhere = |v: &View| {
+            with(v, &|s| {
+                s.dt = 0.25;
+                s.camera = Camera::look_at(
+                    Vec3::new(-9.0, 30.0, 2.0),
+                    Vec3::splat(4.0),
+                    Vec3::Z,
+                    Projection::Orthographic { width: 14.0 },
+                )
+                .unwrap();
+            })
+        };
+        let recoloured = |v: &View| {
+            with(v, &|s| {
+                if let Mode::Composite(tf) = &s.mode {
+                    let points: heapless::Vec<ControlPoint, 8> = tf
+                        .points()
+                        .iter()
+                        .map(|p| ControlPoint {
+                            color: Vec3::new(0.1, 0.9, 0.4),
+                            ..*p
+                        })
+                        .collect();
+                    s.mode = Mode::Composite(TransferFunction::new(&points).unwrap());
+                }
+            })
+        };
+        let mut next = crate::testing::xorshift(0xe3_9d7);
+        let mut ranges: heapless::Vec<Range, 600> = heapless::Vec::new();
+        for _ in 0..590 {
+            let (a, b) = ((next() % 3000) as f32 * 0.1, (next() % 3000) as f32 * 0.1);
+            let _ = ranges.push(Range {
+                min: a.min(b),
+                max: a.max(b),
+            });
+        }
+        let _ = ranges.push(Range::UNKNOWN);
+        let alike = |a: &View, b: &View| ranges.iter().all(|r| a.empty(*r) == b.empty(*r));
+        // One view at a time: a view holds its tables, and a test thread's stack is small.
+        let base = |i: usize, isos: &[f32], clear: f32| {
+            let [surfaces, ramp, band] = views(&grid, isos, clear);
+            [surfaces, ramp, band].into_iter().nth(i).unwrap()
+        };
+        let same = |a: View, b: View| {
+            assert_eq!(a.emptiness(), b.emptiness(), "{:?}", a.spec().mode);
+            assert!(alike(&a, &b));
+        };
+        for i in 0..3 {
+            let v = base(i, &[50.0, 80.0], 20.0);
+            same(v.clone(), elsewhere(&v));
+            same(fast(&v), fast(&elsewhere(&v)));
+            same(fast(&v), fast(&recoloured(&v)));
+            // Any moved verdict is told apart: another least iso value, another clear value.
+            let moved = base(i, &[51.0, 80.0], 21.0);
+            assert!(!alike(&v, &moved), "the sweep sees the move");
+            assert_ne!(v.emptiness(), moved.emptiness());
+            assert_ne!(fast(&v).emptiness(), fast(&moved).emptiness());
+        }
+        // A tier's verdicts are its own: the exact tier's are the function's, the fast one's
+        // its table's.
+        let ramp = base(1, &[50.0, 80.0], 20.0);
+        assert_ne!(ramp.emptiness(), fast(&ramp).emptiness());
+    }
+
     /// A cell's bit by definition: its eight nodes read one by one (the far node of an axis of
     /// one node is the near one), set unless the view calls their range empty or a node is
     /// not stored.

@@ -93,6 +93,21 @@ impl Approximation {
     }
 }
 
+/// What a view's verdict on a range of values depends on ([`View::emptiness`]).
+#[allow(
+    clippy::large_enum_variant,
+    reason = "made once a frame and kept by a host beside masks of megabytes; the kernel has no heap to box the larger"
+)]
+#[derive(Clone, Debug, PartialEq)]
+pub enum Emptiness {
+    /// Surfaces: a range is empty below the least iso value (its bits).
+    Below(u32),
+    /// Composited in the fast tier: by the pre-classified table's entries that show.
+    Table(crate::optics::classify::Shown),
+    /// Composited by the transfer function's opacities (colours too, compared whole).
+    Function(TransferFunction),
+}
+
 /// What a view renders.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Mode {
@@ -377,6 +392,21 @@ impl View {
             Mode::Composite(tf) => match &self.classified {
                 Some(table) if !self.skips_by_the_function() => table.empty(r.min, r.max),
                 _ => !(tf.max_opacity(r.min, r.max) > 0.0),
+            },
+        }
+    }
+
+    /// What [`View::empty`] reads, apart from the view: two views with equal ones call every
+    /// range alike, so what a host classified by one (cell masks, leap maps) serves the other
+    /// (an orbit's next frame, a bench's next repetition). Surfaces are told by their least
+    /// iso value; a composited view by its table's entries that show, or by its transfer
+    /// function where it skips by that.
+    pub fn emptiness(&self) -> Emptiness {
+        match &self.spec.mode {
+            Mode::Surfaces(_) => Emptiness::Below(self.min_iso.to_bits()),
+            Mode::Composite(tf) => match &self.classified {
+                Some(table) if !self.skips_by_the_function() => Emptiness::Table(table.shown()),
+                _ => Emptiness::Function(tf.clone()),
             },
         }
     }
