@@ -85,7 +85,7 @@ impl<'a> RunShape<'a> {
         view: &View,
         kind: voxcube_kernel::volume::sample::SampleKind,
     ) -> RunShape<'a> {
-        let kept = crate::memory::storage::maps_kept(cfg.skipping);
+        let kept = crate::memory::storage::maps_kept(kind, cfg.skipping);
         let cell_maps = crate::memory::storage::cell_leap_octants(view, cfg.skipping, kept)
             .count_ones() as usize;
         RunShape {

@@ -206,12 +206,15 @@ pub fn cell_leap_octants(view: &View, mode: SkipMode, kept: bool) -> u8 {
 /// then costs a fifth fewer instructions, its first about the same.
 pub const MAP_SAMPLES_PER_CELL: f64 = 16.0;
 
-/// Whether the cell leap maps a node builds outlive the frame: they are kept beside the
-/// classified cell masks for the next view with the same verdicts where its cells' value
-/// ranges are held (`mode.ranges`), so each octant's map is built once for all of them;
-/// otherwise they are built for each frame. The same for every sample kind.
-pub fn maps_kept(mode: SkipMode) -> bool {
-    mode.ranges
+/// Whether a surfaces view takes cell leap maps as one whose maps outlive the frame
+/// ([`cell_leap_octants`]' `kept`): a byte volume's, whose verdicts on byte ranges views of
+/// many transfer functions and iso values share, where its cells' value ranges are held
+/// (`mode.ranges`). Other volumes keep their masks and maps for views of the same verdicts
+/// too, but take maps only where one frame repays them: on the Marschner–Lobb function at
+/// 128³, an orbit of four frames (each a new octant) took 27–39 ms a frame with maps taken
+/// as kept, 17–29 ms without (docs/speed-log.md).
+pub fn maps_kept(kind: SampleKind, mode: SkipMode) -> bool {
+    kind == SampleKind::U8 && mode.ranges
 }
 
 /// The samples a cell must hold, on average, for a composited view with depth bounds to take
@@ -383,7 +386,10 @@ impl Skipping {
         let mut leaps = vec![0; maps * len];
         let with_masks = blocks.with_cells(&cells).ok().filter(|_| !cells.is_empty());
         let cell_octants = match with_masks {
-            Some(_) => cell_leap_octants(view, mode, verdicts.is_some()),
+            Some(_) => {
+                let kept = maps_kept(T::KIND, mode) && verdicts.is_some();
+                cell_leap_octants(view, mode, kept)
+            }
             None => 0,
         };
         let per_map = len * voxcube_kernel::skip::cell_leaps::PER_BLOCK;

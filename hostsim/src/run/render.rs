@@ -350,7 +350,7 @@ pub fn node_skipping(volume: &Volume, view: &View, machine: &Machine, balanced: 
     let bounds = crate::memory::storage::depth_bytes(view, mode, cfg.layout.clusters());
     let depths = bounds > 0 && fits(least.with_depths(bounds), cfg.buffer());
     let with_depths = least.with_depths(if depths { bounds } else { 0 });
-    let kept = crate::memory::storage::maps_kept(mode);
+    let kept = crate::memory::storage::maps_kept(volume.data.kind(), mode);
     let maps = crate::memory::storage::cell_leap_octants(view, SkipMode { depths, ..mode }, kept);
     let maps = maps.count_ones() as usize;
     let held = maps > 0 && fits(with_depths.with_cell_maps(maps), cfg.buffer());
