@@ -141,17 +141,14 @@ impl Peer {
     /// The same VTK, compositing with `points` (value, colour, opacity per unit length)
     /// instead of SOD's transfer function.
     pub fn with_transfer(self, points: &[(f32, [f32; 3], f32)]) -> Peer {
-        let text = points
-            .iter()
-            .map(|(v, [r, g, b], o)| format!("{v}:{r},{g},{b}:{o}"))
-            .collect::<Vec<_>>()
-            .join(";");
         Peer {
-            transfer: Some(text),
+            transfer: Some(transfer_arg(points)),
             ..self
         }
     }
 
+    /// The peer for `count` samples of the script's type `kind`, whose little-endian bytes
+    /// (X fastest) are `bytes`.
     fn of_bytes(
         bytes: &[u8],
         count: usize,
@@ -161,7 +158,6 @@ impl Peer {
         if !Path::new(VENV_PYTHON).is_file() {
             return Ok(None);
         }
-        let samples = bytes;
         let nodes = dims.iter().map(|&d| d as usize).product::<usize>();
         if count != nodes {
             return Err(format!(
@@ -179,7 +175,7 @@ impl Peer {
             kind,
             transfer: None,
         };
-        for (path, bytes) in [(peer.raw(), samples), (peer.script(), SCRIPT.as_bytes())] {
+        for (path, bytes) in [(peer.raw(), bytes), (peer.script(), SCRIPT.as_bytes())] {
             std::fs::write(&path, bytes).map_err(|e| format!("{}: {e}", path.display()))?;
         }
         Ok(Some(peer))
@@ -244,6 +240,16 @@ impl Peer {
     }
 }
 
+/// Control points (value, colour, opacity) as the script's `--transfer` reads them:
+/// `value:r,g,b:opacity` joined by `;`.
+fn transfer_arg(points: &[(f32, [f32; 3], f32)]) -> String {
+    points
+        .iter()
+        .map(|(v, [r, g, b], o)| format!("{v}:{r},{g},{b}:{o}"))
+        .collect::<Vec<_>>()
+        .join(";")
+}
+
 /// The RGBA8 pixels of the PNG VTK wrote at `path`, which must be `frame`'s size.
 fn read_png(path: &Path, frame: Frame) -> Result<Vec<[u8; 4]>, String> {
     let image = image::open(path)
@@ -285,6 +291,28 @@ mod tests {
     use super::*;
     use crate::experiments::sod::{COMPOSITE_TRANSFER, SOD_ISO, SURFACE_VIEW};
     use voxcube_kernel::optics::shade::Shading;
+
+    #[test]
+    fn a_transfer_function_reaches_the_script_as_it_splits_one() {
+        let points = [
+            (-400.0, [0.8, 0.5, 0.4], 0.0),
+            (1100.0, [1.0, 1.0, 0.95], 0.8),
+        ];
+        let text = transfer_arg(&points);
+        assert_eq!(text, "-400:0.8,0.5,0.4:0;1100:1,1,0.95:0.8");
+        // As the script reads it: points by ';', fields by ':', colours by ','.
+        let back: Vec<(f32, Vec<f32>, f32)> = text
+            .split(';')
+            .map(|p| {
+                let f: Vec<&str> = p.split(':').collect();
+                let colour = f[1].split(',').map(|c| c.parse().unwrap()).collect();
+                (f[0].parse().unwrap(), colour, f[2].parse().unwrap())
+            })
+            .collect();
+        for ((v, c, o), (bv, bc, bo)) in points.iter().zip(&back) {
+            assert_eq!((*v, c.to_vec(), *o), (*bv, bc.clone(), *bo));
+        }
+    }
 
     /// The default of the script's argument `name`.
     fn default_of(name: &str) -> &'static str {

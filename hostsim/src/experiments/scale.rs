@@ -28,6 +28,8 @@ use std::time::Duration;
 
 /// Volume edges measured at the paper's image size.
 pub const VOLUMES: [u32; 3] = [128, 256, 512];
+/// Images measured on the 128³ volume.
+pub const IMAGES: [(u32, u32); 4] = [(350, 250), (700, 500), (1400, 1000), (2048, 1536)];
 /// Edges of the CT-like head measured at the paper's image size.
 pub const HEADS: [u32; 2] = [256, 512];
 
@@ -82,8 +84,6 @@ impl Dataset {
         }
     }
 }
-/// Images measured on the 128³ volume.
-pub const IMAGES: [(u32, u32); 4] = [(350, 250), (700, 500), (1400, 1000), (2048, 1536)];
 
 /// One measured frame.
 #[derive(Clone, Debug)]
@@ -186,10 +186,10 @@ fn span(n: u32) -> f32 {
     1.65 * n as f32
 }
 
-/// VTK's median frame of `volume` (an `n`³ byte or head volume) framed as [`view`] frames it at the
-/// paper's image size, `runs` renders after a first, and its image's PSNR against `ours`;
-/// then `runs` paired rounds ([`run_paired`]) of VTK's median of [`PAIR_FRAMES`] frames
-/// against the median of as many of voxcube's `frame_ours`.
+/// VTK's median frame of `volume` (the molecule or the head on `n`³) framed as [`view`]
+/// frames it at the paper's image size, `runs` renders after a first, and its image's PSNR
+/// against `ours`; then `runs` paired rounds ([`run_paired`]) of VTK's median of
+/// [`PAIR_FRAMES`] frames against the median of as many of voxcube's `frame_ours`.
 fn vtk_on(
     (dataset, volume): (Dataset, &Volume),
     n: u32,

@@ -345,15 +345,15 @@ fn head_planes(n: u32, planes: Range<u32>) -> Volume {
         let mut hu = -1000.0;
         for (e, &(c, s)) in HEAD.iter().zip(&turned) {
             let d = [p[0] - e.centre[0], p[1] - e.centre[1], p[2] - e.centre[2]];
-            // Past the bounding sphere and its ramp, nothing to add.
+            // Outside the box that bounds it and its ramp, nothing to add.
             let reach = e.semi[0].max(e.semi[1]).max(e.semi[2]) + sample;
             if d.iter().any(|v| v.abs() > reach) {
                 continue;
             }
             let (u, w) = (c * d[0] - s * d[2], s * d[0] + c * d[2]);
-            let r = libm::sqrt(
-                (u / e.semi[0]).powi(2) + (d[1] / e.semi[1]).powi(2) + (w / e.semi[2]).powi(2),
-            );
+            // Squares multiplied out (`powi`'s precision may differ between platforms).
+            let sq = |v: f64| v * v;
+            let r = libm::sqrt(sq(u / e.semi[0]) + sq(d[1] / e.semi[1]) + sq(w / e.semi[2]));
             // Inside by the distance to the surface along the least semi-axis, in samples:
             // full beyond half a sample in, none beyond half a sample out.
             let least = e.semi[0].min(e.semi[1]).min(e.semi[2]);
