@@ -534,8 +534,9 @@ fn ball_vtk(n: u16) -> Vec<u8> {
     file
 }
 
-/// A node's rank holds only the planes its slab stores of a built-in volume, a raw file, a
-/// NRRD file with raw samples, a scaled NIfTI-1 file or a binary legacy VTK file, whose views all place their cameras
+/// A node's rank holds only the planes its slab stores of a built-in volume (the molecule,
+/// the i16 head), a raw file, a NRRD file with raw samples, a scaled NIfTI-1 file or a binary
+/// legacy VTK file (i16), whose views all place their cameras
 /// themselves: generated alone or streamed, never cut from the whole. Where a view frames
 /// its camera by what shows, which reads every sample, the rank holds the whole volume (the
 /// control). The images are the threads fabric's, on 4 nodes in 1 and 2 clusters.
@@ -598,6 +599,11 @@ opacity = 0.8
         nii.display(),
         view(placed)
     ));
+    // The CT-like head (i16), its planes generated alone.
+    text.push_str(&format!(
+        "\n[[datasets]]\nname = \"head\"\nbuiltin = \"head\"\nsize = 48\n{}",
+        view(placed)
+    ));
     // A binary legacy VTK file of big-endian shorts, streamed.
     let vtk = dir.path().join("ball.vtk");
     std::fs::write(&vtk, ball_vtk(48)).expect("vtk written");
@@ -614,6 +620,7 @@ opacity = 0.8
             ("sod", "v"),
             ("neghip", "v"),
             ("ct", "v"),
+            ("head", "v"),
             ("ball", "v"),
         ],
         None => &[
@@ -621,6 +628,7 @@ opacity = 0.8
             ("placed", "beyond"),
             ("framed", "v"),
             ("ct", "v"),
+            ("head", "v"),
             ("ball", "v"),
         ],
     };
