@@ -824,6 +824,26 @@ mod tests {
         (job.volume, view.unwrap_or_else(|| panic!("a view")))
     }
 
+    /// `view` on `grid` with its transfer function's control points moved `by` in value.
+    fn shifted(view: &View, by: f32, grid: &Grid) -> View {
+        use voxcube_kernel::optics::transfer::{ControlPoint, TransferFunction};
+        use voxcube_kernel::trace::view::Mode;
+        let mut spec = view.spec().clone();
+        if let Mode::Composite(tf) = &spec.mode {
+            let points: Vec<_> = tf
+                .points()
+                .iter()
+                .map(|p| ControlPoint {
+                    value: p.value + by,
+                    ..*p
+                })
+                .collect();
+            let tf = TransferFunction::new(&points).unwrap_or_else(|e| panic!("{e}"));
+            spec.mode = Mode::Composite(tf);
+        }
+        View::new(spec, grid).unwrap_or_else(|e| panic!("{e}"))
+    }
+
     #[test]
     fn frames_of_a_signed_or_float_volume_share_one_classification_and_another_function_its_own() {
         let (bytes, first) = view_from(45.0);
@@ -833,25 +853,10 @@ mod tests {
         };
         // The molecule in Hounsfield-like units, and as floats: the same verdicts on its
         // values shifted, by a transfer function shifted alike.
-        let shifted = |v: &View| {
-            let mut spec = v.spec().clone();
-            if let voxcube_kernel::trace::view::Mode::Composite(tf) = &spec.mode {
-                let points: Vec<_> = tf
-                    .points()
-                    .iter()
-                    .map(|p| voxcube_kernel::optics::transfer::ControlPoint {
-                        value: p.value - 1000.0,
-                        ..*p
-                    })
-                    .collect();
-                let tf = voxcube_kernel::optics::transfer::TransferFunction::new(&points);
-                spec.mode = voxcube_kernel::trace::view::Mode::Composite(
-                    tf.unwrap_or_else(|e| panic!("{e}")),
-                );
-            }
-            View::new(spec, &bytes.grid).unwrap_or_else(|e| panic!("{e}"))
-        };
-        let (first, turned) = (shifted(&first), shifted(&turned));
+        let (first, turned) = (
+            shifted(&first, -1000.0, &bytes.grid),
+            shifted(&turned, -1000.0, &bytes.grid),
+        );
         let words: Vec<i16> = data.iter().map(|&v| i16::from(v) - 1000).collect();
         let floats: Vec<f32> = words.iter().map(|&v| f32::from(v)).collect();
         fn check<T: voxcube_kernel::volume::sample::Sample + Sync>(
@@ -884,22 +889,7 @@ mod tests {
             assert_eq!(fresh.cell_leaps, a.cell_leaps);
             assert_eq!(fresh.leaps, a.leaps);
             // Another transfer function (clear up to a value 40 higher): masks of its own.
-            let mut spec = first.spec().clone();
-            if let voxcube_kernel::trace::view::Mode::Composite(tf) = &spec.mode {
-                let points: Vec<_> = tf
-                    .points()
-                    .iter()
-                    .map(|p| voxcube_kernel::optics::transfer::ControlPoint {
-                        value: p.value + 40.0,
-                        ..*p
-                    })
-                    .collect();
-                spec.mode = voxcube_kernel::trace::view::Mode::Composite(
-                    voxcube_kernel::optics::transfer::TransferFunction::new(&points)
-                        .unwrap_or_else(|e| panic!("{e}")),
-                );
-            }
-            let other = View::new(spec, &grid).unwrap_or_else(|e| panic!("{e}"));
+            let other = shifted(first, 40.0, &grid);
             let c = Skipping::build(&slab, &ranges, &other, SkipMode::ALL);
             assert!(!Arc::ptr_eq(&a.cells, &c.cells));
             assert_ne!(a.cells, c.cells, "the sweep's masks see the move");

@@ -288,17 +288,18 @@ pub fn rescale(volume: Volume, slope: f64, intercept: f64) -> Result<Volume, Loa
     };
     // The scaling is linear: its ends bound it.
     let narrow = range.is_some_and(|(lo, hi)| whole_i16(y(lo)) && whole_i16(y(hi)));
-    fn map<T: Copy + Into<f64>, U>(v: &[T], f: impl Fn(f64) -> U) -> Vec<U> {
-        v.iter().map(|&x| f(x.into())).collect()
+    // Each kind's samples in one monomorphic pass: a volume's worth of them.
+    fn scaled<T: Copy + Into<f64>>(v: &[T], narrow: bool, y: impl Fn(f64) -> f64) -> VolumeData {
+        match narrow {
+            true => VolumeData::I16(v.iter().map(|&x| y(x.into()) as i16).collect()),
+            false => VolumeData::F32(v.iter().map(|&x| y(x.into()) as f32).collect()),
+        }
     }
-    let data = match (&volume.data, narrow) {
-        (VolumeData::U8(v), true) => VolumeData::I16(map(v, |x| y(x) as i16)),
-        (VolumeData::U16(v), true) => VolumeData::I16(map(v, |x| y(x) as i16)),
-        (VolumeData::I16(v), true) => VolumeData::I16(map(v, |x| y(x) as i16)),
-        (VolumeData::U8(v), _) => VolumeData::F32(map(v, |x| y(x) as f32)),
-        (VolumeData::U16(v), _) => VolumeData::F32(map(v, |x| y(x) as f32)),
-        (VolumeData::I16(v), _) => VolumeData::F32(map(v, |x| y(x) as f32)),
-        (VolumeData::F32(v), _) => VolumeData::F32(map(v, |x| y(x) as f32)),
+    let data = match &volume.data {
+        VolumeData::U8(v) => scaled(v, narrow, y),
+        VolumeData::U16(v) => scaled(v, narrow, y),
+        VolumeData::I16(v) => scaled(v, narrow, y),
+        VolumeData::F32(v) => scaled(v, narrow, y),
     };
     if let VolumeData::F32(v) = &data {
         if v.iter().any(|x| !x.is_finite()) {
