@@ -182,12 +182,12 @@ trait Reading<T: Sample>: Copy {
     /// the slab holds none.
     fn cells<'a>(slab: &Slab<'a, T>) -> Option<Cells<'a, Self::Node>>;
 
-    /// The sample at `site`.
+    /// The sample at index-space `p`, which reads the grid at `site`.
     fn read(
         self,
         view: &View,
         slab: &Slab<'_, T>,
-        site: &Site,
+        at: (Vec3, &Site),
         counters: &mut Counters,
     ) -> (f32, Option<Vec3>);
 
@@ -219,7 +219,7 @@ impl<T: Sample> Reading<T> for Lanes {
         self,
         _: &View,
         slab: &Slab<'_, T>,
-        site: &Site,
+        (_, site): (Vec3, &Site),
         counters: &mut Counters,
     ) -> (f32, Option<Vec3>) {
         // Counted as the value's read; the gradient where the shading takes it.
@@ -260,7 +260,7 @@ impl<T: Sample> Reading<T> for Value {
         self,
         view: &View,
         slab: &Slab<'_, T>,
-        site: &Site,
+        (_, site): (Vec3, &Site),
         counters: &mut Counters,
     ) -> (f32, Option<Vec3>) {
         (
@@ -282,10 +282,12 @@ impl<T: Sample> Reading<T> for Value {
     }
 }
 
-/// The exact tier's reading where the node field is held: in the interior, whose points all
-/// lie in the grid ([`nodes::in_grid`]), the field's lanes, value and gradient in one
-/// interpolation, as [`Lanes`]; the general step reads the value alone and lets the shading
-/// choose by the same rule: the same bits either way.
+/// The exact tier's reading where the node field is held: at points in the grid
+/// ([`nodes::in_grid`]: every point of the interior), the field's lanes, value and gradient in
+/// one interpolation, as [`Lanes`]; elsewhere the slab's value, and the shading takes its six
+/// reads. The same bits either way (the value lane is the trilinear value, and in the grid the
+/// lanes' gradient is the tier's own), but one read of storage, the one a loop asks for
+/// ahead, where the value and gradient apart would read the slab and the field.
 #[derive(Clone, Copy)]
 struct GridLanes;
 
@@ -302,10 +304,14 @@ impl<T: Sample> Reading<T> for GridLanes {
         self,
         view: &View,
         slab: &Slab<'_, T>,
-        site: &Site,
+        at: (Vec3, &Site),
         counters: &mut Counters,
     ) -> (f32, Option<Vec3>) {
-        Value.read(view, slab, site, counters)
+        if nodes::in_grid(slab.grid(), at.0) {
+            Lanes.read(view, slab, at, counters)
+        } else {
+            Value.read(view, slab, at, counters)
+        }
     }
 
     #[inline(always)]
@@ -427,7 +433,7 @@ fn samples<T: Sample, C: Classify, R: Reading<T>, A: Ahead>(
         counters.samples += 1;
         ahead.ask(&ray.ray, &ray.lattice, ray.k);
         let site = probe.corner.site(grid);
-        let (v, gradient) = read.read(view, slab, &site, counters);
+        let (v, gradient) = read.read(view, slab, (probe.p4.truncate(), &site), counters);
         let (alpha, base) = classify.classify(view, &ray.lattice, ray.k, v);
         // The state a ray keeps of its last sample read (`done_here` stays clear: only a
         // surface view reports crossings).
