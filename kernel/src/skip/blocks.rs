@@ -201,15 +201,40 @@ impl BlocksError {
     }
 }
 
-/// What one block holds: see [`Blocks::entry`].
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Entry {
-    /// Its range.
-    pub range: Range,
-    /// Its chessboard distance, when the blocks carry a leap map.
-    pub leap: Option<u8>,
-    /// Its cells the view cannot skip.
-    pub cells: CellMask,
+/// One block of [`Blocks::entry`], its index found once. Each of its facts is a read of its
+/// own table, made when asked: on a volume larger than the caches each read is a miss, and a
+/// block that the leap map says is empty needs neither its range nor its cells.
+#[derive(Clone, Copy, Debug)]
+pub struct Entry<'b, 'a> {
+    blocks: &'b Blocks<'a>,
+    /// The block's index in every table; `None` outside the slab's columns.
+    index: Option<usize>,
+}
+
+impl Entry<'_, '_> {
+    /// Its range ([`Blocks::range`]).
+    #[inline]
+    pub fn range(&self) -> Range {
+        self.index
+            .and_then(|i| self.blocks.data.get(i).copied())
+            .unwrap_or(Range::UNKNOWN)
+    }
+
+    /// Its chessboard distance, when the blocks carry a leap map ([`Blocks::leap`]).
+    #[inline]
+    pub fn leap(&self) -> Option<u8> {
+        let leaps = self.blocks.leaps?;
+        Some(self.index.and_then(|i| leaps.get(i).copied()).unwrap_or(0))
+    }
+
+    /// Its cells the view cannot skip ([`Blocks::cells`]).
+    #[inline]
+    pub fn cells(&self) -> CellMask {
+        match (self.index, self.blocks.cells) {
+            (Some(i), Some(cells)) => cells.get(i).copied().unwrap_or(ALL),
+            _ => ALL,
+        }
+    }
 }
 
 /// A slab's blocks: global block columns `[x0, x1)` × all Y × all Z.
@@ -552,18 +577,10 @@ impl<'a> Blocks<'a> {
     /// All that block `(bx, by, bz)` holds, found at one index: [`Blocks::range`],
     /// [`Blocks::leap`] and [`Blocks::cells`] at once, for the marcher entering a block.
     #[inline]
-    pub fn entry(&self, block: (u32, u32, u32)) -> Entry {
-        let Some(i) = self.index(block) else {
-            return Entry {
-                range: Range::UNKNOWN,
-                leap: self.leaps.map(|_| 0),
-                cells: ALL,
-            };
-        };
+    pub fn entry(&self, block: (u32, u32, u32)) -> Entry<'_, 'a> {
         Entry {
-            range: self.data.get(i).copied().unwrap_or(Range::UNKNOWN),
-            leap: self.leaps.map(|l| l.get(i).copied().unwrap_or(0)),
-            cells: self.cells.and_then(|c| c.get(i).copied()).unwrap_or(ALL),
+            blocks: self,
+            index: self.index(block),
         }
     }
 
@@ -856,7 +873,7 @@ mod tests {
                         let b = (bx, by, bz);
                         let e = blocks.entry(b);
                         assert_eq!(
-                            (e.range, e.leap, e.cells),
+                            (e.range(), e.leap(), e.cells()),
                             (blocks.range(b), blocks.leap(b), blocks.cells(b)),
                             "{b:?}"
                         );
@@ -866,8 +883,9 @@ mod tests {
                             Some(&mask) => assert_eq!(mask, blocks.cells(b), "{b:?}"),
                             None => assert!(column.is_empty() && blocks.cells(b) == ALL, "{b:?}"),
                         }
-                        inside +=
-                            usize::from(e.range != Range::UNKNOWN && e.leap.is_some_and(|d| d > 0));
+                        inside += usize::from(
+                            e.range() != Range::UNKNOWN && e.leap().is_some_and(|d| d > 0),
+                        );
                     }
                 }
             }

@@ -269,22 +269,27 @@ struct Verdict {
     block: (u32, u32, u32),
     /// How far around this block every block is empty, in blocks; `None`: this one is not.
     reach: Option<u32>,
-    /// Its cells the view cannot skip.
+    /// Its cells the view cannot skip: none where the block is empty (`reach` is `Some`).
     cells: CellMask,
 }
 
 impl Verdict {
+    /// Read only what decides: the range where no leap map speaks, the cells where the
+    /// block is not empty.
     #[inline]
     fn of(view: &View, blocks: &Blocks<'_>, block: (u32, u32, u32)) -> Verdict {
         let entry = blocks.entry(block);
-        let reach = match entry.leap {
+        let reach = match entry.leap() {
             Some(distance) => reach_of(distance),
-            None => view.empty(entry.range).then_some(0),
+            None => view.empty(entry.range()).then_some(0),
         };
         Verdict {
             block,
             reach,
-            cells: entry.cells,
+            cells: match reach {
+                Some(_) => 0,
+                None => entry.cells(),
+            },
         }
     }
 }
