@@ -10,8 +10,9 @@ use voxcube::memory::storage::{holds_node_field, SkipMode};
 use voxcube::run::render::render;
 use voxcube_kernel::counters::Counters;
 use voxcube_kernel::optics::shade::Light;
+use voxcube_kernel::optics::transfer::{ControlPoint, TransferFunction};
 use voxcube_kernel::trace::tracer::trace_pixel;
-use voxcube_kernel::trace::view::{Accuracy, Approximation, View};
+use voxcube_kernel::trace::view::{Accuracy, Approximation, Mode, View};
 use voxcube_kernel::volume::grid::Model;
 use voxcube_kernel::volume::lanes::Lanes;
 use voxcube_kernel::volume::nodes;
@@ -56,9 +57,29 @@ fn signed_of(bytes: &Volume) -> Vec<i16> {
 /// The scale of the signed volume's values: negative, so its gradients turn about too.
 const SIGNED: f32 = -97.0;
 
-/// Fast-tier views of `volume` that read gradients from the node field: composited and
-/// surfaces, parallel and perspective, a directional and a point light.
-fn views(volume: &Volume) -> Vec<View> {
+/// A transfer function that changes along the hills' values (`scale` times the bytes'): a
+/// colour and an opacity that a value read amiss moves, where a constant one shows only the
+/// gradients.
+fn ramp(scale: f32) -> Mode {
+    let (a, b) = (40.0 * scale, 160.0 * scale);
+    let points = [
+        (a.min(b), Vec3::new(0.2, 0.4, 0.9), 0.0),
+        (a.max(b), Vec3::new(1.0, 0.6, 0.2), 0.2),
+    ];
+    Mode::Composite(
+        TransferFunction::new(&points.map(|(value, color, opacity)| ControlPoint {
+            value,
+            color,
+            opacity,
+        }))
+        .expect("valid transfer function"),
+    )
+}
+
+/// Views of `volume` in `tier` that read gradients from the node field (the fast tier's
+/// definition, the exact tier's re-associated): composited and surfaces, parallel and
+/// perspective, a directional and a point light.
+fn views(volume: &Volume, tier: Accuracy) -> Vec<View> {
     let [nx, ny, nz] = volume.grid.dims().map(|n| n as f32);
     let centre = Vec3::new(nx * 0.5, ny * 0.4, nz * 0.65);
     let scale = match &volume.data {
@@ -79,14 +100,18 @@ fn views(volume: &Volume) -> Vec<View> {
     for camera in cameras {
         for mode in [
             constant_transfer(0.05),
+            ramp(scale),
             surfaces(&[(120.0 * scale, 0.5), (150.0 * scale, 0.0)]),
         ] {
             let mut s = lit(spec(camera, 48, 40, Model::Cell, 0.5, mode), &lights);
-            s.accuracy = Accuracy::Fast;
+            s.accuracy = tier;
             let view = View::new(s, &volume.grid).expect("valid view");
-            assert!(view
-                .approximations()
-                .contains(&Approximation::NodeGradients));
+            match tier {
+                Accuracy::Fast => assert!(view
+                    .approximations()
+                    .contains(&Approximation::NodeGradients)),
+                Accuracy::Exact => assert!(view.exact_node_gradients()),
+            }
             out.push(view);
         }
     }
@@ -94,18 +119,24 @@ fn views(volume: &Volume) -> Vec<View> {
 }
 
 /// Every pixel's unquantised colour as bits, from the whole volume with or without its node
-/// field; the field's bytes; and the counters.
-fn colours(volume: &Volume, view: &View, held: bool) -> (Vec<[u32; 3]>, usize, Counters) {
+/// field, skipping as `mode` says; the field's bytes; and the counters.
+fn colours(
+    volume: &Volume,
+    view: &View,
+    mode: SkipMode,
+    held: bool,
+) -> (Vec<[u32; 3]>, usize, Counters) {
     fn go<T: Sample + Sync>(
         volume: &Volume,
         data: &[T],
         view: &View,
+        mode: SkipMode,
         held: bool,
     ) -> (Vec<[u32; 3]>, usize, Counters) {
         let slab = Slab::whole(volume.grid, data).expect("whole slab");
         let mode = SkipMode {
             nodes: held,
-            ..SkipMode::ALL
+            ..mode
         };
         let field = volume.built.field(&slab, holds_node_field(view, mode), 2);
         // Built once for the volume: asked again, the same field.
@@ -118,28 +149,41 @@ fn colours(volume: &Volume, view: &View, held: bool) -> (Vec<[u32; 3]>, usize, C
         (colours, field.bytes(), c)
     }
     match &volume.data {
-        VolumeData::U8(d) => go(volume, d, view, held),
-        VolumeData::U16(d) => go(volume, d, view, held),
-        VolumeData::I16(d) => go(volume, d, view, held),
-        VolumeData::F32(d) => go(volume, d, view, held),
+        VolumeData::U8(d) => go(volume, d, view, mode, held),
+        VolumeData::U16(d) => go(volume, d, view, mode, held),
+        VolumeData::I16(d) => go(volume, d, view, mode, held),
+        VolumeData::F32(d) => go(volume, d, view, mode, held),
     }
 }
 
 #[test]
 fn held_or_computed_on_the_fly_the_node_field_gives_every_colour_in_the_same_bits() {
+    // With cell leap maps most composited samples are read by the runs through the slab's
+    // interior; without them every sample by the general step, which reads value and
+    // gradient from the field's lanes in both tiers where the field is held.
+    let general_step = SkipMode {
+        cell_leaps: false,
+        ..SkipMode::ALL
+    };
     for volume in volumes() {
         let kind = volume.data.kind();
-        for view in views(&volume) {
-            let (held, bytes, counted) = colours(&volume, &view, true);
-            let (fly, none, also) = colours(&volume, &view, false);
-            // The same work counted: the counters do not say whether a node held the field.
-            assert_eq!(counted, also, "{kind:?}");
-            let nodes = volume.grid.dims().iter().product::<u32>() as usize;
-            assert_eq!((bytes, none), (nodes * kind.node_bytes(), 0), "{kind:?}");
-            // Not a blank image: the comparison sees the shading.
-            let lit = held.iter().filter(|c| **c != [0; 3]).count();
-            assert!(lit > held.len() / 10, "{kind:?}: {lit} pixels lit");
-            assert!(held == fly, "{kind:?}: a colour differs");
+        for tier in [Accuracy::Fast, Accuracy::Exact] {
+            for view in views(&volume, tier) {
+                for mode in [SkipMode::ALL, general_step] {
+                    let (held, bytes, counted) = colours(&volume, &view, mode, true);
+                    let (fly, none, also) = colours(&volume, &view, mode, false);
+                    let case = format!("{kind:?}, {tier:?}, cell leaps {}", mode.cell_leaps);
+                    // The same work counted: the counters do not say whether a node held
+                    // the field.
+                    assert_eq!(counted, also, "{case}");
+                    let nodes = volume.grid.dims().iter().product::<u32>() as usize;
+                    assert_eq!((bytes, none), (nodes * kind.node_bytes(), 0), "{case}");
+                    // Not a blank image: the comparison sees the shading.
+                    let lit = held.iter().filter(|c| **c != [0; 3]).count();
+                    assert!(lit > held.len() / 10, "{case}: {lit} pixels lit");
+                    assert!(held == fly, "{case}: a colour differs");
+                }
+            }
         }
     }
 }
@@ -155,14 +199,11 @@ fn a_signed_16_bit_volume_gives_what_its_values_as_floats_give_in_every_bit() {
         bytes.grid,
         VolumeData::F32(signed.iter().map(|&v| f32::from(v)).collect()),
     );
-    for view in views(&words) {
-        for accuracy in [Accuracy::Fast, Accuracy::Exact] {
-            let mut spec = view.spec().clone();
-            spec.accuracy = accuracy;
-            let view = View::new(spec, &bytes.grid).expect("valid view");
+    for accuracy in [Accuracy::Fast, Accuracy::Exact] {
+        for view in views(&words, accuracy) {
             for held in [true, false] {
-                let (a, bytes16, _) = colours(&words, &view, held);
-                let (b, bytes32, _) = colours(&floats, &view, held);
+                let (a, bytes16, _) = colours(&words, &view, SkipMode::ALL, held);
+                let (b, bytes32, _) = colours(&floats, &view, SkipMode::ALL, held);
                 assert!(a == b, "{accuracy:?}, field held {held}: a colour differs");
                 assert_eq!(bytes16, bytes32, "both hold four f32 lanes a node");
                 let lit = a.iter().filter(|c| **c != [0; 3]).count();
@@ -184,12 +225,7 @@ fn machines_that_hold_the_field_and_machines_that_do_not_give_the_same_image() {
     let v = job
         .views
         .iter()
-        .find(|v| {
-            matches!(
-                v.view.spec().mode,
-                voxcube_kernel::trace::view::Mode::Composite(_)
-            )
-        })
+        .find(|v| matches!(v.view.spec().mode, Mode::Composite(_)))
         .expect("SOD's composited view");
     let view = voxcube_tests::in_tier(&v.view, &job.volume, Accuracy::Fast);
     assert!(view.node_gradients(), "SOD's composited view is shaded");
@@ -215,36 +251,47 @@ fn machines_that_hold_the_field_and_machines_that_do_not_give_the_same_image() {
 }
 
 #[test]
-fn negative_control_a_field_whose_differences_are_off_changes_the_image() {
+fn negative_control_a_field_whose_values_or_differences_are_off_changes_the_image() {
     let volume = &volumes()[0];
     let VolumeData::U8(data) = &volume.data else {
         unreachable!("a byte volume")
     };
-    let view = &views(volume)[0];
     let slab = Slab::whole(volume.grid, data).expect("whole slab");
     let planes = nodes::planes_for(&volume.grid, slab.owned());
     let mut lanes = vec![<[i16; 4]>::default(); nodes::len_for(&volume.grid, slab.owned())];
     nodes::fill(&slab, planes.clone(), &mut lanes).expect("fills");
-    let trace = |slab: &Slab<'_, u8>| {
-        let mut c = Counters::default();
-        (0..view.pixel_count() as u32)
-            .map(|p| trace_pixel(view, slab, p, &mut c))
-            .collect::<Vec<_>>()
-    };
-    let own = voxcube_kernel::volume::lanes::Nodes::new(&volume.grid, planes.clone(), &lanes)
-        .expect("field");
-    let right = trace(&slab.with_nodes(own));
-    assert_eq!(right, trace(&slab), "the slab's own field");
-    // One more unit along X in every node's difference: a field off by a little.
-    let off: Vec<[i16; 4]> = lanes
-        .iter()
-        .map(|l| <[i16; 4]>::pack(l.unpack() + voxcube_kernel::Vec4::new(0.0, 1.0, 0.0, 0.0)))
-        .collect();
-    let off = voxcube_kernel::volume::lanes::Nodes::new(&volume.grid, planes, &off).expect("field");
-    let wrong = trace(&slab.with_nodes(off));
-    let differ = right.iter().zip(&wrong).filter(|(a, b)| a != b).count();
-    assert!(
-        differ > 0,
-        "a field off by one unit left every colour as it was"
-    );
+    // Both tiers read the field where it is held: the value and the gradient in the fast
+    // tier, and in the exact tier the gradient and, at points in the grid, the value too.
+    for tier in [Accuracy::Fast, Accuracy::Exact] {
+        // Parallel, composited by the ramp: both the values and the gradients show.
+        let view = &views(volume, tier)[1];
+        let trace = |slab: &Slab<'_, u8>| {
+            let mut c = Counters::default();
+            (0..view.pixel_count() as u32)
+                .map(|p| trace_pixel(view, slab, p, &mut c))
+                .collect::<Vec<_>>()
+        };
+        let own = voxcube_kernel::volume::lanes::Nodes::new(&volume.grid, planes.clone(), &lanes)
+            .expect("field");
+        let right = trace(&slab.with_nodes(own));
+        assert_eq!(right, trace(&slab), "{tier:?}: the slab's own field");
+        // One more unit in every node's value, or in its difference along X: a field off
+        // by a little.
+        for (lane, what) in [(0, "value"), (1, "difference along X")] {
+            let mut unit = voxcube_kernel::Vec4::ZERO;
+            unit[lane] = 1.0;
+            let off: Vec<[i16; 4]> = lanes
+                .iter()
+                .map(|l| <[i16; 4]>::pack(l.unpack() + unit))
+                .collect();
+            let off = voxcube_kernel::volume::lanes::Nodes::new(&volume.grid, planes.clone(), &off)
+                .expect("field");
+            let wrong = trace(&slab.with_nodes(off));
+            let differ = right.iter().zip(&wrong).filter(|(a, b)| a != b).count();
+            assert!(
+                differ > 0,
+                "{tier:?}: a field whose {what} is off by one unit left every colour as it was"
+            );
+        }
+    }
 }
