@@ -575,7 +575,8 @@ impl<'a> Blocks<'a> {
     }
 
     /// All that block `(bx, by, bz)` holds, found at one index: [`Blocks::range`],
-    /// [`Blocks::leap`] and [`Blocks::cells`] at once, for the marcher entering a block.
+    /// [`Blocks::leap`] and [`Blocks::cells`], each read when asked, for the marcher
+    /// entering a block.
     #[inline]
     pub fn entry(&self, block: (u32, u32, u32)) -> Entry<'_, 'a> {
         Entry {

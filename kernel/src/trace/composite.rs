@@ -182,7 +182,7 @@ trait Reading<T: Sample>: Copy {
     /// the slab holds none.
     fn cells<'a>(slab: &Slab<'a, T>) -> Option<Cells<'a, Self::Node>>;
 
-    /// The sample at index-space `p`, which reads the grid at `site`.
+    /// The sample at `at`: its index-space point, and the site where it reads the grid.
     fn read(
         self,
         view: &View,
