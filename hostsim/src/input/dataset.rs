@@ -199,25 +199,61 @@ impl Volume {
 }
 
 /// Samples `f(x, y, z)` for every node of a `dims` grid, plane-major.
-pub fn plane_major_from_fn<T>(dims: [u32; 3], f: impl FnMut(u32, u32, u32) -> T) -> Vec<T> {
-    plane_major_window(dims, 0..dims[0], f)
-}
-
-/// Samples `f(x, y, z)` for every node of a `dims` grid on the X planes `planes`, plane-major.
-pub fn plane_major_window<T>(
-    dims: [u32; 3],
-    planes: Range<u32>,
-    mut f: impl FnMut(u32, u32, u32) -> T,
-) -> Vec<T> {
-    let [_, ny, nz] = dims;
-    let mut out = Vec::with_capacity(planes.len() * ny as usize * nz as usize);
-    for x in planes {
+pub fn plane_major_from_fn<T>(dims: [u32; 3], mut f: impl FnMut(u32, u32, u32) -> T) -> Vec<T> {
+    let [nx, ny, nz] = dims;
+    let mut out = Vec::with_capacity(nx as usize * ny as usize * nz as usize);
+    for x in 0..nx {
         for z in 0..nz {
             for y in 0..ny {
                 out.push(f(x, y, z));
             }
         }
     }
+    out
+}
+
+/// Samples a thread of [`plane_major_window`] takes at least: below twice this many a
+/// window is filled on the calling thread alone.
+const SAMPLES_PER_THREAD: usize = 1 << 20;
+
+/// Samples `f(x, y, z)` for every node of a `dims` grid on the X planes `planes`, plane-major,
+/// the planes shared among the machine's cores: a built-in volume of 512³ computes its
+/// samples, not reads them, and each sample depends on its node alone, so which thread
+/// computes a plane changes no value.
+pub fn plane_major_window<T: Clone + Default + Send>(
+    dims: [u32; 3],
+    planes: Range<u32>,
+    f: impl Fn(u32, u32, u32) -> T + Sync,
+) -> Vec<T> {
+    use crate::memory::parts::{even_parts, split_sizes};
+    let [_, ny, nz] = dims;
+    let per_plane = ny as usize * nz as usize;
+    let mut out = vec![T::default(); planes.len() * per_plane];
+    let cores = std::thread::available_parallelism().map_or(1, usize::from);
+    let threads = cores.min(out.len() / SAMPLES_PER_THREAD).max(1);
+    let parts = even_parts(planes.len() as u32, threads as u32);
+    let fill = |xs: Range<u32>, piece: &mut [T]| {
+        let samples = xs.flat_map(|x| (0..nz).flat_map(move |z| (0..ny).map(move |y| (x, y, z))));
+        for (slot, (x, y, z)) in piece.iter_mut().zip(samples) {
+            *slot = f(x, y, z);
+        }
+    };
+    let sizes = parts.iter().map(|p| p.len() * per_plane);
+    let pieces: Vec<(Range<u32>, &mut [T])> = parts
+        .iter()
+        .map(|p| p.start + planes.start..p.end + planes.start)
+        .zip(split_sizes(&mut out, sizes))
+        .collect();
+    std::thread::scope(|scope| {
+        let mut pieces = pieces.into_iter();
+        let mine = pieces.next();
+        for (xs, piece) in pieces {
+            scope.spawn(|| fill(xs, piece));
+        }
+        if let Some((xs, piece)) = mine {
+            fill(xs, piece);
+        }
+    });
     out
 }
 
@@ -254,6 +290,24 @@ pub fn to_file_order<T: Copy + Default>(plane_major: &[T], dims: [u32; 3]) -> Ve
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_window_filled_on_the_cores_is_its_planes_in_order() {
+        // More samples than one thread's share, so that two cores or more split the planes.
+        let dims = [41, 200, 300];
+        let f = |x: u32, y: u32, z: u32| {
+            x.wrapping_mul(73_856_093) ^ y.wrapping_mul(19_349_663) ^ z.wrapping_mul(83_492_791)
+        };
+        let whole = plane_major_from_fn(dims, f);
+        let per_plane = 200 * 300;
+        assert!(whole.len() > 2 * SAMPLES_PER_THREAD);
+        for planes in [0..41, 7..33, 40..41, 5..5] {
+            let window = plane_major_window(dims, planes.clone(), f);
+            let expected =
+                &whole[planes.start as usize * per_plane..planes.end as usize * per_plane];
+            assert!(window == expected, "planes {planes:?}");
+        }
+    }
 
     #[test]
     fn plane_major_puts_each_x_plane_together() {
