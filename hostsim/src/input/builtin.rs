@@ -15,7 +15,7 @@
 //! Invariant: every volume is the same bits on every machine: a fixed seed, integer-exact
 //! arithmetic where possible, and libm (not the platform's maths library) for the rest.
 
-use crate::input::dataset::{plane_major_window, Volume, VolumeData};
+use crate::input::dataset::{plane_major_window, planes_on_cores, Volume, VolumeData};
 use crate::rng::SplitMix;
 use std::ops::Range;
 use voxcube_kernel::volume::grid::Grid;
@@ -225,25 +225,26 @@ fn molecule_planes(n: u32, planes: Range<u32>) -> Volume {
     // Plane-major source: plane x, then z, then y fastest.
     let plane = |x: usize| &src[x * mz * my..][..mz * my];
     let nn = n as usize;
-    let mut data = Vec::with_capacity(planes.len() * nn * nn);
-    let mut along_x = vec![0.0f32; mz * my];
-    let mut along_z = vec![0.0f32; my];
-    for &(x, wx) in &tx[planes.start as usize..planes.end as usize] {
+    let data = planes_on_cores([n; 3], planes.clone(), |x, out| {
+        let (x, wx) = tx[x as usize];
         let (a, b) = (plane(x), plane(x + 1));
-        for (o, (&a, &b)) in along_x.iter_mut().zip(a.iter().zip(b)) {
-            *o = lerp(f32::from(a), f32::from(b), wx);
-        }
-        for &(z, wz) in &tz {
+        let along_x: Vec<f32> = a
+            .iter()
+            .zip(b)
+            .map(|(&a, &b)| lerp(f32::from(a), f32::from(b), wx))
+            .collect();
+        let mut along_z = vec![0.0f32; my];
+        for (&(z, wz), row) in tz.iter().zip(out.chunks_mut(nn)) {
             let (a, b) = (&along_x[z * my..][..my], &along_x[(z + 1) * my..][..my]);
             for (o, (&a, &b)) in along_z.iter_mut().zip(a.iter().zip(b)) {
                 *o = lerp(a, b, wz);
             }
-            data.extend(ty.iter().map(|&(y, wy)| {
+            for (slot, &(y, wy)) in row.iter_mut().zip(&ty) {
                 let v = lerp(along_z[y], along_z[y + 1], wy);
-                v.round().clamp(0.0, 255.0) as u8
-            }));
+                *slot = v.round().clamp(0.0, 255.0) as u8;
+            }
         }
-    }
+    });
     window_from([n; 3], planes.start, VolumeData::U8(data))
 }
 

@@ -212,18 +212,34 @@ pub fn plane_major_from_fn<T>(dims: [u32; 3], mut f: impl FnMut(u32, u32, u32) -
     out
 }
 
-/// Samples a thread of [`plane_major_window`] takes at least: below twice this many a
-/// window is filled on the calling thread alone.
+/// Samples a thread of [`planes_on_cores`] takes at least: below twice this many a window is
+/// filled on the calling thread alone.
 const SAMPLES_PER_THREAD: usize = 1 << 20;
 
 /// Samples `f(x, y, z)` for every node of a `dims` grid on the X planes `planes`, plane-major,
-/// the planes shared among the machine's cores: a built-in volume of 512³ computes its
-/// samples, not reads them, and each sample depends on its node alone, so which thread
-/// computes a plane changes no value.
+/// on the machine's cores ([`planes_on_cores`]).
 pub fn plane_major_window<T: Clone + Default + Send>(
     dims: [u32; 3],
     planes: Range<u32>,
     f: impl Fn(u32, u32, u32) -> T + Sync,
+) -> Vec<T> {
+    let [_, ny, nz] = dims;
+    planes_on_cores(dims, planes, |x, plane| {
+        let nodes = (0..nz).flat_map(|z| (0..ny).map(move |y| (y, z)));
+        for (slot, (y, z)) in plane.iter_mut().zip(nodes) {
+            *slot = f(x, y, z);
+        }
+    })
+}
+
+/// The X planes `planes` of a `dims` grid, plane-major, each written by `fill(x, plane)`, the
+/// planes shared among the machine's cores: a built-in volume of 512³ computes its samples,
+/// not reads them, and a plane that depends on its index alone is the same whichever thread
+/// computes it.
+pub fn planes_on_cores<T: Clone + Default + Send>(
+    dims: [u32; 3],
+    planes: Range<u32>,
+    fill: impl Fn(u32, &mut [T]) + Sync,
 ) -> Vec<T> {
     use crate::memory::parts::{even_parts, split_sizes};
     let [_, ny, nz] = dims;
@@ -232,10 +248,9 @@ pub fn plane_major_window<T: Clone + Default + Send>(
     let cores = std::thread::available_parallelism().map_or(1, usize::from);
     let threads = cores.min(out.len() / SAMPLES_PER_THREAD).max(1);
     let parts = even_parts(planes.len() as u32, threads as u32);
-    let fill = |xs: Range<u32>, piece: &mut [T]| {
-        let samples = xs.flat_map(|x| (0..nz).flat_map(move |z| (0..ny).map(move |y| (x, y, z))));
-        for (slot, (x, y, z)) in piece.iter_mut().zip(samples) {
-            *slot = f(x, y, z);
+    let run = |xs: Range<u32>, piece: &mut [T]| {
+        for (x, plane) in xs.zip(piece.chunks_mut(per_plane.max(1))) {
+            fill(x, plane);
         }
     };
     let sizes = parts.iter().map(|p| p.len() * per_plane);
@@ -248,10 +263,10 @@ pub fn plane_major_window<T: Clone + Default + Send>(
         let mut pieces = pieces.into_iter();
         let mine = pieces.next();
         for (xs, piece) in pieces {
-            scope.spawn(|| fill(xs, piece));
+            scope.spawn(|| run(xs, piece));
         }
         if let Some((xs, piece)) = mine {
-            fill(xs, piece);
+            run(xs, piece);
         }
     });
     out
