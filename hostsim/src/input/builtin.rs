@@ -333,21 +333,24 @@ fn head_planes(n: u32, planes: Range<u32>) -> Volume {
     let at = |i: u32| (f64::from(i) - half) / half;
     // A sample's width in the head's frame: each edge ramps over about one sample.
     let sample = 1.0 / half;
-    let turned: Vec<(f64, f64)> = HEAD
+    // Per ellipsoid, what every sample asks of it: its turn's cosine and sine, the half-width
+    // of the box that bounds it and its ramp, and its least semi-axis.
+    let shapes: Vec<(f64, f64, f64, f64)> = HEAD
         .iter()
         .map(|e| {
             let t = e.turn_degrees.to_radians();
-            (libm::cos(t), libm::sin(t))
+            let reach = e.semi[0].max(e.semi[1]).max(e.semi[2]) + sample;
+            let least = e.semi[0].min(e.semi[1]).min(e.semi[2]);
+            (libm::cos(t), libm::sin(t), reach, least)
         })
         .collect();
     let first = planes.start;
     let data = plane_major_window([n; 3], planes, |x, y, z| {
         let p = [at(x), at(y), at(z)];
         let mut hu = -1000.0;
-        for (e, &(c, s)) in HEAD.iter().zip(&turned) {
+        for (e, &(c, s, reach, least)) in HEAD.iter().zip(&shapes) {
             let d = [p[0] - e.centre[0], p[1] - e.centre[1], p[2] - e.centre[2]];
             // Outside the box that bounds it and its ramp, nothing to add.
-            let reach = e.semi[0].max(e.semi[1]).max(e.semi[2]) + sample;
             if d.iter().any(|v| v.abs() > reach) {
                 continue;
             }
@@ -357,7 +360,6 @@ fn head_planes(n: u32, planes: Range<u32>) -> Volume {
             let r = libm::sqrt(sq(u / e.semi[0]) + sq(d[1] / e.semi[1]) + sq(w / e.semi[2]));
             // Inside by the distance to the surface along the least semi-axis, in samples:
             // full beyond half a sample in, none beyond half a sample out.
-            let least = e.semi[0].min(e.semi[1]).min(e.semi[2]);
             let inside = ((1.0 - r) * least / sample + 0.5).clamp(0.0, 1.0);
             hu += e.adds * inside;
         }

@@ -198,7 +198,9 @@ impl Volume {
     }
 }
 
-/// Samples `f(x, y, z)` for every node of a `dims` grid, plane-major.
+/// Samples `f(x, y, z)` for every node of a `dims` grid, plane-major, called one node at a
+/// time in that order, so that `f` may keep state (a test's random stream); a built-in's
+/// window, whose samples depend on their nodes alone, takes [`plane_major_window`].
 pub fn plane_major_from_fn<T>(dims: [u32; 3], mut f: impl FnMut(u32, u32, u32) -> T) -> Vec<T> {
     let [nx, ny, nz] = dims;
     let mut out = Vec::with_capacity(nx as usize * ny as usize * nz as usize);
@@ -253,6 +255,8 @@ pub fn planes_on_cores<T: Clone + Default + Send>(
             fill(x, plane);
         }
     };
+    // Threads of its own rather than `parts::run_parts`, whose parts may fail and leave
+    // nothing built: a volume has no such fallback, and a fill that panics must end the load.
     let sizes = parts.iter().map(|p| p.len() * per_plane);
     let pieces: Vec<(Range<u32>, &mut [T])> = parts
         .iter()
