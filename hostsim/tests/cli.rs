@@ -206,6 +206,33 @@ fn bad_machines_are_clear_errors() {
     }
 }
 
+/// `--machine host` gives each node this machine's memory shared by the nodes: the default
+/// scene's two nodes then hold what an nCUBE 2 node (4 MiB) has no room for (the node field,
+/// the cells' value ranges), and draw the same pixels.
+#[test]
+fn host_nodes_hold_what_small_nodes_cannot_and_draw_the_same_pixels() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let run = |machine: &str| {
+        let args = ["--fabric", "threads", "--nodes", "2", "--clusters", "2"];
+        let args = [&args[..], &["--machine", machine]].concat();
+        let (json, _) = render_ok(dir.path(), &args, &format!("{machine}.json"));
+        let view = &json["views"][0];
+        (
+            view["pixels_sha256"]
+                .as_str()
+                .unwrap_or_default()
+                .to_string(),
+            view["traffic"]["memory_max"].as_u64().unwrap_or(0),
+        )
+    };
+    let (small, small_bytes) = run("ncube2");
+    let (host, host_bytes) = run("host");
+    assert_eq!(small.len(), 64);
+    assert_eq!(small, host);
+    assert!(small_bytes <= 4 << 20, "{small_bytes}");
+    assert!(host_bytes > 4 << 20, "{host_bytes}");
+}
+
 #[test]
 fn balancing_moves_the_cuts_and_not_a_pixel() {
     for fabric in ["sim", "threads"] {

@@ -699,3 +699,35 @@ opacity = 0.8
         }
     }
 }
+
+/// `--machine host` shares this machine's memory among nodes that run in this process; a rank
+/// may run on another machine, and every rank must budget alike, so MPI refuses it before any
+/// rank renders, naming what to give instead.
+#[test]
+fn host_nodes_are_refused_on_mpi() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out_dir = dir.path().join("o").display().to_string();
+    let out = mpirun(
+        3,
+        &[],
+        &[
+            "render",
+            "--fabric",
+            "mpi",
+            "--nodes",
+            "2",
+            "--machine",
+            "host",
+            "-q",
+            "-o",
+            &out_dir,
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("MPI ranks are cluster nodes: give --machine modern or ncube2"),
+        "{stderr}"
+    );
+    assert!(!dir.path().join("o/molecule-paper.png").exists());
+}

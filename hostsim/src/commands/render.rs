@@ -153,6 +153,37 @@ pub enum ProfileArg {
     Ncube2,
     /// A modern cluster node: 1 GiB per node.
     Modern,
+    /// This machine: its physical memory shared evenly among the nodes, which run in this
+    /// process (direct, sim, threads); timed as modern. What a workstation gives a volume.
+    Host,
+}
+
+impl ProfileArg {
+    /// The shipped profile whose costs time this one's work.
+    fn timing(self) -> &'static str {
+        match self {
+            ProfileArg::Ncube2 => "ncube2",
+            ProfileArg::Modern | ProfileArg::Host => "modern",
+        }
+    }
+
+    /// The memory of each node of `machine` on this profile.
+    fn profile(self, machine: &Machine) -> Result<Profile, String> {
+        match self {
+            ProfileArg::Ncube2 => Ok(Profile::ncube2()),
+            ProfileArg::Modern => {
+                Profile::builtin("modern").ok_or_else(|| "the shipped modern profile is missing".into())
+            }
+            // An MPI rank may run on another machine, whose memory this one cannot know, and
+            // every rank must budget alike.
+            ProfileArg::Host if machine.fabric == Fabric::Mpi => Err(
+                "--machine host shares this machine's memory among nodes that run in this process (direct, sim, threads); MPI ranks are cluster nodes: give --machine modern or ncube2".into(),
+            ),
+            ProfileArg::Host => Profile::host(machine.nodes).ok_or_else(|| {
+                "--machine host: this system does not say how much memory it has (no MemTotal in /proc/meminfo); give --machine modern or ncube2".into()
+            }),
+        }
+    }
 }
 
 /// `--accuracy` values: the kernel's tiers by their names, listed in `--help`.
@@ -290,17 +321,13 @@ pub fn run(args: RenderArgs) -> Result<(), Box<dyn std::error::Error>> {
     // A dataset whose grid the scene gives is checked against the machine before a sample
     // is generated or read: a volume no machine here holds is refused at once, not after
     // minutes of loading, or never for want of memory.
-    let profile_of = || match profile {
-        ProfileArg::Ncube2 => Ok(Profile::ncube2()),
-        ProfileArg::Modern => {
-            Profile::builtin("modern").ok_or("the shipped modern profile is missing")
-        }
-    };
     scene.check_before_loading(orbit, |dataset, volume, views| {
         for v in views {
             let mut m = machine(v, nodes, clusters, fabric, seed, generation, buffer)
                 .map_err(|e| format!("{dataset}/{}: {e}", v.name))?;
-            m.profile = profile_of()?;
+            m.profile = profile
+                .profile(&m)
+                .map_err(|e| format!("{dataset}/{}: {e}", v.name))?;
             preflight(volume, &v.view, &m).map_err(|e| format!("{dataset}/{}: {e}", v.name))?;
         }
         Ok::<(), Box<dyn std::error::Error>>(())
@@ -346,7 +373,9 @@ pub fn run(args: RenderArgs) -> Result<(), Box<dyn std::error::Error>> {
                 nodes: !no_node_field,
                 ranges: !no_cell_ranges,
             };
-            m.profile = profile_of()?;
+            m.profile = profile
+                .profile(&m)
+                .map_err(|e| format!("{}/{}: {e}", job.name, v.name))?;
             m.lost_after = Duration::from_secs_f64(lost_after);
             for (i, &(node, steps, crash)) in stop_node.iter().enumerate() {
                 let name = m.fabric.name();
@@ -388,10 +417,7 @@ pub fn run(args: RenderArgs) -> Result<(), Box<dyn std::error::Error>> {
                     )
                     .into());
                 }
-                m.timeline = Some(match profile {
-                    ProfileArg::Ncube2 => "ncube2",
-                    ProfileArg::Modern => "modern",
-                });
+                m.timeline = Some(profile.timing());
             }
             // Configuration errors up front: nothing renders if any view cannot.
             preflight(&job.volume, &v.view, &m)
@@ -675,10 +701,7 @@ fn balance_view(
     machine: &Machine,
     profile: ProfileArg,
 ) -> Result<BalanceReport, String> {
-    let name = match profile {
-        ProfileArg::Ncube2 => "ncube2",
-        ProfileArg::Modern => "modern",
-    };
+    let name = profile.timing();
     let timing = crate::profile::MachineProfile::load(name).map_err(|e| e.to_string())?;
     let size = machine.cluster_size();
     let buffer = machine.sim_config().map_err(|e| e.to_string())?.buffer();

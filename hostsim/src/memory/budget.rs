@@ -51,6 +51,23 @@ impl Profile {
         shipped.iter().find(|p| p.name == name).copied()
     }
 
+    /// This machine as `nodes` nodes that run in this process (the direct, sim and threads
+    /// fabrics): its physical memory ([`crate::memory::resident::physical`]) shared evenly
+    /// among them, as a program with one thread per core would have it. `None` where the
+    /// system does not say how much it has.
+    pub fn host(nodes: u32) -> Option<Profile> {
+        crate::memory::resident::physical().map(|bytes| Profile::shared(bytes, nodes))
+    }
+
+    /// `bytes` of one machine shared evenly by `nodes` nodes (one at least).
+    fn shared(bytes: u64, nodes: u32) -> Profile {
+        let each = bytes / u64::from(nodes.max(1));
+        Profile {
+            name: "host",
+            node_memory: usize::try_from(each).unwrap_or(usize::MAX),
+        }
+    }
+
     /// The nCUBE 2 of the paper (4 MiB per node).
     pub fn ncube2() -> Profile {
         // The shipped file is checked by a test; a broken one is a build defect.
@@ -384,6 +401,17 @@ mod tests {
             structure_bytes(&grid, 3..7, with_ranges) - structure_bytes(&grid, 3..7, needs(1, 0)),
             blocks * (2 * 64 + 2 * 8)
         );
+    }
+
+    #[test]
+    fn the_host_s_memory_is_shared_evenly_by_its_nodes() {
+        let gib = 1u64 << 30;
+        assert_eq!(Profile::shared(24 * gib, 1).node_memory, 24 << 30);
+        assert_eq!(Profile::shared(24 * gib, 2).node_memory, 12 << 30);
+        assert_eq!(Profile::shared(24 * gib + 7, 8).node_memory, 3 << 30);
+        // No nodes is taken as one, never a division by zero.
+        assert_eq!(Profile::shared(gib, 0).node_memory, 1 << 30);
+        assert_eq!(Profile::shared(gib, 2).name, "host");
     }
 
     #[test]

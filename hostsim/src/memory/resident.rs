@@ -1,8 +1,10 @@
-//! The resident memory a process has measured, as the operating system counts it: what a
-//! node's rank (MPI) or the host's process really held, beside the budget's model of it.
+//! Memory as the operating system counts it: the resident memory a process has measured
+//! (what a node's rank (MPI) or the host's process really held, beside the budget's model of
+//! it), and the machine's physical memory (what `--machine host` shares among its nodes).
 //!
-//! Invariant: a figure is the kernel's own (`VmHWM` of `/proc/self/status`, Linux), never an
-//! estimate; where the system gives none the answer is `None`.
+//! Invariant: a figure is the kernel's own (`VmHWM` of `/proc/self/status`, `MemTotal` of
+//! `/proc/meminfo`, Linux), never an estimate; where the system gives none the answer is
+//! `None`.
 
 /// The most memory this process has held resident so far, bytes.
 pub fn peak() -> Option<u64> {
@@ -10,9 +12,20 @@ pub fn peak() -> Option<u64> {
     peak_in(&status)
 }
 
+/// This machine's physical memory, bytes.
+pub fn physical() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    kib_field(&info, "MemTotal:")
+}
+
 /// `VmHWM` of a `/proc/<pid>/status` text, bytes.
 fn peak_in(status: &str) -> Option<u64> {
-    let line = status.lines().find_map(|l| l.strip_prefix("VmHWM:"))?;
+    kib_field(status, "VmHWM:")
+}
+
+/// The field `key` of a `/proc` text that gives it in kB (`key:   1234 kB`), bytes.
+fn kib_field(text: &str, key: &str) -> Option<u64> {
+    let line = text.lines().find_map(|l| l.strip_prefix(key))?;
     let kib = line.trim().strip_suffix("kB")?.trim().parse::<u64>().ok()?;
     kib.checked_mul(1024)
 }
@@ -27,6 +40,17 @@ mod tests {
         assert_eq!(peak_in(status), Some(1234 * 1024));
         assert_eq!(peak_in("VmRSS:\t 1000 kB\n"), None);
         assert_eq!(peak_in("VmHWM:\t lots kB\n"), None);
+    }
+
+    #[test]
+    fn the_physical_memory_is_read_in_bytes() {
+        let info = "MemTotal:       24570788 kB\nMemFree:        23000000 kB\n";
+        assert_eq!(kib_field(info, "MemTotal:"), Some(24_570_788 * 1024));
+        assert_eq!(kib_field("MemFree: 1 kB\n", "MemTotal:"), None);
+        if let Some(bytes) = physical() {
+            // Linux: this process runs in it.
+            assert!(bytes >= peak().unwrap_or(0), "{bytes}");
+        }
     }
 
     #[test]
