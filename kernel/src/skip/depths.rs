@@ -295,7 +295,8 @@ fn place(
         false => n - 1 - i,
     };
     let mut passed_over = 0;
-    let rising_y = frame.rising[1];
+    let (moving, rising) = (frame.moving, frame.rising);
+    let rising_y = rising[1];
     for ix in 0..cols {
         let bx = bx0 + toward(0, cols, ix);
         for iz in 0..nz {
@@ -306,19 +307,14 @@ fn place(
                 (Some(x), Some(z)) => blocks.column_masks(x, z),
                 _ => &[],
             };
-            let fronts = [
+            let (front_x, own, front_z) = (
                 column(ahead(bx, 0), Some(bz)),
                 blocks.column_masks(bx, bz),
                 column(Some(bx), ahead(bz, 2)),
-            ];
-            let front = |by: u32, axis: usize| -> CellMask {
-                let at = match axis {
-                    1 => ahead(by, 1),
-                    _ => Some(by),
-                };
-                at.and_then(|i| fronts[axis].get(i as usize))
-                    .copied()
-                    .unwrap_or(0)
+            );
+            // The mask at `i` of `masks`; none past the blocks: no obstacle.
+            let mask_at = |masks: &[CellMask], i: Option<u32>| -> CellMask {
+                i.and_then(|i| masks.get(i as usize)).copied().unwrap_or(0)
             };
             // Most blocks of a big volume keep no cell: passed over a word of them at a time.
             for (by, mask) in blocks.kept_in_column(bx, bz, rising_y) {
@@ -331,10 +327,19 @@ fn place(
                 if !every_row && placed(at(1) + block_rows.0, at(1) + block_rows.1).is_empty() {
                     continue;
                 }
-                // The cells whose front neighbour is an obstacle, along every moving axis.
+                // The cells whose front neighbour is an obstacle, along every moving axis:
+                // along X and Z the block at this one's index in the columns in front, along
+                // Y the one next toward the eye in its own column. Each axis's shifts are
+                // constants: this runs for every block that keeps a cell.
                 let mut hidden = ALL;
-                for axis in (0..3).filter(|&a| frame.moving[a]) {
-                    hidden &= in_front(mask, front(by, axis), axis, frame.rising[axis]);
+                if moving[0] {
+                    hidden &= in_front::<0>(mask, mask_at(front_x, Some(by)), rising[0]);
+                }
+                if moving[1] {
+                    hidden &= in_front::<1>(mask, mask_at(own, ahead(by, 1)), rising[1]);
+                }
+                if moving[2] {
+                    hidden &= in_front::<2>(mask, mask_at(front_z, Some(by)), rising[2]);
                 }
                 let mut visible = mask & !hidden;
                 if visible == 0 {
@@ -393,14 +398,15 @@ fn place(
     Ok(passed_over)
 }
 
-/// The cells of a block (mask `mask`) whose neighbour one cell back along `axis` (down when
-/// the rays rise along it, up when they fall) is an obstacle, given the mask `beyond` of the
-/// block that neighbour lies in at the block's face.
-fn in_front(mask: CellMask, beyond: CellMask, axis: usize, rising: bool) -> CellMask {
-    // Bit `x + 4y + 16z`: one cell along `axis` is `stride` bits; `face` holds the cells at
+/// The cells of a block (mask `mask`) whose neighbour one cell back along axis `AXIS` (down
+/// when the rays rise along it, up when they fall) is an obstacle, given the mask `beyond` of
+/// the block that neighbour lies in at the block's face.
+#[inline(always)]
+fn in_front<const AXIS: usize>(mask: CellMask, beyond: CellMask, rising: bool) -> CellMask {
+    // Bit `x + 4y + 16z`: one cell along `AXIS` is `stride` bits; `face` holds the cells at
     // offset 0 along it, `far` those at offset 3.
-    let stride = [1, 4, 16][axis];
-    let face = [0x1111_1111_1111_1111u64, 0x000F_000F_000F_000F, 0xFFFF][axis];
+    let stride = [1, 4, 16][AXIS];
+    let face = [0x1111_1111_1111_1111u64, 0x000F_000F_000F_000F, 0xFFFF][AXIS];
     let far = face << (3 * stride);
     match rising {
         // The neighbour below: inside the block one stride down; at offset 0, the block
@@ -447,7 +453,11 @@ mod tests {
             let (mask, beyond) = (bits(&mut next), bits(&mut next));
             for axis in 0..3 {
                 for rising in [true, false] {
-                    let found = in_front(mask, beyond, axis, rising);
+                    let found = match axis {
+                        0 => in_front::<0>(mask, beyond, rising),
+                        1 => in_front::<1>(mask, beyond, rising),
+                        _ => in_front::<2>(mask, beyond, rising),
+                    };
                     for i in 0..64u32 {
                         let mut at = [i % 4, i / 4 % 4, i / 16];
                         let stride = [1u32, 4, 16][axis];
