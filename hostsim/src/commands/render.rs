@@ -171,16 +171,22 @@ impl ProfileArg {
     fn profile(self, machine: &Machine) -> Result<Profile, String> {
         match self {
             ProfileArg::Ncube2 => Ok(Profile::ncube2()),
-            ProfileArg::Modern => {
-                Profile::builtin("modern").ok_or_else(|| "the shipped modern profile is missing".into())
-            }
+            ProfileArg::Modern => Profile::builtin("modern")
+                .ok_or_else(|| "the shipped modern profile is missing".to_string()),
             // An MPI rank may run on another machine, whose memory this one cannot know, and
             // every rank must budget alike.
-            ProfileArg::Host if machine.fabric == Fabric::Mpi => Err(
-                "--machine host shares this machine's memory among nodes that run in this process (direct, sim, threads); MPI ranks are cluster nodes: give --machine modern or ncube2".into(),
-            ),
+            ProfileArg::Host if machine.fabric == Fabric::Mpi => Err(concat!(
+                "--machine host shares this machine's memory among nodes that run in this ",
+                "process (direct, sim, threads); MPI ranks are cluster nodes: give --machine ",
+                "modern or ncube2"
+            )
+            .to_string()),
             ProfileArg::Host => Profile::host(machine.nodes).ok_or_else(|| {
-                "--machine host: this system does not say how much memory it has (no MemTotal in /proc/meminfo); give --machine modern or ncube2".into()
+                concat!(
+                    "--machine host: this system does not say how much memory it has (no ",
+                    "MemTotal in /proc/meminfo); give --machine modern or ncube2"
+                )
+                .to_string()
             }),
         }
     }

@@ -1,12 +1,13 @@
 //! `voxcube bench --scale`: how the cost of a composited frame grows with the work, in both
 //! accuracy tiers. The built-in molecule resampled to 128³, 256³ and 512³ at 350×250, and
 //! the 128³ volume at images from 350×250 to 2048×1536, each on one node and on a cluster
-//! of one node per core (threads) sharing this machine's memory (`--machine host`); time per evaluated
-//! sample and per pixel show where the cost goes as the volume or the image grows. Each
-//! view's first frame is timed apart from the median of those after it: it builds what the
-//! volume keeps for later frames (the exact view, first of a volume, its value ranges,
-//! masks and cell leap map; the fast view after it, its node field), so it shows what a
-//! single frame of a new volume costs, and the median what a further one does. Beside them,
+//! of one node per core (threads) sharing this machine's memory (`--machine host`); time
+//! per evaluated sample and per pixel show where the cost goes as the volume or the image
+//! grows. Each view's first frame is timed apart from the median of those after it: it
+//! builds what the volume keeps for later frames (the exact view, first of a volume, its
+//! value ranges, masks and cell leap map; the fast view after it, its node field), so it
+//! shows what a single frame of a new volume costs, and the median what a further one
+//! does. Beside them,
 //! in the same run, VTK's CPU ray caster on each volume of the sweep, framed the same
 //! ([`super::peer`]), where it is installed. Then the same beside VTK for a CT-like volume,
 //! the built-in head in Hounsfield units (`i16`, CT's sample kind) at 256³ and 512³, with a
