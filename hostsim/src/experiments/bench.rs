@@ -153,9 +153,11 @@ pub(super) fn cores() -> u32 {
     cores.max(1).next_power_of_two()
 }
 
-/// One cluster of one node per core (`cores`, a power of two) on threads, each node with this
-/// host's memory (the modern profile), as VTK has: room for the fast tier's node field
-/// beside the slab, which an nCUBE 2 node lacks. The best shape for SOD on every core.
+/// One cluster of one node per core (`cores`, a power of two) on threads, each node a modern
+/// one (1 GiB): room for everything SOD's views build, the fast tier's node field beside the
+/// slab included, as VTK has room for its own tables, which an nCUBE 2 node lacks. The best
+/// shape for SOD on every core. (A bigger volume needs `host` nodes for as much:
+/// [`super::scale`].)
 pub(super) fn every_core_modern(cores: u32) -> Machine {
     Machine {
         profile: crate::memory::budget::Profile::builtin("modern")
@@ -371,8 +373,8 @@ pub fn versus_vtk(rows: &[Row], vtk: Option<super::peer::VtkTimes>) -> String {
             t.as_secs_f64() * 1e3
         ))
     );
-    // The faster of the image-partitioned rows on every core (nCUBE 2 nodes, or nodes with
-    // this host's memory).
+    // The faster of the image-partitioned rows on every core (nCUBE 2 nodes, or modern nodes
+    // with room for the node field).
     let mut ratio = |view: &str, size: Size| {
         let r = rows
             .iter()
@@ -517,8 +519,8 @@ impl Pair {
 
 /// voxcube against VTK round by round, the two back to back: in each of `rounds` rounds, for
 /// each compared view of SOD at each of `sizes`, VTK renders its mode ([`PAIR_FRAMES`] timed
-/// frames after a first, its median) and voxcube the view on every core (modern nodes, as
-/// VTK has this host's memory; [`PAIR_FRAMES`] frames, its median), VTK first in even
+/// frames after a first, its median) and voxcube the view on every core (modern nodes, with
+/// room for all SOD's views build; [`PAIR_FRAMES`] frames, its median), VTK first in even
 /// rounds and voxcube first in odd ones. This machine's speed
 /// drifts over minutes with its other tenants, moving VTK's own frame by half between runs;
 /// a round's two medians are taken seconds apart, so their ratio shares the drift that two
