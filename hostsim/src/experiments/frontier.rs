@@ -187,7 +187,7 @@ pub struct Frontier {
     pub points: Vec<Point>,
     /// What was left out, and why.
     pub notes: String,
-    /// Each mode's headline timed again in paired rounds ([`paired_rounds`]): its best
+    /// Each mode's headline timed again in paired rounds (`paired_rounds`): its best
     /// point's time over VTK's in each round, ascending.
     pub paired: Vec<(Mode, Vec<f64>)>,
 }

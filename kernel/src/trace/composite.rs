@@ -1,7 +1,7 @@
 //! The composited sample loop: front-to-back emission and absorption over a ray's lattice
 //! samples in one slab, in a single loop that reads a sample, classifies it and, where it
 //! shows, shades and composites it. What may be passed over is asked of
-//! [`crate::trace::skipping`]. How a sample is read (the node field's lanes, or the slab's
+//! `crate::trace::skipping`. How a sample is read (the node field's lanes, or the slab's
 //! value) and classified (the fast tier's table, or the transfer function) are chosen once
 //! per call: the loop is compiled once per choice, so that each holds only its own work.
 //!

@@ -2,7 +2,7 @@
 //! slab. It stops at the first event a caller must act on: a surface hit, the ray leaving the
 //! slab (the caller forwards it), the ray leaving the volume, or early termination. A
 //! composited view's samples go through [`crate::trace::composite`]'s loop, a surface view's
-//! through the search here; both ask [`crate::trace::skipping`] what they may pass over.
+//! through the search here; both ask `crate::trace::skipping` what they may pass over.
 //!
 //! Invariants: the state ([`RayState`]) is all a ray needs to continue on any node: lattice,
 //! next sample index `k`, the previous sample's value, accumulated colour and weight. A sample

@@ -2,7 +2,7 @@
 //! ASCII or big-endian binary) and XML `ImageData` files (`.vti`, inline or appended data,
 //! raw or zlib-compressed). The first point-data array of one component is the volume; the
 //! spacing is the file's, the origin is not applied (index space). A binary legacy file whose
-//! header reads as `vtkio` reads it also streams by planes ([`streamed`]): `vtkio` parses a
+//! header reads as `vtkio` reads it also streams by planes (`streamed`): `vtkio` parses a
 //! file whole and says nothing of where its samples lie.
 
 use super::{decode, Endian, FileType, LoadError, LoadErrorKind};
