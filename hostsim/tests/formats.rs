@@ -1031,6 +1031,13 @@ fn info_describes_a_volume_and_its_scene_renders_something_on_the_first_try() {
     ] {
         assert!(text.contains(part), "info omits {part:?}:\n{text}");
     }
+    // This machine's memory shared by a cluster's nodes, where the system says it (Linux).
+    if std::path::Path::new("/proc/meminfo").exists() {
+        assert!(
+            text.contains(" / nodes)"),
+            "info omits the host column:\n{text}"
+        );
+    }
     // The volume's value ranges, each view's skipping structures with their bytes and build
     // time, and the node field: 24 × 20 × 16 samples make 6 × 5 × 4 blocks of 4³ cells,
     // min/max blocks of 8 bytes each (0.9 KiB) and cell masks of 8 bytes each (0.9 KiB), and

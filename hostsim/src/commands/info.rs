@@ -221,6 +221,8 @@ pub fn describe(name: &str, volume: &Volume) -> Result<String, InfoError> {
         .iter()
         .filter_map(|n| Profile::builtin(n))
         .collect();
+    // This machine as the cluster's nodes (`--machine host`): its memory shared by them.
+    let host = Profile::host(1);
     let _ = writeln!(
         out,
         "node memory (the largest node of a cluster; surfaces view, default receive buffer):"
@@ -231,6 +233,13 @@ pub fn describe(name: &str, volume: &Volume) -> Result<String, InfoError> {
             out,
             " {:>16}",
             format!("{} ({})", p.name, mib(p.node_memory))
+        );
+    }
+    if let Some(h) = host {
+        let _ = write!(
+            out,
+            " {:>24}",
+            format!("host ({} / nodes)", mib(h.node_memory))
         );
     }
     let _ = writeln!(out);
@@ -247,13 +256,15 @@ pub fn describe(name: &str, volume: &Volume) -> Result<String, InfoError> {
         );
         let Some(m) = m else { break };
         let _ = write!(out, "  {size:>8} {:>12}", mib(m.total()));
+        let fits = |p: &Profile| match m.total() <= p.node_memory {
+            true => "fits",
+            false => "too big",
+        };
         for p in &profiles {
-            let fits = if m.total() <= p.node_memory {
-                "fits"
-            } else {
-                "too big"
-            };
-            let _ = write!(out, " {fits:>16}");
+            let _ = write!(out, " {:>16}", fits(p));
+        }
+        if let Some(h) = host.and(Profile::host(size)) {
+            let _ = write!(out, " {:>24}", fits(&h));
         }
         let _ = writeln!(out);
         size *= 2;
