@@ -1032,7 +1032,7 @@ fn info_describes_a_volume_and_its_scene_renders_something_on_the_first_try() {
         assert!(text.contains(part), "info omits {part:?}:\n{text}");
     }
     // This machine's memory shared by a cluster's nodes, where the system says it (Linux).
-    if std::path::Path::new("/proc/meminfo").exists() {
+    if Path::new("/proc/meminfo").exists() {
         assert!(
             text.contains(" / nodes)"),
             "info omits the host column:\n{text}"
