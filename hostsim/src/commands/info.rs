@@ -222,7 +222,7 @@ pub fn describe(name: &str, volume: &Volume) -> Result<String, InfoError> {
         .filter_map(|n| Profile::builtin(n))
         .collect();
     // This machine as the cluster's nodes (`--machine host`): its memory shared by them.
-    let host = Profile::host(1);
+    let physical = crate::memory::resident::physical();
     let _ = writeln!(
         out,
         "node memory (the largest node of a cluster; surfaces view, default receive buffer):"
@@ -235,12 +235,9 @@ pub fn describe(name: &str, volume: &Volume) -> Result<String, InfoError> {
             format!("{} ({})", p.name, mib(p.node_memory))
         );
     }
-    if let Some(h) = host {
-        let _ = write!(
-            out,
-            " {:>24}",
-            format!("host ({} / nodes)", mib(h.node_memory))
-        );
+    if let Some(bytes) = physical {
+        let whole = Profile::sharing(bytes, 1).node_memory;
+        let _ = write!(out, " {:>24}", format!("host ({} / nodes)", mib(whole)));
     }
     let _ = writeln!(out);
     let needs = first_view_needs(volume, &isos)?;
@@ -263,8 +260,8 @@ pub fn describe(name: &str, volume: &Volume) -> Result<String, InfoError> {
         for p in &profiles {
             let _ = write!(out, " {:>16}", fits(p));
         }
-        if let Some(h) = host.and(Profile::host(size)) {
-            let _ = write!(out, " {:>24}", fits(&h));
+        if let Some(bytes) = physical {
+            let _ = write!(out, " {:>24}", fits(&Profile::sharing(bytes, size)));
         }
         let _ = writeln!(out);
         size *= 2;

@@ -56,11 +56,12 @@ impl Profile {
     /// among them, as a program with one thread per core would have it. `None` where the
     /// system does not say how much it has.
     pub fn host(nodes: u32) -> Option<Profile> {
-        crate::memory::resident::physical().map(|bytes| Profile::shared(bytes, nodes))
+        crate::memory::resident::physical().map(|bytes| Profile::sharing(bytes, nodes))
     }
 
-    /// `bytes` of one machine shared evenly by `nodes` nodes (one at least).
-    fn shared(bytes: u64, nodes: u32) -> Profile {
+    /// `bytes` of one machine shared evenly by `nodes` nodes (one at least): [`Profile::host`]
+    /// of a machine of `bytes`.
+    pub fn sharing(bytes: u64, nodes: u32) -> Profile {
         let each = bytes / u64::from(nodes.max(1));
         Profile {
             name: "host",
@@ -406,12 +407,12 @@ mod tests {
     #[test]
     fn the_host_s_memory_is_shared_evenly_by_its_nodes() {
         let gib = 1u64 << 30;
-        assert_eq!(Profile::shared(24 * gib, 1).node_memory, 24 << 30);
-        assert_eq!(Profile::shared(24 * gib, 2).node_memory, 12 << 30);
-        assert_eq!(Profile::shared(24 * gib + 7, 8).node_memory, 3 << 30);
+        assert_eq!(Profile::sharing(24 * gib, 1).node_memory, 24 << 30);
+        assert_eq!(Profile::sharing(24 * gib, 2).node_memory, 12 << 30);
+        assert_eq!(Profile::sharing(24 * gib + 7, 8).node_memory, 3 << 30);
         // No nodes is taken as one, never a division by zero.
-        assert_eq!(Profile::shared(gib, 0).node_memory, 1 << 30);
-        assert_eq!(Profile::shared(gib, 2).name, "host");
+        assert_eq!(Profile::sharing(gib, 0).node_memory, 1 << 30);
+        assert_eq!(Profile::sharing(gib, 2).name, "host");
     }
 
     #[test]

@@ -296,7 +296,6 @@ fn place(
     };
     let mut passed_over = 0;
     let (moving, rising) = (frame.moving, frame.rising);
-    let rising_y = rising[1];
     for ix in 0..cols {
         let bx = bx0 + toward(0, cols, ix);
         for iz in 0..nz {
@@ -317,7 +316,7 @@ fn place(
                 i.and_then(|i| masks.get(i as usize)).copied().unwrap_or(0)
             };
             // Most blocks of a big volume keep no cell: passed over a word of them at a time.
-            for (by, mask) in blocks.kept_in_column(bx, bz, rising_y) {
+            for (by, mask) in blocks.kept_in_column(bx, bz, rising[1]) {
                 let corner = DVec3::new(
                     f64::from(bx * BLOCK),
                     f64::from(by * BLOCK),
