@@ -120,6 +120,7 @@ impl Counters {
     }
 
     /// Add `other` into `self` (saturating: counters never wrap).
+    #[inline]
     pub fn add(&mut self, other: &Counters) {
         for (total, more) in self.fields_mut().into_iter().zip(other.fields()) {
             *total = total.saturating_add(more);

@@ -13,18 +13,15 @@
 use crate::counters::Counters;
 use crate::optics::classify::Classified;
 use crate::optics::transfer::{corrected_opacity, TransferFunction};
-use crate::skip::cell_leaps::HeldLeaps;
-use crate::skip::node_leaps::NodeLeaps;
-use crate::trace::interior::Interior;
 use crate::trace::lattice::Lattice;
 use crate::trace::lighting::Unshadowed;
 use crate::trace::ray::Ray;
+use crate::trace::runway::{self, CellTest, EveryCell, Inside, Runway, Test};
 use crate::trace::skipping::{skip_to, Probe, Skipper};
 use crate::trace::state::{RayState, Stop};
 use crate::trace::view::View;
-use crate::volume::cells::{Cells, HeldCells};
+use crate::volume::cells::Cells;
 use crate::volume::field::{self, Site};
-use crate::volume::grid::Model;
 use crate::volume::lanes::Lanes as NodeLanes;
 use crate::volume::nodes;
 use crate::volume::sample::Sample;
@@ -346,39 +343,18 @@ fn samples<T: Sample, C: Classify, R: Reading<T>, A: Ahead>(
     skipper.pass_depth_bound(view, slab, ray, true, counters);
     let light = Unshadowed::new(view, ray.ray.dir_world);
     // Where the interior's samples need no more of the skipping than their cell's leap
-    // distance (from a map that holds every cell inside), and the storage holds whole cells
-    // there.
-    let inner = match (spec.model, skipper.per_cell(), R::cells(slab)) {
-        (Model::Cell, Some(leaps), Some(cells)) => {
-            let owned = slab.owned();
-            let planes = cells.cell_planes();
-            Interior::new(
-                grid,
-                owned.start.max(planes.start)..owned.end.min(planes.end),
-            )
-            .and_then(|interior| {
-                let (x, y_end, z_end) = interior.cells();
-                let cells = cells.holding(x.clone(), y_end, z_end)?;
-                let test = match (leaps, skipper.node_leaps()) {
-                    (Some(_), Some(map)) => Test::AtIndex(AtIndex::new(map, &cells)),
-                    (Some(leaps), None) => Test::Held(leaps.holding(x, y_end, z_end)?),
-                    (None, _) => Test::Every,
-                };
-                Some((interior, cells, test))
-            })
-        }
-        _ => None,
-    };
+    // distance, and the storage holds whole cells there.
+    let inner = Runway::of(view, slab, &skipper, R::cells(slab));
     // The interior's last sample, once a sample inside is found: its samples are one run.
     let mut inside_to: Option<u32> = None;
-    let stepped = stepped_distances(spec.dt);
+    let stepped = runway::stepped_distances(spec.dt);
     // The colour and transmittance stay in registers for the call.
     let (mut color, mut weight) = (ray.color, ray.weight);
     let stop = loop {
         if ray.k > ray.lattice.last {
             break Stop::Exit;
         }
-        if let (Some(end), Some((_, cells, test))) = (inside_to, &inner) {
+        if let (Some(end), Some(runway)) = (inside_to, &inner) {
             if ray.k <= end {
                 // One loop for each way of telling empty cells.
                 macro_rules! through {
@@ -389,7 +365,7 @@ fn samples<T: Sample, C: Classify, R: Reading<T>, A: Ahead>(
                             classify,
                             (read, ahead),
                             &Inside {
-                                cells,
+                                cells: &runway.cells,
                                 test: $test,
                                 end,
                                 stepped,
@@ -401,7 +377,7 @@ fn samples<T: Sample, C: Classify, R: Reading<T>, A: Ahead>(
                         )
                     };
                 }
-                let ran = match test {
+                let ran = match &runway.test {
                     Test::AtIndex(test) => through!(test),
                     Test::Held(test) => through!(test),
                     Test::Every => through!(&EveryCell),
@@ -419,10 +395,10 @@ fn samples<T: Sample, C: Classify, R: Reading<T>, A: Ahead>(
         if !slab.owns(plane) {
             break Stop::Leave { plane };
         }
-        if let (None, Some((interior, ..))) = (inside_to, &inner) {
-            if interior.holds(probe.p4) {
+        if let (None, Some(runway)) = (inside_to, &inner) {
+            if runway.interior.holds(probe.p4) {
                 // The run through the interior takes this sample.
-                inside_to = Some(interior.last(ray, ray.k));
+                inside_to = Some(runway.interior.last(ray, ray.k));
                 continue;
             }
         }
@@ -454,88 +430,6 @@ fn samples<T: Sample, C: Classify, R: Reading<T>, A: Ahead>(
     ray.color = color;
     ray.weight = weight;
     stop
-}
-
-/// A run through the interior: its storage's whole cells, what says which cells are empty,
-/// its last sample, and the leap distances it steps over rather than leaps.
-struct Inside<'c, 'a, U, E> {
-    cells: &'c HeldCells<'a, U>,
-    test: &'c E,
-    end: u32,
-    stepped: u8,
-}
-
-/// The greatest cell leap distance that a run through the interior passes sample by sample
-/// rather than by leaping, for a step of `dt` cell edges. A leap's turn (its cube's exit,
-/// checked, and the landing's cell) costs about four samples' cell tests, and a ray has
-/// about `d / dt` samples in a cube of `d` cells: stepping pays below about `4·dt`, as
-/// measured on SOD at two steps (docs/speed-log.md). Either way the same samples are passed
-/// over.
-fn stepped_distances(dt: f32) -> u8 {
-    // Saturating: a NaN or negative step steps over nothing.
-    (4.0 * dt) as u8
-}
-
-/// What a run through the interior asks of a sample's cell before reading it: its distance
-/// in a cell leap map, 0 where the cell may show.
-trait CellTest {
-    /// The distance of the cell whose low node is `lo`, at `index` in the run's storage.
-    fn distance(&self, lo: [u32; 3], index: usize) -> u8;
-}
-
-/// How a run through the interior tells empty cells.
-enum Test<'a> {
-    /// By a cell leap map laid out as the storage it reads.
-    AtIndex(AtIndex<'a>),
-    /// By a cell leap map of its own layout.
-    Held(HeldLeaps<'a>),
-    /// The slab carries no skipping structures: every cell may show.
-    Every,
-}
-
-/// A cell leap map laid out as the slab's nodes ([`NodeLeaps`]), read where the run's storage
-/// holds the cell's nodes, one offset away: the run's storage and the map share the grid's
-/// strides and differ only in their first plane.
-struct AtIndex<'a> {
-    map: NodeLeaps<'a>,
-    /// From a place in the run's storage to the same node's in the map (wrapping).
-    offset: usize,
-}
-
-impl<'a> AtIndex<'a> {
-    fn new<U: Copy>(map: NodeLeaps<'a>, cells: &HeldCells<'_, U>) -> Self {
-        let (first, plane) = cells.planes();
-        // (first − map's first) planes, as a wrapping offset.
-        let planes = i64::from(first) - i64::from(map.first());
-        AtIndex {
-            map,
-            offset: (planes as isize as usize).wrapping_mul(plane),
-        }
-    }
-}
-
-impl CellTest for AtIndex<'_> {
-    #[inline(always)]
-    fn distance(&self, _: [u32; 3], index: usize) -> u8 {
-        self.map.at(index.wrapping_add(self.offset))
-    }
-}
-
-/// The slab carries no skipping structures: every cell may show.
-struct EveryCell;
-
-impl CellTest for EveryCell {
-    #[inline(always)]
-    fn distance(&self, _: [u32; 3], _: usize) -> u8 {
-        0
-    }
-}
-
-impl CellTest for HeldLeaps<'_> {
-    #[inline(always)]
-    fn distance(&self, lo: [u32; 3], _: usize) -> u8 {
-        HeldLeaps::distance(self, lo)
-    }
 }
 
 /// Where a run through the interior stopped.

@@ -1,8 +1,8 @@
-//! The interior of a slab for a composited ray: the samples whose whole cell (cell model)
+//! The interior of a slab for a ray: the samples whose whole cell (cell model)
 //! lies inside the grid, in the slab's owned planes and in the storage the loop reads, where
 //! the clamp of [`crate::volume::field::corner4`] changes nothing, every sample is the slab's
-//! own, and a cell is read whole under one range check. The composited loop runs through
-//! them without the general step's questions.
+//! own, and a cell is read whole under one range check. The composited loop and the surface
+//! search run through them without the general step's questions ([`crate::trace::runway`]).
 //!
 //! Invariants: a sample at index-space point `q` is inside exactly when, on each of the three
 //! axes, `q > 0`, `q ≥ floor` and `q < ceiling` ([`Interior::holds`]); there its cell is
@@ -18,12 +18,14 @@ use core::ops::Range;
 use glam::Vec4;
 
 /// The box of index space whose points are inside.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub(crate) struct Interior {
     /// On X the first plane of the cells inside; zero on Y and Z.
     floor: Vec4,
     /// On X the plane past the last cell inside; the last node on Y and Z.
     ceiling: Vec4,
+    /// The same bounds as integers, for [`Interior::cells`].
+    cells: (Range<u32>, u32, u32),
 }
 
 impl Interior {
@@ -39,15 +41,13 @@ impl Interior {
         Some(Interior {
             floor: Vec4::new(planes.start as f32, 0.0, 0.0, 0.0),
             ceiling: Vec4::new(end as f32, (ny - 1) as f32, (nz - 1) as f32, 0.0),
+            cells: (planes.start..end, ny - 1, nz - 1),
         })
     }
 
     /// The cells inside: their low corners' X planes, and the Y and Z past the last.
     pub(crate) fn cells(&self) -> (Range<u32>, u32, u32) {
-        // Whole numbers below 2^24, exactly.
-        let [x0, ..] = self.floor.to_array().map(|c| c as u32);
-        let [x1, y1, z1, _] = self.ceiling.to_array().map(|c| c as u32);
-        (x0..x1, y1, z1)
+        self.cells.clone()
     }
 
     /// Whether the index-space point in the first three lanes of `q` is inside (never for a
@@ -179,7 +179,7 @@ mod tests {
         let interior = Interior::new(&grid, 2..9).unwrap();
         let wider = Interior {
             ceiling: interior.ceiling + Vec4::new(0.0, 1.0, 0.0, 0.0),
-            ..interior
+            ..interior.clone()
         };
         assert!(!interior.holds(q) && wider.holds(q));
         let site = field::locate4(&grid, Model::Cell, q);

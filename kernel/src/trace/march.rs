@@ -16,6 +16,7 @@
 use crate::counters::Counters;
 use crate::optics::surface::{self, IsoSurface};
 use crate::trace::composite::composite;
+use crate::trace::runway::{self, CellTest, EveryCell, Inside, Runway, Test};
 use crate::trace::skipping::{skip_to, Probe, Skipper};
 pub use crate::trace::state::{Hit, RayKind, RayState, Stop};
 use crate::trace::view::{Mode, View};
@@ -51,15 +52,66 @@ fn search<T: Sample>(
     let mut turned = None;
     let mut skipper = Skipper::new(view, slab, ray, &mut turned);
     skipper.pass_depth_bound(view, slab, ray, view.may_skip(ray), counters);
+    // Where the interior's samples need no more of the skipping than their cell's leap
+    // distance: a run through it takes the samples below every iso value. Asked at the first
+    // sample the general step meets (a ray whose depth bound passes it out of the volume meets
+    // none); a shadow ray weighs every crossing, and takes the general step throughout.
+    let mut inner: Option<Option<Runway<'_, T>>> = None;
+    // The interior's last sample, once a sample inside is found.
+    let mut inside_to: Option<u32> = None;
+    let stepped = runway::stepped_distances(spec.dt);
     loop {
         if ray.k > ray.lattice.last {
             return Stop::Exit;
+        }
+        if let (Some(end), Some(Some(runway))) = (inside_to, &inner) {
+            // Only where the ray may skip and has a sample before this one: the run's
+            // samples are then those the general step would read or skip without a crossing.
+            if ray.k <= end && ray.primed && view.may_skip(ray) {
+                // One loop for each way of telling empty cells.
+                macro_rules! through {
+                    ($test:expr) => {
+                        below(
+                            view,
+                            slab,
+                            &Inside {
+                                cells: &runway.cells,
+                                test: $test,
+                                end,
+                                stepped,
+                            },
+                            ray,
+                            &mut skipper,
+                            counters,
+                        )
+                    };
+                }
+                let searched = match &runway.test {
+                    Test::AtIndex(test) => through!(test),
+                    Test::Held(test) => through!(test),
+                    Test::Every => through!(&EveryCell),
+                };
+                if let Searched::Done = searched {
+                    continue;
+                }
+            }
         }
         // The corner decides whether the sample is read; the rest of its site only if so.
         let probe = Probe::of(ray, grid, spec.model, ray.k);
         let plane = probe.corner.plane();
         if !slab.owns(plane) {
             return Stop::Leave { plane };
+        }
+        if inside_to.is_none() && ray.kind != RayKind::Shadow {
+            let runway =
+                inner.get_or_insert_with(|| Runway::of(view, slab, &skipper, Some(slab.cells())));
+            if let Some(runway) = runway {
+                if runway.interior.holds(probe.p4) {
+                    // A run through the interior may take this sample.
+                    inside_to = Some(runway.interior.last(ray, ray.k));
+                    continue;
+                }
+            }
         }
         if let Some(last) = skipper.empty_run(view, slab, ray, &probe, view.may_skip(ray)) {
             skip_to(view, ray, last, counters);
@@ -119,6 +171,81 @@ fn search<T: Sample>(
         ray.done_here = 0;
         ray.k += 1;
     }
+}
+
+/// Where a run through the interior of a surface search stopped.
+enum Searched {
+    /// Past its last sample.
+    Done,
+    /// At a sample the general step examines: one not below every iso value (a crossing may
+    /// end there), or one the storage cannot give whole (never in the interior, but the
+    /// general step can read anything).
+    Examine,
+}
+
+/// The samples from `ray.k` through `inside.end`, all in the interior, of a ray that is not a
+/// shadow ray, has read or passed a sample before, and may skip ([`View::may_skip`]): each
+/// passed over by stepping or leaping from a cell the map calls empty, or read, for as long
+/// as what it reads is below every iso value. Those are the samples at which the general
+/// step finds no crossing: it would pass over the same ones (a ray whose last sample read
+/// is below every iso value may skip), read the same values (the interior's cell and
+/// fractions, [`crate::trace::interior`]) and count them alike. The first sample not below
+/// is left unread and uncounted for the general step, with the ray's state as the general
+/// step would have left it: the last value read, or a stale one after a skip.
+#[inline(always)]
+fn below<T: Sample, E: CellTest>(
+    view: &View,
+    slab: &Slab<'_, T>,
+    inside: &Inside<'_, '_, T, E>,
+    ray: &mut RayState,
+    skipper: &mut Skipper<'_>,
+    totals: &mut Counters,
+) -> Searched {
+    let (lattice, r) = (ray.lattice, ray.ray);
+    // Counted here and added once at the end, in registers (as the composited run).
+    let mut local = Counters::default();
+    let mut k = ray.k;
+    // The last value read, and whether samples were passed over since.
+    let (mut prev, mut stale) = (ray.prev, ray.prev_stale);
+    let searched = loop {
+        if k > inside.end {
+            break Searched::Done;
+        }
+        let q = r.at4(lattice.t(k));
+        let (cell, lo) = field::interior_corner(q);
+        let index = inside.cells.index(lo);
+        let distance = inside.test.distance(lo, index);
+        if (1..=inside.stepped).contains(&distance) {
+            local.skipped += 1;
+            k += 1;
+            stale = true;
+            continue;
+        }
+        if distance > 0 {
+            let last = skipper.leap_inside(slab, ray, (k, inside.end), cell, distance);
+            local.skipped += u64::from(last - k + 1);
+            k = last + 1;
+            stale = true;
+            continue;
+        }
+        let Some(nodes) = inside.cells.at_index(index) else {
+            break Searched::Examine;
+        };
+        let v = field::lerp_cell(nodes, (q - cell).truncate());
+        if !view.below_surfaces(v) {
+            break Searched::Examine;
+        }
+        local.samples += 1;
+        local.interpolations += 1;
+        prev = v;
+        stale = false;
+        k += 1;
+    };
+    ray.k = k;
+    ray.prev = prev;
+    ray.prev_stale = stale;
+    totals.add(&local);
+    searched
 }
 
 /// The nearest surface crossing not yet reported on the segment ending at sample `k` (value

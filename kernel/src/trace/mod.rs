@@ -13,6 +13,7 @@ pub mod lighting;
 pub mod march;
 pub mod pixel;
 pub mod ray;
+pub(crate) mod runway;
 pub(crate) mod skipping;
 pub mod starts;
 pub mod state;

@@ -1,0 +1,149 @@
+//! A ray's way through its slab's interior for one call of a sample loop: the box of samples
+//! inside ([`Interior`]), the storage's whole cells there, what tells which of them are empty
+//! (a cell leap map, read at the cell's place in the storage or by its corner), and the leap
+//! distances a loop steps over rather than leaps. The composited loop and the surface search
+//! each run their own loop over it; what may be passed over is the general step's, cell for
+//! cell, so a run and the general step pass over the same samples.
+//!
+//! Invariants: a runway exists only for the cell model, where the skipping asks nothing of an
+//! interior sample but its cell's leap distance ([`Skipper::per_cell`]) and the storage holds
+//! every cell inside; a distance of 0 is a cell that may show.
+
+use crate::skip::cell_leaps::HeldLeaps;
+use crate::skip::node_leaps::NodeLeaps;
+use crate::trace::interior::Interior;
+use crate::trace::skipping::Skipper;
+use crate::trace::view::View;
+use crate::volume::cells::{Cells, HeldCells};
+use crate::volume::grid::Model;
+use crate::volume::sample::Sample;
+use crate::volume::slab::Slab;
+
+/// The interior of one call: its box, its storage's whole cells (`U` per node) and what tells
+/// their empty cells.
+pub(crate) struct Runway<'a, U> {
+    pub(crate) interior: Interior,
+    pub(crate) cells: HeldCells<'a, U>,
+    pub(crate) test: Test<'a>,
+}
+
+impl<'a, U: Copy> Runway<'a, U> {
+    /// The runway of `view`'s ray through `slab`, whose skipping is `skipper`, reading
+    /// `cells` (the storage its loop reads); `None` where the model or the skipping asks more
+    /// of a sample than its cell's distance, or no cell is inside.
+    // Inlined: a call's set-up is a fifth of a short ray's work, and inlined into the loop's
+    // caller most of it folds away.
+    #[inline(always)]
+    pub(crate) fn of<T: Sample>(
+        view: &View,
+        slab: &Slab<'_, T>,
+        skipper: &Skipper<'a>,
+        cells: Option<Cells<'a, U>>,
+    ) -> Option<Self> {
+        let (Model::Cell, Some(leaps), Some(cells)) =
+            (view.spec().model, skipper.per_cell(), cells)
+        else {
+            return None;
+        };
+        let owned = slab.owned();
+        let planes = cells.cell_planes();
+        let interior = Interior::new(
+            slab.grid(),
+            owned.start.max(planes.start)..owned.end.min(planes.end),
+        )?;
+        let (x, y_end, z_end) = interior.cells();
+        let cells = cells.holding(x.clone(), y_end, z_end)?;
+        let test = match (leaps, skipper.node_leaps()) {
+            (Some(_), Some(map)) => Test::AtIndex(AtIndex::new(map, &cells)),
+            (Some(leaps), None) => Test::Held(leaps.holding(x, y_end, z_end)?),
+            (None, _) => Test::Every,
+        };
+        Some(Runway {
+            interior,
+            cells,
+            test,
+        })
+    }
+}
+
+/// A run through the interior: its storage's whole cells, what says which cells are empty,
+/// its last sample, and the leap distances it steps over rather than leaps.
+pub(crate) struct Inside<'c, 'a, U, E> {
+    pub(crate) cells: &'c HeldCells<'a, U>,
+    pub(crate) test: &'c E,
+    pub(crate) end: u32,
+    pub(crate) stepped: u8,
+}
+
+/// The greatest cell leap distance that a run through the interior passes sample by sample
+/// rather than by leaping, for a step of `dt` cell edges. A leap's turn (its cube's exit,
+/// checked, and the landing's cell) costs about four samples' cell tests, and a ray has
+/// about `d / dt` samples in a cube of `d` cells: stepping pays below about `4·dt`, as
+/// measured on SOD at two steps (docs/speed-log.md). Either way the same samples are passed
+/// over.
+pub(crate) fn stepped_distances(dt: f32) -> u8 {
+    // Saturating: a NaN or negative step steps over nothing.
+    (4.0 * dt) as u8
+}
+
+/// What a run through the interior asks of a sample's cell before reading it: its distance
+/// in a cell leap map, 0 where the cell may show.
+pub(crate) trait CellTest {
+    /// The distance of the cell whose low node is `lo`, at `index` in the run's storage.
+    fn distance(&self, lo: [u32; 3], index: usize) -> u8;
+}
+
+/// How a run through the interior tells empty cells.
+pub(crate) enum Test<'a> {
+    /// By a cell leap map laid out as the storage it reads.
+    AtIndex(AtIndex<'a>),
+    /// By a cell leap map of its own layout.
+    Held(HeldLeaps<'a>),
+    /// The slab carries no skipping structures: every cell may show.
+    Every,
+}
+
+/// A cell leap map laid out as the slab's nodes ([`NodeLeaps`]), read where the run's storage
+/// holds the cell's nodes, one offset away: the run's storage and the map share the grid's
+/// strides and differ only in their first plane.
+pub(crate) struct AtIndex<'a> {
+    map: NodeLeaps<'a>,
+    /// From a place in the run's storage to the same node's in the map (wrapping).
+    offset: usize,
+}
+
+impl<'a> AtIndex<'a> {
+    fn new<U: Copy>(map: NodeLeaps<'a>, cells: &HeldCells<'_, U>) -> Self {
+        let (first, plane) = cells.planes();
+        // (first − map's first) planes, as a wrapping offset.
+        let planes = i64::from(first) - i64::from(map.first());
+        AtIndex {
+            map,
+            offset: (planes as isize as usize).wrapping_mul(plane),
+        }
+    }
+}
+
+impl CellTest for AtIndex<'_> {
+    #[inline(always)]
+    fn distance(&self, _: [u32; 3], index: usize) -> u8 {
+        self.map.at(index.wrapping_add(self.offset))
+    }
+}
+
+/// The slab carries no skipping structures: every cell may show.
+pub(crate) struct EveryCell;
+
+impl CellTest for EveryCell {
+    #[inline(always)]
+    fn distance(&self, _: [u32; 3], _: usize) -> u8 {
+        0
+    }
+}
+
+impl CellTest for HeldLeaps<'_> {
+    #[inline(always)]
+    fn distance(&self, lo: [u32; 3], _: usize) -> u8 {
+        HeldLeaps::distance(self, lo)
+    }
+}
