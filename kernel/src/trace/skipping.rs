@@ -116,8 +116,7 @@ impl<'s> Skipper<'s> {
         if !(probe.t < bound && slab.owns(probe.corner.plane())) {
             return None;
         }
-        let exits = self.exits.get_or_insert_with(|| Exits::new(ray));
-        Some(before_bound(ray, slab, bound, exits))
+        Some(before_bound(ray, slab, bound, &mut self.exits))
     }
 
     /// Before a call's first sample: pass over the samples before the primary ray's depth
@@ -499,15 +498,22 @@ fn cube_far(cell: Vec4, distance: u8, exits: &Exits) -> Vec4 {
 /// The last sample from `ray.k` on (owned, at a parameter below `bound`) that is below
 /// `bound` and in `slab`'s owned planes ([`last_short_of`]; every plane when the slab owns
 /// them all). Its parameter is found from `bound`, then checked with the samples' own
-/// arithmetic, which is monotone in the index.
+/// arithmetic, which is monotone in the index. `exits` is found only where the owned planes'
+/// faces are asked: a slab that owns every plane, as one node does, has none to find.
 #[inline]
-fn before_bound<T: Sample>(ray: &RayState, slab: &Slab<'_, T>, bound: f32, exits: &Exits) -> u32 {
+fn before_bound<T: Sample>(
+    ray: &RayState,
+    slab: &Slab<'_, T>,
+    bound: f32,
+    exits: &mut Option<Exits>,
+) -> u32 {
     let (k, lattice) = (ray.k, &ray.lattice);
     let left = lattice.last - k.min(lattice.last);
     let owned = slab.owned();
     let left = match owned.start == 0 && owned.end >= slab.grid().dims()[0] {
         true => left,
         false => {
+            let exits = exits.get_or_insert_with(|| Exits::new(ray));
             // The owned planes' faces along X; no face along the other axes.
             let far = OwnedFaces::of(slab).clamp(Vec4::select(
                 exits.rising,
