@@ -53,10 +53,14 @@ fn search<T: Sample>(
     let mut skipper = Skipper::new(view, slab, ray, &mut turned);
     skipper.pass_depth_bound(view, slab, ray, view.may_skip(ray), counters);
     // Where the interior's samples need no more of the skipping than their cell's leap
-    // distance: a run through it takes the samples below every iso value. Asked at the first
-    // sample the general step meets (a ray whose depth bound passes it out of the volume meets
-    // none); a shadow ray weighs every crossing, and takes the general step throughout.
-    let mut inner: Option<Option<Runway<'_, T>>> = None;
+    // distance: a run through it takes the samples below every iso value. Not asked for a
+    // ray whose depth bound passed it out of the volume; a shadow ray weighs every crossing,
+    // and takes the general step throughout.
+    let inner = match ray.kind {
+        RayKind::Shadow => None,
+        _ if ray.k > ray.lattice.last => None,
+        _ => Runway::of(view, slab, &skipper, Some(slab.cells())),
+    };
     // The interior's last sample, once a sample inside is found.
     let mut inside_to: Option<u32> = None;
     let stepped = runway::stepped_distances(spec.dt);
@@ -64,7 +68,7 @@ fn search<T: Sample>(
         if ray.k > ray.lattice.last {
             return Stop::Exit;
         }
-        if let (Some(end), Some(Some(runway))) = (inside_to, &inner) {
+        if let (Some(end), Some(runway)) = (inside_to, &inner) {
             // Only where the ray may skip and has a sample before this one: the run's
             // samples are then those the general step would read or skip without a crossing.
             if ray.k <= end && ray.primed && view.may_skip(ray) {
@@ -102,15 +106,11 @@ fn search<T: Sample>(
         if !slab.owns(plane) {
             return Stop::Leave { plane };
         }
-        if inside_to.is_none() && ray.kind != RayKind::Shadow {
-            let runway =
-                inner.get_or_insert_with(|| Runway::of(view, slab, &skipper, Some(slab.cells())));
-            if let Some(runway) = runway {
-                if runway.interior.holds(probe.p4) {
-                    // A run through the interior may take this sample.
-                    inside_to = Some(runway.interior.last(ray, ray.k));
-                    continue;
-                }
+        if let (None, Some(runway)) = (inside_to, &inner) {
+            if runway.interior.holds(probe.p4) {
+                // A run through the interior may take this sample.
+                inside_to = Some(runway.interior.last(ray, ray.k));
+                continue;
             }
         }
         if let Some(last) = skipper.empty_run(view, slab, ray, &probe, view.may_skip(ray)) {
