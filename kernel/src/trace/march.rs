@@ -21,6 +21,7 @@ use crate::trace::skipping::{skip_to, Probe, Skipper};
 pub use crate::trace::state::{Hit, RayKind, RayState, Stop};
 use crate::trace::view::{Mode, View};
 use crate::volume::field;
+use crate::volume::grid::Model;
 use crate::volume::sample::Sample;
 use crate::volume::slab::Slab;
 use glam::Vec3;
@@ -131,12 +132,8 @@ fn search<T: Sample>(
                 // A crossing may end here: the predecessor's exact value, for the crossing
                 // test and refinement, from the same expression as if it had not been skipped.
                 counters.samples += 1;
-                field::value(
-                    slab,
-                    spec.model,
-                    ray.ray.at(ray.lattice.t(ray.k.saturating_sub(1))),
-                    counters,
-                )
+                Reader(slab, spec.model, inner.as_ref())
+                    .value(ray.ray.at(ray.lattice.t(ray.k.saturating_sub(1))), counters)
             };
         }
         if ray.kind == RayKind::Shadow {
@@ -154,7 +151,7 @@ fn search<T: Sample>(
             }
         } else if let Some(hit) = nearest_crossing(
             view,
-            slab,
+            &Reader(slab, spec.model, inner.as_ref()),
             surfaces,
             ray,
             probe.t,
@@ -248,6 +245,32 @@ fn below<T: Sample, E: CellTest>(
     searched
 }
 
+/// How the search reads the field between its samples (a skipped predecessor, a
+/// refinement's points): from its runway's storage, whole, where a point is inside the
+/// interior, else by [`field::value`]. The same value and count either way: inside, the
+/// interior's cell and fractions are [`field::locate`]'s ([`crate::trace::interior`]), and
+/// the runway exists for the cell model only.
+struct Reader<'r, 'a, T: Sample>(&'r Slab<'a, T>, Model, Option<&'r Runway<'a, T>>);
+
+impl<T: Sample> Reader<'_, '_, T> {
+    /// The field's value at index-space `p`.
+    #[inline]
+    fn value(&self, p: Vec3, counters: &mut Counters) -> f32 {
+        let Reader(slab, model, runway) = *self;
+        if let Some(runway) = runway {
+            let q = p.extend(0.0);
+            if runway.interior.holds(q) {
+                let (cell, lo) = field::interior_corner(q);
+                if let Some(nodes) = runway.cells.at_index(runway.cells.index(lo)) {
+                    counters.interpolations += 1;
+                    return field::lerp_cell(nodes, (q - cell).truncate());
+                }
+            }
+        }
+        field::value(slab, model, p, counters)
+    }
+}
+
 /// The nearest surface crossing not yet reported on the segment ending at sample `k` (value
 /// `v` at `p`, parameter `t`).
 #[allow(
@@ -256,7 +279,7 @@ fn below<T: Sample, E: CellTest>(
 )]
 fn nearest_crossing<T: Sample>(
     view: &View,
-    slab: &Slab<'_, T>,
+    read: &Reader<'_, '_, T>,
     surfaces: &[IsoSurface],
     ray: &RayState,
     t: f32,
@@ -286,7 +309,6 @@ fn nearest_crossing<T: Sample>(
         return None;
     }
     let t_prev = ray.lattice.t(ray.k.saturating_sub(1));
-    let model = view.spec().model;
     let mut best: Option<(f32, usize)> = None;
     for (i, s) in surfaces.iter().enumerate() {
         if !pending(i) || !surface::crosses(ray.prev, v, s.iso) {
@@ -294,7 +316,7 @@ fn nearest_crossing<T: Sample>(
         }
         let f = surface::refine(s.iso, ray.prev, v, view.spec().refine_steps, |f| {
             counters.refinements += 1;
-            field::value(slab, model, ray.ray.at(t_prev + f * (t - t_prev)), counters)
+            read.value(ray.ray.at(t_prev + f * (t - t_prev)), counters)
         });
         if best.is_none_or(|(bf, _)| f < bf) {
             best = Some((f, i));
