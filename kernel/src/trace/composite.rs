@@ -16,7 +16,7 @@ use crate::optics::transfer::{corrected_opacity, TransferFunction};
 use crate::trace::lattice::Lattice;
 use crate::trace::lighting::Unshadowed;
 use crate::trace::ray::Ray;
-use crate::trace::runway::{self, CellTest, EveryCell, Inside, Runway, Test};
+use crate::trace::runway::{self, CellTest, EveryCell, Inside, Read, Runway, Test};
 use crate::trace::skipping::{skip_to, Probe, Skipper};
 use crate::trace::state::{RayState, Stop};
 use crate::trace::view::View;
@@ -475,24 +475,11 @@ fn run<T: Sample, C: Classify, R: Reading<T>, A: Ahead, E: CellTest>(
         if k > inside.end {
             break Run::Done;
         }
-        let q = r.at4(lattice.t(k));
-        let (cell, lo) = field::interior_corner(q);
-        let index = inside.cells.index(lo);
-        let distance = inside.test.distance(lo, index);
-        if (1..=inside.stepped).contains(&distance) {
-            // Passed over by stepping: the same samples as a leap, fewer instructions.
-            counters.skipped += 1;
-            k += 1;
+        let Some(Read { q, cell, lo, index }) =
+            inside.step(slab, (ray, lattice, r), skipper, &mut k, counters)
+        else {
             continue;
-        }
-        if distance > 0 {
-            // A leap over the cube of empty cells the map promises; the run reads where it
-            // lands.
-            let last = skipper.leap_inside(slab, ray, (k, inside.end), cell, distance);
-            counters.skipped += u64::from(last - k + 1);
-            k = last + 1;
-            continue;
-        }
+        };
         let Some(nodes) = inside.cells.at_index(index) else {
             break Run::Unread;
         };

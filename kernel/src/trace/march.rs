@@ -16,7 +16,7 @@
 use crate::counters::Counters;
 use crate::optics::surface::{self, IsoSurface};
 use crate::trace::composite::composite;
-use crate::trace::runway::{self, CellTest, EveryCell, Inside, Runway, Test};
+use crate::trace::runway::{self, CellTest, EveryCell, Inside, Read, Runway, Test};
 use crate::trace::skipping::{skip_to, Probe, Skipper};
 pub use crate::trace::state::{Hit, RayKind, RayState, Stop};
 use crate::trace::view::{Mode, View};
@@ -221,23 +221,12 @@ fn below<T: Sample, E: CellTest>(
         if k > inside.end {
             break Searched::Done;
         }
-        let q = r.at4(lattice.t(k));
-        let (cell, lo) = field::interior_corner(q);
-        let index = inside.cells.index(lo);
-        let distance = inside.test.distance(lo, index);
-        if (1..=inside.stepped).contains(&distance) {
-            local.skipped += 1;
-            k += 1;
+        let Some(Read { q, cell, index, .. }) =
+            inside.step(slab, (ray, lattice, r), skipper, &mut k, &mut local)
+        else {
             stale = true;
             continue;
-        }
-        if distance > 0 {
-            let last = skipper.leap_inside(slab, ray, (k, inside.end), cell, distance);
-            local.skipped += u64::from(last - k + 1);
-            k = last + 1;
-            stale = true;
-            continue;
-        }
+        };
         let Some(nodes) = inside.cells.at_index(index) else {
             break Searched::Examine;
         };
@@ -259,10 +248,8 @@ fn below<T: Sample, E: CellTest>(
 }
 
 /// How the search reads the field between its samples (a skipped predecessor, a
-/// refinement's points): from its runway's storage, whole, where a point is inside the
-/// interior, else by [`field::value`]. The same value and count either way: inside, the
-/// interior's cell and fractions are [`field::locate`]'s ([`crate::trace::interior`]), and
-/// the runway exists for the cell model only.
+/// refinement's points): [`Runway::value`] where a point is inside the interior, else
+/// [`field::value`]; the same value and count either way.
 struct Reader<'r, 'a, T: Sample>(&'r Slab<'a, T>, Model, Option<&'r Runway<'a, T>>);
 
 impl<T: Sample> Reader<'_, '_, T> {
@@ -270,17 +257,13 @@ impl<T: Sample> Reader<'_, '_, T> {
     #[inline]
     fn value(&self, p: Vec3, counters: &mut Counters) -> f32 {
         let Reader(slab, model, runway) = *self;
-        if let Some(runway) = runway {
-            let q = p.extend(0.0);
-            if runway.interior.holds(q) {
-                let (cell, lo) = field::interior_corner(q);
-                if let Some(nodes) = runway.cells.at_index(runway.cells.index(lo)) {
-                    counters.interpolations += 1;
-                    return field::lerp_cell(nodes, (q - cell).truncate());
-                }
+        match runway.and_then(|runway| runway.value(p.extend(0.0))) {
+            Some(v) => {
+                counters.interpolations += 1;
+                v
             }
+            None => field::value(slab, model, p, counters),
         }
-        field::value(slab, model, p, counters)
     }
 }
 

@@ -9,15 +9,21 @@
 //! interior sample but its cell's leap distance ([`Skipper::per_cell`]) and the storage holds
 //! every cell inside; a distance of 0 is a cell that may show.
 
+use crate::counters::Counters;
 use crate::skip::cell_leaps::HeldLeaps;
 use crate::skip::node_leaps::NodeLeaps;
 use crate::trace::interior::Interior;
+use crate::trace::lattice::Lattice;
+use crate::trace::ray::Ray;
 use crate::trace::skipping::Skipper;
+use crate::trace::state::RayState;
 use crate::trace::view::View;
 use crate::volume::cells::{Cells, HeldCells};
+use crate::volume::field;
 use crate::volume::grid::Model;
 use crate::volume::sample::Sample;
 use crate::volume::slab::Slab;
+use glam::Vec4;
 
 /// The interior of one call: its box, its storage's whole cells (`U` per node) and what tells
 /// their empty cells.
@@ -73,6 +79,68 @@ pub(crate) struct Inside<'c, 'a, U, E> {
     pub(crate) test: &'c E,
     pub(crate) end: u32,
     pub(crate) stepped: u8,
+}
+
+/// A run's sample to be read: its index-space point, its cell's low corner as whole floats
+/// and as integers, and the cell's place in the run's storage.
+pub(crate) struct Read {
+    pub(crate) q: Vec4,
+    pub(crate) cell: Vec4,
+    pub(crate) lo: [u32; 3],
+    pub(crate) index: usize,
+}
+
+impl<U: Copy, E: CellTest> Inside<'_, '_, U, E> {
+    /// Sample `k` of `ray` (`lattice` and `line` its lattice and line, held by the caller's
+    /// loop), inside the run: passed over where its cell's distance in the map says the cell
+    /// is empty (stepped below the stepped distances, else a leap over the cube the map
+    /// promises, as the general step passes over the same samples), counted as skipped in
+    /// `counters`, and `k` moved on to the next sample to look at; else where to read it.
+    /// Both sample loops ask this first of every sample.
+    #[inline(always)]
+    pub(crate) fn step<T: Sample>(
+        &self,
+        slab: &Slab<'_, T>,
+        (ray, lattice, line): (&RayState, Lattice, Ray),
+        skipper: &mut Skipper<'_>,
+        k: &mut u32,
+        counters: &mut Counters,
+    ) -> Option<Read> {
+        let at = *k;
+        let q = line.at4(lattice.t(at));
+        let (cell, lo) = field::interior_corner(q);
+        let index = self.cells.index(lo);
+        let distance = self.test.distance(lo, index);
+        if (1..=self.stepped).contains(&distance) {
+            // The same samples as a leap, fewer instructions.
+            counters.skipped += 1;
+            *k = at + 1;
+            return None;
+        }
+        if distance > 0 {
+            let last = skipper.leap_inside(slab, ray, (at, self.end), cell, distance);
+            counters.skipped += u64::from(last - at + 1);
+            *k = last + 1;
+            return None;
+        }
+        Some(Read { q, cell, lo, index })
+    }
+}
+
+impl<T: Sample> Runway<'_, T> {
+    /// The field's value at index-space `q` where `q` is inside the interior, read whole from
+    /// the runway's storage of the slab's own samples: there [`field::value`]'s in every bit
+    /// (the interior's cell and fractions are [`field::locate`]'s, [`crate::trace::interior`]),
+    /// one interpolation. `None` outside.
+    #[inline]
+    pub(crate) fn value(&self, q: Vec4) -> Option<f32> {
+        if !self.interior.holds(q) {
+            return None;
+        }
+        let (cell, lo) = field::interior_corner(q);
+        let nodes = self.cells.at_index(self.cells.index(lo))?;
+        Some(field::lerp_cell(nodes, (q - cell).truncate()))
+    }
 }
 
 /// The greatest cell leap distance that a run through the interior passes sample by sample
