@@ -37,6 +37,41 @@ pub fn spec(
     }
 }
 
+/// A composited view of `grid` seen obliquely with parallel rays, one control point of
+/// opacity ½, under `shading` and `lights`: where shading tests look at a point's light.
+pub fn composited_view(
+    grid: &crate::volume::grid::Grid,
+    shading: Option<crate::optics::shade::Shading>,
+    lights: &[crate::optics::shade::Light],
+) -> crate::trace::view::View {
+    use crate::optics::transfer::{ControlPoint, TransferFunction};
+    use crate::trace::camera::{Camera, Projection};
+    use glam::Vec3;
+    let camera = Camera::look_at(
+        Vec3::new(30.0, 9.0, 14.0),
+        Vec3::splat(4.0),
+        Vec3::Y,
+        Projection::Orthographic { width: 20.0 },
+    );
+    let tf = TransferFunction::new(&[ControlPoint {
+        value: 1.0,
+        color: Vec3::ONE,
+        opacity: 0.5,
+    }]);
+    let (Ok(camera), Ok(tf), Ok(lights)) = (camera, tf, heapless::Vec::from_slice(lights)) else {
+        panic!("the composited view's camera, transfer function or lights");
+    };
+    let spec = crate::trace::view::ViewSpec {
+        shading,
+        lights,
+        ..spec(camera, crate::trace::view::Mode::Composite(tf))
+    };
+    match crate::trace::view::View::new(spec, grid) {
+        Ok(view) => view,
+        Err(e) => panic!("the composited view: {e}"),
+    }
+}
+
 /// The dimensions of [`hashed_field`].
 pub const HASHED_DIMS: [u32; 3] = [9, 7, 8];
 

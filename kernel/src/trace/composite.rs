@@ -1,6 +1,7 @@
 //! The composited sample loop: front-to-back emission and absorption over a ray's lattice
 //! samples in one slab, in a single loop that reads a sample, classifies it and, where it
-//! shows, shades and composites it. What may be passed over is asked of
+//! shows, shades and composites it (in the slab's interior, the fast tier's samples that show
+//! wait in a short batch for their light: `crate::trace::deferred`). What may be passed over is asked of
 //! `crate::trace::skipping`. How a sample is read (the node field's lanes, or the slab's
 //! value) and classified (the fast tier's table, or the transfer function) are chosen once
 //! per call: the loop is compiled once per choice, so that each holds only its own work.
@@ -13,6 +14,7 @@
 use crate::counters::Counters;
 use crate::optics::classify::Classified;
 use crate::optics::transfer::{corrected_opacity, TransferFunction};
+use crate::trace::deferred::Deferred;
 use crate::trace::lattice::Lattice;
 use crate::trace::lighting::Unshadowed;
 use crate::trace::ray::Ray;
@@ -112,6 +114,10 @@ impl<U: Copy> Ahead for Asking<'_, U> {
 
 /// How a sample's value becomes its opacity and colour.
 trait Classify {
+    /// Whether the samples that show may wait in a batch for the shading table's light
+    /// ([`Deferred`]): the fast tier's, whose table is what the batch lights by.
+    const TABLED: bool;
+
     /// Sample `k`'s opacity over its segment of `lattice`, and its colour (`Vec3::ZERO` where
     /// the opacity is zero: most samples of a composited view are transparent, and their
     /// colour is not looked at).
@@ -136,6 +142,8 @@ impl<'a> Tabled<'a> {
 }
 
 impl Classify for Tabled<'_> {
+    const TABLED: bool = true;
+
     #[inline(always)]
     fn classify(&self, view: &View, lattice: &Lattice, k: u32, v: f32) -> (f32, Vec3) {
         if k < self.full_below {
@@ -153,6 +161,8 @@ impl Classify for Tabled<'_> {
 struct ByFunction<'a>(&'a TransferFunction);
 
 impl Classify for ByFunction<'_> {
+    const TABLED: bool = false;
+
     #[inline(always)]
     fn classify(&self, view: &View, lattice: &Lattice, k: u32, v: f32) -> (f32, Vec3) {
         let span = self.0.span(v);
@@ -471,6 +481,11 @@ fn run<T: Sample, C: Classify, R: Reading<T>, A: Ahead, E: CellTest>(
     let counters = &mut local;
     let mut k = ray.k;
     let mut last_read = None;
+    // Where the fast tier's table shades them, shaded samples whose gradient came with the
+    // read wait for their light in a batch (the exact tier's lights, `powf` and all, gained
+    // nothing from the wait: docs/speed-log.md).
+    let mut waiting = Deferred::new();
+    let tabled = C::TABLED && light.table().is_some();
     let end = loop {
         if k > inside.end {
             break Run::Done;
@@ -491,13 +506,25 @@ fn run<T: Sample, C: Classify, R: Reading<T>, A: Ahead, E: CellTest>(
         last_read = Some(v);
         k += 1;
         if alpha > 0.0 {
-            let site = Site {
-                lo,
-                hi: lo.map(|c| c + 1),
-                frac,
-            };
-            let lit = light.color(slab, base, (q.truncate(), &site, gradient), counters);
-            *color += lit * (*weight * alpha);
+            match gradient {
+                Some(g) if tabled => {
+                    let share = *weight * alpha;
+                    waiting.push((g, base, share), light, color, counters);
+                }
+                _ => {
+                    if tabled {
+                        // What waits comes first: the colour adds in sample order.
+                        waiting.light(light, color, counters);
+                    }
+                    let site = Site {
+                        lo,
+                        hi: lo.map(|c| c + 1),
+                        frac,
+                    };
+                    let lit = light.color(slab, base, (q.truncate(), &site, gradient), counters);
+                    *color += lit * (*weight * alpha);
+                }
+            }
             *weight *= 1.0 - alpha;
             if !(*weight > cutoff) {
                 counters.early_terminations += 1;
@@ -505,6 +532,9 @@ fn run<T: Sample, C: Classify, R: Reading<T>, A: Ahead, E: CellTest>(
             }
         }
     };
+    if tabled {
+        waiting.light(light, color, counters);
+    }
     ray.k = k;
     if let Some(v) = last_read {
         ray.prev = v;

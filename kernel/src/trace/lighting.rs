@@ -126,6 +126,23 @@ impl<'v> Unshadowed<'v> {
         }
     }
 
+    /// The fast tier's shading table, where this view's points read it.
+    #[inline(always)]
+    pub(crate) fn table(&self) -> Option<&'v ShadingTable> {
+        self.table
+    }
+
+    /// Count `n` points shaded by the table with gradients read with their values, as
+    /// [`Unshadowed::color`] counts each given its gradient, `fallbacks` of them by the
+    /// fallback normal.
+    #[inline(always)]
+    pub(crate) fn count_tabled(&self, n: u64, fallbacks: u64, counters: &mut Counters) {
+        counters.shadings += n;
+        counters.interpolations += n * self.view.interpolations_per_gradient();
+        counters.gradients += n;
+        counters.normal_fallbacks += fallbacks;
+    }
+
     /// The colour at index-space `p` of a point of colour `base`.
     /// `site` is where `p` reads the grid under the view's model ([`field::locate`]), which
     /// the sample loop has found already, and `gradient` the gradient there where it has
@@ -243,31 +260,11 @@ fn gradient<T: Sample>(
 mod tests {
     use super::*;
     use crate::optics::shade::{Light, Shading};
-    use crate::optics::transfer::{ControlPoint, TransferFunction};
-    use crate::trace::camera::{Camera, Projection};
-    use crate::trace::view::{Mode, ViewSpec};
+    use crate::trace::view::ViewSpec;
     use crate::volume::grid::Grid;
 
     fn view(grid: &Grid, shading: Option<Shading>, lights: &[Light]) -> View {
-        let camera = Camera::look_at(
-            Vec3::new(30.0, 9.0, 14.0),
-            Vec3::splat(4.0),
-            Vec3::Y,
-            Projection::Orthographic { width: 20.0 },
-        )
-        .unwrap();
-        let tf = TransferFunction::new(&[ControlPoint {
-            value: 1.0,
-            color: Vec3::ONE,
-            opacity: 0.5,
-        }])
-        .unwrap();
-        let spec = ViewSpec {
-            shading,
-            lights: heapless::Vec::from_slice(lights).unwrap(),
-            ..crate::testing::spec(camera, Mode::Composite(tf))
-        };
-        View::new(spec, grid).unwrap()
+        crate::testing::composited_view(grid, shading, lights)
     }
 
     /// `view` in the fast tier.

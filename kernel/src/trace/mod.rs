@@ -7,6 +7,7 @@
 
 pub mod camera;
 pub mod composite;
+pub(crate) mod deferred;
 pub(crate) mod interior;
 pub mod lattice;
 pub mod lighting;
