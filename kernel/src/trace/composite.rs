@@ -506,25 +506,26 @@ fn run<T: Sample, C: Classify, R: Reading<T>, A: Ahead, E: CellTest>(
         last_read = Some(v);
         k += 1;
         if alpha > 0.0 {
-            match gradient {
-                Some(g) if tabled => {
-                    let share = *weight * alpha;
-                    waiting.push((g, base, share), light, color, counters);
+            if let (true, Some(g)) = (tabled, gradient) {
+                waiting.push((g, base, *weight * alpha), light, color, counters);
+                *weight *= 1.0 - alpha;
+                if !(*weight > cutoff) {
+                    counters.early_terminations += 1;
+                    break Run::Terminated;
                 }
-                _ => {
-                    if tabled {
-                        // What waits comes first: the colour adds in sample order.
-                        waiting.light(light, color, counters);
-                    }
-                    let site = Site {
-                        lo,
-                        hi: lo.map(|c| c + 1),
-                        frac,
-                    };
-                    let lit = light.color(slab, base, (q.truncate(), &site, gradient), counters);
-                    *color += lit * (*weight * alpha);
-                }
+                continue;
             }
+            if tabled {
+                // What waits comes first: the colour adds in sample order.
+                waiting.light(light, color, counters);
+            }
+            let site = Site {
+                lo,
+                hi: lo.map(|c| c + 1),
+                frac,
+            };
+            let lit = light.color(slab, base, (q.truncate(), &site, gradient), counters);
+            *color += lit * (*weight * alpha);
             *weight *= 1.0 - alpha;
             if !(*weight > cutoff) {
                 counters.early_terminations += 1;
