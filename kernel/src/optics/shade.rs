@@ -150,6 +150,9 @@ impl Default for Shading {
 
 /// The unit normal facing the viewer at a point with world gradient `gradient`, seen along
 /// `view_dir`; and whether the fallback was used.
+// Always inlined: the exact tier's composited loop shades by it on every sample that shows,
+// and the compiler's own choice, which moved with unrelated code, cost a call each.
+#[inline(always)]
 pub fn normal(gradient: Vec3, view_dir: Vec3) -> (Vec3, bool) {
     if !usable(gradient) {
         return (-view_dir, true);
