@@ -98,8 +98,9 @@ impl ShadingTable {
 }
 
 /// The entries of four gradients at once, one in each lane of `x`, `y` and `z`: lane for
-/// lane the operations of a single gradient's entry, so each lane's entry is its gradient's in every bit (tested);
-/// the division and the folding of four gradients then take one instruction each.
+/// lane the operations of a single gradient's entry, so each lane's entry is its gradient's
+/// in every bit (tested); the division and the folding of four gradients then take one
+/// instruction each.
 #[inline(always)]
 pub fn indices(x: Vec4, y: Vec4, z: Vec4) -> [usize; 4] {
     // `shade::usable`'s test: the squared length, summed as `Vec3::length_squared` sums it.

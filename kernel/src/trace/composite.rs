@@ -1,10 +1,10 @@
 //! The composited sample loop: front-to-back emission and absorption over a ray's lattice
 //! samples in one slab, in a single loop that reads a sample, classifies it and, where it
 //! shows, shades and composites it (in the slab's interior, the fast tier's samples that show
-//! wait in a short batch for their light: `crate::trace::deferred`). What may be passed over is asked of
-//! `crate::trace::skipping`. How a sample is read (the node field's lanes, or the slab's
-//! value) and classified (the fast tier's table, or the transfer function) are chosen once
-//! per call: the loop is compiled once per choice, so that each holds only its own work.
+//! wait in a short batch for their light: `crate::trace::deferred`). What may be passed over
+//! is asked of `crate::trace::skipping`. How a sample is read (the node field's lanes, or the
+//! slab's value) and classified (the fast tier's table, or the transfer function) are chosen
+//! once per call: the loop is compiled once per choice, so that each holds only its own work.
 //!
 //! Invariants: the colour and transmittance follow `C += w·α·c`, `w *= 1 − α` in sample
 //! order, the same operations on every node, so a ray's result does not depend on where its

@@ -81,7 +81,8 @@ impl Deferred {
         let n = self.len.min(BATCH);
         self.len = 0;
         let Some(table) = light.table() else {
-            // Only the table's points wait.
+            // Never holding samples: only a loop whose light has a table puts them here.
+            debug_assert_eq!(n, 0, "samples waiting for a table that is not there");
             return;
         };
         let mut fallbacks = 0;
