@@ -66,18 +66,12 @@ impl Interior {
         let (lattice, r) = (&ray.lattice, &ray.ray);
         let inside = |k: u32| self.holds(r.at4(lattice.t(k)));
         let left = lattice.last.saturating_sub(k);
-        let mut t_out = f32::INFINITY;
-        for a in 0..3 {
-            let (o, d) = (r.origin[a], r.dir[a]);
-            let face = if d > 0.0 {
-                self.ceiling[a]
-            } else if d < 0.0 {
-                self.floor[a]
-            } else {
-                continue;
-            };
-            t_out = t_out.min((face - o) / d);
-        }
+        // Each axis's face ahead, the three divisions in lanes; an axis the ray does not move
+        // along (the fourth lane among them) never ends it.
+        let (o, d) = (r.origin.extend(0.0), r.dir.extend(0.0));
+        let face = Vec4::select(d.cmpgt(Vec4::ZERO), self.ceiling, self.floor);
+        let t_out = Vec4::select(d.cmpne(Vec4::ZERO), (face - o) / d, Vec4::INFINITY);
+        let t_out = t_out.min_element();
         let ahead = (t_out - lattice.t(k)) / lattice.dt;
         let mut n = if ahead.is_finite() {
             (ahead.max(0.0) as u32).min(left)
