@@ -18,7 +18,7 @@ use crate::trace::deferred::Deferred;
 use crate::trace::lattice::Lattice;
 use crate::trace::lighting::Unshadowed;
 use crate::trace::ray::Ray;
-use crate::trace::runway::{self, CellTest, EveryCell, Inside, Read, Runway, Test};
+use crate::trace::runway::{self, CellTest, Inside, Read, Runway};
 use crate::trace::skipping::{skip_to, Probe, Skipper};
 use crate::trace::state::{RayState, Stop};
 use crate::trace::view::View;
@@ -366,32 +366,19 @@ fn samples<T: Sample, C: Classify, R: Reading<T>, A: Ahead>(
         }
         if let (Some(end), Some(runway)) = (inside_to, &inner) {
             if ray.k <= end {
-                // One loop for each way of telling empty cells.
-                macro_rules! through {
-                    ($test:expr) => {
-                        run(
-                            view,
-                            slab,
-                            classify,
-                            (read, ahead),
-                            &Inside {
-                                cells: &runway.cells,
-                                test: $test,
-                                end,
-                                stepped,
-                            },
-                            ray,
-                            (&light, &mut color, &mut weight),
-                            &mut skipper,
-                            counters,
-                        )
-                    };
-                }
-                let ran = match &runway.test {
-                    Test::AtIndex(test) => through!(test),
-                    Test::Held(test) => through!(test),
-                    Test::Every => through!(&EveryCell),
-                };
+                let ran = runway::through!(runway, end, stepped, |inside| {
+                    run(
+                        view,
+                        slab,
+                        classify,
+                        (read, ahead),
+                        inside,
+                        ray,
+                        (&light, &mut color, &mut weight),
+                        &mut skipper,
+                        counters,
+                    )
+                });
                 match ran {
                     Run::Done => continue,
                     Run::Terminated => break Stop::Terminated,

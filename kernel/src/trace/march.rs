@@ -16,7 +16,7 @@
 use crate::counters::Counters;
 use crate::optics::surface::{self, IsoSurface};
 use crate::trace::composite::composite;
-use crate::trace::runway::{self, CellTest, EveryCell, Inside, Read, Runway, Test};
+use crate::trace::runway::{self, CellTest, Inside, Read, Runway};
 use crate::trace::skipping::{skip_to, Probe, Skipper};
 pub use crate::trace::state::{Hit, RayKind, RayState, Stop};
 use crate::trace::view::{Mode, View};
@@ -73,8 +73,10 @@ fn search<T: Sample>(
             // Only where the ray may skip and has a sample before this one: the run's
             // samples are then those the general step would read or skip without a crossing.
             if ray.k <= end && ray.primed && view.may_skip(ray) {
-                let inside = (runway, end, stepped);
-                if let Searched::Done = through(view, slab, inside, ray, &mut skipper, counters) {
+                let searched = runway::through!(runway, end, stepped, |inside| {
+                    below(view, slab, inside, ray, &mut skipper, counters)
+                });
+                if let Searched::Done = searched {
                     continue;
                 }
             }
@@ -156,41 +158,6 @@ enum Searched {
     /// end there), or one the storage cannot give whole (never in the interior, but the
     /// general step can read anything).
     Examine,
-}
-
-/// [`below`] through `runway` to its sample `end`, stepping over leap distances up to
-/// `stepped`: one loop for each way the runway tells empty cells.
-#[inline(always)]
-fn through<T: Sample>(
-    view: &View,
-    slab: &Slab<'_, T>,
-    (runway, end, stepped): (&Runway<'_, T>, u32, u8),
-    ray: &mut RayState,
-    skipper: &mut Skipper<'_>,
-    counters: &mut Counters,
-) -> Searched {
-    macro_rules! run {
-        ($test:expr) => {
-            below(
-                view,
-                slab,
-                &Inside {
-                    cells: &runway.cells,
-                    test: $test,
-                    end,
-                    stepped,
-                },
-                ray,
-                skipper,
-                counters,
-            )
-        };
-    }
-    match &runway.test {
-        Test::AtIndex(test) => run!(test),
-        Test::Held(test) => run!(test),
-        Test::Every => run!(&EveryCell),
-    }
 }
 
 /// The samples from `ray.k` through `inside.end`, all in the interior, of a ray that is not a

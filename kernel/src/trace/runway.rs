@@ -81,6 +81,34 @@ pub(crate) struct Inside<'c, 'a, U, E> {
     pub(crate) stepped: u8,
 }
 
+/// `$body` with `$inside` bound to the run ([`Inside`]) through `$runway` to its sample `$end`,
+/// stepping over leap distances up to `$stepped`: the body compiled once for each way the
+/// runway tells empty cells, so that each loop holds only its own test. Both sample loops
+/// enter their runs through it. (A macro: a closure cannot be generic over the test's type.)
+macro_rules! through {
+    ($runway:expr, $end:expr, $stepped:expr, |$inside:ident| $body:expr) => {{
+        use $crate::trace::runway::{EveryCell, Inside, Test};
+        let runway = $runway;
+        macro_rules! with {
+            ($test:expr) => {{
+                let $inside = &Inside {
+                    cells: &runway.cells,
+                    test: $test,
+                    end: $end,
+                    stepped: $stepped,
+                };
+                $body
+            }};
+        }
+        match &runway.test {
+            Test::AtIndex(test) => with!(test),
+            Test::Held(test) => with!(test),
+            Test::Every => with!(&EveryCell),
+        }
+    }};
+}
+pub(crate) use through;
+
 /// A run's sample to be read: its index-space point, its cell's low corner as whole floats
 /// and as integers, and the cell's place in the run's storage.
 pub(crate) struct Read {
