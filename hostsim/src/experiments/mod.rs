@@ -19,6 +19,7 @@ pub mod frontier;
 pub mod instructions;
 pub mod paper;
 pub mod peer;
+pub mod phases;
 pub mod runs;
 pub mod scale;
 pub mod sod;

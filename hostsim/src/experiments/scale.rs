@@ -17,6 +17,7 @@ use super::bench::{median, median_frame, run_paired, seconds, sorted_ratios, spr
 use super::chart::{self, Line};
 use super::error::ExperimentError;
 use super::peer::{Frame, Peer, PeerMode, Request};
+use super::phases::{self, Phase, Phases};
 use super::sod::COMPOSITE_TRANSFER;
 use crate::input::builtin;
 use crate::input::dataset::{to_file_order, Volume, VolumeData};
@@ -113,7 +114,15 @@ pub struct ScaleRow {
     pub setup: Duration,
     /// Lattice samples evaluated.
     pub samples: u64,
+    /// Where its frames' time after the set-up went, by a sampling profile of frames after
+    /// the timed ones (`None` where the profiler could not run: the notes say why).
+    pub phases: Option<Phases>,
 }
+
+/// How long each row's frames are profiled for [`ScaleRow::phases`]: the process's CPU-time
+/// timer fires at the system's tick (250 Hz here, whatever the threads), so two seconds are
+/// some 500 samples, a share to a few percent.
+const PROFILED: Duration = Duration::from_secs(2);
 
 /// VTK's composited frame of one volume of the sweep, in the same run.
 #[derive(Clone, Debug)]
@@ -148,6 +157,17 @@ pub struct Scale {
 impl ScaleRow {
     fn ns_per_sample(&self) -> f64 {
         self.median.as_secs_f64() * 1e9 / self.samples.max(1) as f64
+    }
+
+    /// The columns that name the row in every table: volume, image, tier and machine.
+    fn head(&self) -> String {
+        format!(
+            "{:<9} {:<10} {:<6} {:<24}",
+            self.dataset.label(self.volume),
+            format!("{}x{}", self.image.0, self.image.1),
+            self.tier,
+            self.config
+        )
     }
 
     fn us_per_pixel(&self) -> f64 {
@@ -355,8 +375,20 @@ pub fn run(runs: usize, out: &mut String) -> Result<Scale, ExperimentError> {
                     vtk.push(row);
                 }
             }
+            // Apart from the timed frames: the profiler's signals would be in their time.
+            let mut profiles = Vec::new();
+            for (config, machine) in &machines {
+                let frame = || render_on(volume, &built, machine).map(drop);
+                profiles.push(match phases::profile(PROFILED, frame) {
+                    Ok(p) => Some(p),
+                    Err(e) => {
+                        let _ = writeln!(out, "no profile of {} {config}: {e}", v.name);
+                        None
+                    }
+                });
+            }
             let measured = machines.iter().zip(times).zip(samples).zip(first);
-            for ((((config, machine), mut t), samples), first) in measured {
+            for (((((config, machine), mut t), samples), first), phases) in measured.zip(profiles) {
                 t.sort();
                 let (median, setup) = t[t.len() / 2];
                 let row = ScaleRow {
@@ -370,6 +402,7 @@ pub fn run(runs: usize, out: &mut String) -> Result<Scale, ExperimentError> {
                     first,
                     setup,
                     samples,
+                    phases,
                 };
                 let _ = writeln!(
                     out,
@@ -427,11 +460,8 @@ pub fn table(scale: &Scale, runs: usize) -> String {
             });
             let _ = writeln!(
                 out,
-                "{:<9} {:<10} {:<6} {:<24} {:>10.1} {:>10.1} {:>10.1} {:>10} {:>10.2} {:>10.3} {:>9.2} {:>9.2}",
-                r.dataset.label(r.volume),
-                format!("{}x{}", r.image.0, r.image.1),
-                r.tier,
-                r.config,
+                "{} {:>10.1} {:>10.1} {:>10.1} {:>10} {:>10.2} {:>10.3} {:>9.2} {:>9.2}",
+                r.head(),
                 r.first.as_secs_f64() * 1e3,
                 r.median.as_secs_f64() * 1e3,
                 r.setup.as_secs_f64() * 1e3,
@@ -443,7 +473,46 @@ pub fn table(scale: &Scale, runs: usize) -> String {
             );
         }
     }
+    out.push_str(&where_it_goes(rows));
     out.push_str(&beside_vtk(scale));
+    out
+}
+
+/// Each row's median frame by phase: its set-up as the frame timed it, and the rest
+/// apportioned by the shares of a sampling profile of the threads tracing its rays
+/// ([`phases`]), in the order of the growth table.
+fn where_it_goes(rows: &[ScaleRow]) -> String {
+    let mut out = format!(
+        "-- where a frame's time goes, ms of the median frame: its set-up as timed, the rest by the shares of a sampling profile of the ray-tracing threads over {:.0} s of frames after the timed ones (samples: how many)\n{:<9} {:<10} {:<6} {:<24} {:>8} {:>8} {:>8}",
+        PROFILED.as_secs_f64(),
+        "volume",
+        "image",
+        "tier",
+        "machine",
+        "ms",
+        "samples",
+        "set-up"
+    );
+    for phase in Phase::ALL {
+        let _ = write!(out, " {:>11}", phase.name());
+    }
+    out.push('\n');
+    for r in rows {
+        let Some(p) = r.phases else { continue };
+        let rest = r.median.saturating_sub(r.setup).as_secs_f64() * 1e3;
+        let _ = write!(
+            out,
+            "{} {:>8.1} {:>8} {:>8.1}",
+            r.head(),
+            r.median.as_secs_f64() * 1e3,
+            p.total(),
+            r.setup.as_secs_f64() * 1e3
+        );
+        for phase in Phase::ALL {
+            let _ = write!(out, " {:>11.1}", rest * p.percent(phase) / 100.0);
+        }
+        out.push('\n');
+    }
     out
 }
 
@@ -599,6 +668,44 @@ pub fn plot(path: &Path, scale: &Scale) -> Result<(), String> {
 mod tests {
     use super::*;
 
+    /// The profile of a real frame: the molecule at 64³ composited in the fast tier on one
+    /// node, profiled for a while. Its samples fall in the frame's own phases (the controls
+    /// that the classification sees the kernel's inlined source and the host's set-up are
+    /// `phases`' own tests); shares are not asserted, they move with the machine.
+    #[test]
+    fn a_profiled_frame_s_samples_fall_in_its_phases() {
+        let volume = Dataset::Molecule.volume(64);
+        let text = format!(
+            "[[datasets]]\nname = \"m\"\nbuiltin = \"sphere\"\n{}",
+            view("fast", IMAGES[0], 64, Dataset::Molecule)
+        );
+        let jobs = Scene::parse(&text, "<test>", Path::new("."))
+            .and_then(Scene::load)
+            .expect("the sweep's view parses");
+        let spec = jobs[0].views[0].view.spec().clone();
+        let view = voxcube_kernel::trace::view::View::new(spec, &volume.grid).expect("view");
+        let machine = Machine {
+            profile: crate::memory::budget::Profile::builtin("modern").expect("modern"),
+            ..Machine::new(Fabric::Direct, 1, 1, 1)
+        };
+        let p = phases::profile(Duration::from_millis(600), || {
+            render_on(&volume, &view, &machine).map(drop)
+        })
+        .expect("the profiler runs");
+        assert!(p.total() > 0, "no samples in 0.6 s of frames");
+        let frame = [
+            Phase::Rays,
+            Phase::Skipping,
+            Phase::Sampling,
+            Phase::Compositing,
+        ];
+        let in_frame: u64 = frame.iter().map(|&f| p.count(f)).sum();
+        assert!(
+            2 * in_frame > p.total(),
+            "most samples of a frame's loop are outside its phases: {p:?}"
+        );
+    }
+
     fn row(volume: u32, tier: &'static str, config: &str, ms: u64) -> ScaleRow {
         ScaleRow {
             dataset: Dataset::Molecule,
@@ -611,6 +718,7 @@ mod tests {
             first: Duration::from_millis(ms),
             setup: Duration::ZERO,
             samples: 1000,
+            phases: None,
         }
     }
 

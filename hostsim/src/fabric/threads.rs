@@ -342,14 +342,18 @@ fn run_hosted<T: Sample + Send + Sync>(
         let handles: Vec<_> = others
             .into_iter()
             .map(|mut crew| {
+                // The nodes' rounds are what a profile of a frame after its set-up samples
+                // (`bench --scale`); their storage was loaded before.
                 scope.spawn(move || {
-                    while !done.load(Ordering::Acquire) {
-                        let progressed = crew.round();
-                        let heard = host
-                            .try_lock()
-                            .is_ok_and(|mut host| host.poll(buffers, capacity));
-                        crew.rest(progressed || heard);
-                    }
+                    voxcube_sampler::sampled(|| {
+                        while !done.load(Ordering::Acquire) {
+                            let progressed = crew.round();
+                            let heard = host
+                                .try_lock()
+                                .is_ok_and(|mut host| host.poll(buffers, capacity));
+                            crew.rest(progressed || heard);
+                        }
+                    });
                     crew.times()
                 })
             })
@@ -357,7 +361,7 @@ fn run_hosted<T: Sample + Send + Sync>(
         // The host runs between the rounds of the threads' own nodes, not on a thread of its
         // own: a host thread that sleeps and wakes takes a core from a worker at each wake-up,
         // and the workers then end unevenly.
-        let result = loop {
+        let result = voxcube_sampler::sampled(|| loop {
             let progressed = own.round();
             let mut at = host.lock().unwrap_or_else(PoisonError::into_inner);
             let heard = at.poll(buffers, capacity);
@@ -370,7 +374,7 @@ fn run_hosted<T: Sample + Send + Sync>(
                 None if done => break Ok(()),
                 None => own.rest(progressed || heard),
             }
-        };
+        });
         done.store(true, Ordering::Release);
         let own_times = own.times();
         // A worker thread that panicked has no times to give; the host's result stands.

@@ -469,13 +469,16 @@ fn render_typed<T: Sample + Sync>(
     let n = view.pixel_count();
     let mut pixels = Vec::with_capacity(n as usize);
     let mut non_finite = 0;
-    for (pixel, c) in (1..).zip(Pixels::new(view, &slab, &mut counters)) {
-        non_finite += u64::from(!c.is_finite());
-        pixels.push(rgba8(c));
-        if pixel % u64::from(view.spec().width) == 0 {
-            progress(pixel);
+    // The rays are what a profile of the frame after its set-up samples (`bench --scale`).
+    voxcube_sampler::sampled(|| {
+        for (pixel, c) in (1..).zip(Pixels::new(view, &slab, &mut counters)) {
+            non_finite += u64::from(!c.is_finite());
+            pixels.push(rgba8(c));
+            if pixel % u64::from(view.spec().width) == 0 {
+                progress(pixel);
+            }
         }
-    }
+    });
     counters.non_finite_pixels += non_finite;
     let spec = view.spec();
     Ok(Rendered {
