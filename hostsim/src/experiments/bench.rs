@@ -9,6 +9,7 @@
 
 use super::error::ExperimentError;
 use super::peer::{PeerMode, Request};
+use super::phases::Phases;
 use super::sod::{composite, sized, sod_source, SOD_ISO, SURFACE_VIEW};
 use crate::input::scene::Scene;
 use crate::memory::storage::SkipMode;
@@ -130,6 +131,11 @@ pub struct Row {
     pub samples: u64,
     /// Lattice samples skipped per frame.
     pub skipped: u64,
+    /// The median frame's set-up, before any ray.
+    pub setup: Duration,
+    /// Where the frames' time after the set-up went, for SOD's views on every core: a
+    /// sampling profile of frames after the timed ones ([`super::phases`]).
+    pub phases: Option<Phases>,
 }
 
 impl Row {
@@ -285,9 +291,7 @@ pub fn run(
                     let machines: Vec<_> = machines(cores, size)
                         .into_iter()
                         .filter(|(name, _)| {
-                            !fast
-                                || name == "direct, 1 node"
-                                || name.starts_with("threads, ") && name.contains("clusters of 1")
+                            !fast || name == "direct, 1 node" || is_every_core(name)
                         })
                         .collect();
                     // Round by round, every machine once a round: this machine's speed drifts
@@ -298,21 +302,38 @@ pub fn run(
                     for _ in 0..runs.max(1) {
                         for (m, (_, machine)) in machines.iter().enumerate() {
                             let r = render_on(&job.volume, &v.view, machine)?;
-                            times[m].push(r.wall);
+                            times[m].push((r.wall, r.setup.unwrap_or_default()));
                             counts[m] = (r.counters.samples, r.counters.skipped);
                         }
                     }
-                    for (((name, _), times), (samples, skipped)) in
+                    for (((name, machine), times), (samples, skipped)) in
                         machines.into_iter().zip(times).zip(counts)
                     {
+                        let (median, setup) =
+                            middle(times, |a, b| a.0.cmp(&b.0)).unwrap_or_default();
+                        // Apart from the timed frames: the profiler's signals would be in
+                        // their time.
+                        let phases = (job.name == "sod" && name.ends_with(BESIDE_VTK))
+                            .then(|| {
+                                let frame = || render_on(&job.volume, &v.view, &machine).map(drop);
+                                super::phases::profile(super::scale::PROFILED, frame)
+                            })
+                            .and_then(|p| {
+                                p.map_err(|e| {
+                                    let _ = writeln!(out, "no profile of {}: {e}", v.name);
+                                })
+                                .ok()
+                            });
                         rows.push(Row {
                             dataset: job.name.clone(),
                             size,
                             view: v.name.clone(),
                             config: name,
-                            median: median(times),
+                            median,
                             samples,
                             skipped,
+                            setup,
+                            phases,
                         });
                     }
                 }
@@ -320,6 +341,38 @@ pub fn run(
         }
     }
     Ok(rows)
+}
+
+/// How the name of the machine set beside VTK ends: a cluster of one modern node per core
+/// on threads ([`every_core_modern`]).
+const BESIDE_VTK: &str = "clusters of 1, modern nodes";
+
+/// Whether the machine named `name` is one cluster of one node per core on threads.
+fn is_every_core(name: &str) -> bool {
+    name.starts_with("threads, ") && name.contains("clusters of 1")
+}
+
+/// Where each SOD view's frame on every core goes ([`super::phases`]).
+fn where_it_goes(rows: &[Row]) -> String {
+    let mut out = format!(
+        "where SOD's frame on every core (modern nodes, as beside VTK) goes, ms of the median frame: its set-up as timed, the rest by the shares of a sampling profile of the ray-tracing threads over {:.0} s of frames after the timed ones\n{:<17} {:<14} {}\n",
+        super::scale::PROFILED.as_secs_f64(),
+        "size",
+        "view",
+        super::phases::column_heads()
+    );
+    for r in rows {
+        if let Some(p) = &r.phases {
+            let _ = writeln!(
+                out,
+                "{:<17} {:<14} {}",
+                r.size.label(),
+                r.view,
+                super::phases::columns(p, r.median, r.setup)
+            );
+        }
+    }
+    out
 }
 
 /// The table, then the targets.
@@ -348,6 +401,7 @@ pub fn table(rows: &[Row], runs: usize) -> String {
     );
     let _ = writeln!(out, "{}", build_line());
     let _ = writeln!(out, "{}", machine_line());
+    out.push_str(&where_it_goes(rows));
     out.push_str(&targets(rows));
     out
 }
@@ -981,6 +1035,8 @@ mod tests {
             median: Duration::from_millis(ms),
             samples: 1_000_000,
             skipped: 3_000_000,
+            setup: Duration::ZERO,
+            phases: None,
         }
     }
 

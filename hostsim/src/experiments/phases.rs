@@ -121,6 +121,31 @@ impl Phases {
     }
 }
 
+/// The time of `frame` by phase, as a table's columns: the frame, the samples, its
+/// `setup` as timed, and the rest apportioned by `phases`' shares, in ms.
+pub fn columns(phases: &Phases, frame: Duration, setup: Duration) -> String {
+    let rest = frame.saturating_sub(setup).as_secs_f64() * 1e3;
+    let mut out = format!(
+        "{:>8.1} {:>8} {:>8.1}",
+        frame.as_secs_f64() * 1e3,
+        phases.total(),
+        setup.as_secs_f64() * 1e3
+    );
+    for phase in Phase::ALL {
+        out += &format!(" {:>11.1}", rest * phases.percent(phase) / 100.0);
+    }
+    out
+}
+
+/// The heads of [`columns`].
+pub fn column_heads() -> String {
+    let mut out = format!("{:>8} {:>8} {:>8}", "ms", "samples", "set-up");
+    for phase in Phase::ALL {
+        out += &format!(" {:>11}", phase.name());
+    }
+    out
+}
+
 /// Why a profile was not taken.
 #[derive(Debug, thiserror::Error)]
 pub enum ProfileError {
@@ -263,6 +288,23 @@ mod tests {
             k!("node/worker.rs"),
         )];
         assert_eq!(phase(&poll), Phase::Other);
+    }
+
+    #[test]
+    fn the_frame_after_its_set_up_is_shared_out_by_the_samples() {
+        let mut p = Phases::default();
+        p.add(Phase::Sampling, 3);
+        p.add(Phase::Compositing, 1);
+        let ms = Duration::from_millis;
+        let cols: Vec<String> = columns(&p, ms(50), ms(10))
+            .split_whitespace()
+            .map(String::from)
+            .collect();
+        assert_eq!(
+            cols,
+            ["50.0", "4", "10.0", "0.0", "0.0", "30.0", "10.0", "0.0"]
+        );
+        assert_eq!(column_heads().split_whitespace().count(), cols.len());
     }
 
     #[test]

@@ -17,7 +17,7 @@ use super::bench::{median, median_frame, run_paired, seconds, sorted_ratios, spr
 use super::chart::{self, Line};
 use super::error::ExperimentError;
 use super::peer::{Frame, Peer, PeerMode, Request};
-use super::phases::{self, Phase, Phases};
+use super::phases::{self, Phases};
 use super::sod::COMPOSITE_TRANSFER;
 use crate::input::builtin;
 use crate::input::dataset::{to_file_order, Volume, VolumeData};
@@ -119,10 +119,10 @@ pub struct ScaleRow {
     pub phases: Option<Phases>,
 }
 
-/// How long each row's frames are profiled for [`ScaleRow::phases`]: the process's CPU-time
+/// How long each row's frames are profiled for [`ScaleRow::phases`] (and the bench's): the process's CPU-time
 /// timer fires at the system's tick (250 Hz here, whatever the threads), so two seconds are
 /// some 500 samples, a share to a few percent.
-const PROFILED: Duration = Duration::from_secs(2);
+pub(super) const PROFILED: Duration = Duration::from_secs(2);
 
 /// VTK's composited frame of one volume of the sweep, in the same run.
 #[derive(Clone, Debug)]
@@ -483,35 +483,23 @@ pub fn table(scale: &Scale, runs: usize) -> String {
 /// ([`phases`]), in the order of the growth table.
 fn where_it_goes(rows: &[ScaleRow]) -> String {
     let mut out = format!(
-        "-- where a frame's time goes, ms of the median frame: its set-up as timed, the rest by the shares of a sampling profile of the ray-tracing threads over {:.0} s of frames after the timed ones (samples: how many)\n{:<9} {:<10} {:<6} {:<24} {:>8} {:>8} {:>8}",
+        "-- where a frame's time goes, ms of the median frame: its set-up as timed, the rest by the shares of a sampling profile of the ray-tracing threads over {:.0} s of frames after the timed ones (samples: how many)\n{:<9} {:<10} {:<6} {:<24} {}\n",
         PROFILED.as_secs_f64(),
         "volume",
         "image",
         "tier",
         "machine",
-        "ms",
-        "samples",
-        "set-up"
+        phases::column_heads()
     );
-    for phase in Phase::ALL {
-        let _ = write!(out, " {:>11}", phase.name());
-    }
-    out.push('\n');
     for r in rows {
-        let Some(p) = r.phases else { continue };
-        let rest = r.median.saturating_sub(r.setup).as_secs_f64() * 1e3;
-        let _ = write!(
-            out,
-            "{} {:>8.1} {:>8} {:>8.1}",
-            r.head(),
-            r.median.as_secs_f64() * 1e3,
-            p.total(),
-            r.setup.as_secs_f64() * 1e3
-        );
-        for phase in Phase::ALL {
-            let _ = write!(out, " {:>11.1}", rest * p.percent(phase) / 100.0);
+        if let Some(p) = &r.phases {
+            let _ = writeln!(
+                out,
+                "{} {}",
+                r.head(),
+                phases::columns(p, r.median, r.setup)
+            );
         }
-        out.push('\n');
     }
     out
 }
@@ -666,6 +654,7 @@ pub fn plot(path: &Path, scale: &Scale) -> Result<(), String> {
 
 #[cfg(test)]
 mod tests {
+    use super::phases::Phase;
     use super::*;
 
     /// The profile of a real frame: the molecule at 64³ composited in the fast tier on one
