@@ -5,9 +5,10 @@
 //! rest (the host, messages between nodes, waiting).
 //!
 //! Invariant: every sample lands in exactly one phase, decided by the functions at its
-//! address alone ([`phase_of`]): the innermost that is the kernel's own source decides
-//! (inlined ones count: a read the compiler merged into the sample loop is the sample's),
-//! else a call into `libm` is compositing (the sample loop's only calls into it are the exact
+//! address alone ([`phase_of`]): the innermost in a kernel source file that names a phase
+//! decides (inlined ones count: a read the compiler merged into the sample loop is the
+//! sample's; the kernel's shared parts, counters or the topology, take the phase they are
+//! inlined into), else a call into `libm` is compositing (the sample loop's only calls into it are the exact
 //! tier's opacity correction and highlight), else the rest.
 
 use std::time::{Duration, Instant};
@@ -58,7 +59,7 @@ impl Phase {
 pub fn phase_of<'a>(frames: impl IntoIterator<Item = (&'a str, Option<&'a str>)>) -> Phase {
     let mut libm = false;
     for (name, file) in frames {
-        if let Some(phase) = file.and_then(kernel_phase) {
+        if let Some(phase) = file.and_then(|f| kernel_phase(f, name)) {
             return phase;
         }
         // Built with link-time optimisation, libm's functions keep their C names.
@@ -71,26 +72,30 @@ pub fn phase_of<'a>(frames: impl IntoIterator<Item = (&'a str, Option<&'a str>)>
     }
 }
 
-/// The phase of the kernel's (or its SIMD helpers') source file `file`, or `None` for a file
-/// of neither.
-fn kernel_phase(file: &str) -> Option<Phase> {
+/// The phase of function `name` in the kernel's (or its SIMD helpers') source file `file`,
+/// or `None` where that file names none: a file of neither, or the kernel's parts that serve
+/// every phase (counters, the node's messages, topology, a ray's record), whose code inlined
+/// into a phase's is that phase's. The worker's generation of primary rays (`generate`, on
+/// the fabrics; the one-node tracer's pixels are in `trace/`) is the rays'.
+fn kernel_phase(file: &str, name: &str) -> Option<Phase> {
     let file = file.replace('\\', "/");
     if file.contains("/simd/src/") {
         return Some(Phase::Sampling);
     }
     let (_, inside) = file.split_once("/kernel/src/")?;
-    let (folder, name) = inside.split_once('/').unwrap_or(("", inside));
-    Some(match (folder, name) {
-        ("skip", _) => Phase::Skipping,
-        ("trace", "skipping.rs" | "runway.rs" | "interior.rs") => Phase::Skipping,
-        ("volume", _) | ("trace", "lattice.rs") => Phase::Sampling,
-        ("optics", _) => Phase::Compositing,
+    let (folder, leaf) = inside.split_once('/').unwrap_or(("", inside));
+    match (folder, leaf) {
+        ("skip", _) => Some(Phase::Skipping),
+        ("trace", "skipping.rs" | "runway.rs" | "interior.rs") => Some(Phase::Skipping),
+        ("volume", _) | ("trace", "lattice.rs") => Some(Phase::Sampling),
+        ("optics", _) => Some(Phase::Compositing),
         ("trace", "composite.rs" | "deferred.rs" | "lighting.rs" | "march.rs") => {
-            Phase::Compositing
+            Some(Phase::Compositing)
         }
-        ("trace", _) => Phase::Rays,
-        _ => Phase::Other,
-    })
+        ("trace", _) => Some(Phase::Rays),
+        ("node", "worker.rs") if name.starts_with("generate") => Some(Phase::Rays),
+        _ => None,
+    }
 }
 
 /// Samples counted per phase.
@@ -288,6 +293,26 @@ mod tests {
             k!("node/worker.rs"),
         )];
         assert_eq!(phase(&poll), Phase::Other);
+    }
+
+    #[test]
+    fn the_kernel_s_shared_parts_take_the_phase_they_are_inlined_into() {
+        // The topology's row index, inlined into the depth bound, inlined into a ray's
+        // depth run: skipping, not the node's.
+        let depth = [
+            ("index", k!("node/topology.rs")),
+            ("bound", k!("skip/bounds.rs")),
+            ("depth_run<i16>", k!("trace/skipping.rs")),
+        ];
+        assert_eq!(phase(&depth), Phase::Skipping);
+        let counted = [
+            ("add", k!("counters.rs")),
+            ("run<u8>", k!("trace/composite.rs")),
+        ];
+        assert_eq!(phase(&counted), Phase::Compositing);
+        // The worker's primary rays are the rays', where its poll is not.
+        let generate = [("generate<u8, 32, 64, 16, 1024>", k!("node/worker.rs"))];
+        assert_eq!(phase(&generate), Phase::Rays);
     }
 
     #[test]
