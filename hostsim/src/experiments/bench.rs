@@ -316,7 +316,7 @@ pub fn run(
                         let phases = (job.name == "sod" && name.ends_with(BESIDE_VTK))
                             .then(|| {
                                 let frame = || render_on(&job.volume, &v.view, &machine).map(drop);
-                                super::phases::profile(super::scale::PROFILED, frame)
+                                super::phases::profile(super::phases::PROFILED, frame)
                             })
                             .and_then(|p| {
                                 p.map_err(|e| {
@@ -352,11 +352,15 @@ fn is_every_core(name: &str) -> bool {
     name.starts_with("threads, ") && name.contains("clusters of 1")
 }
 
-/// Where each SOD view's frame on every core goes ([`super::phases`]).
+/// Where each SOD view's frame on every core goes ([`super::phases`]); nothing where none
+/// was profiled (SOD absent).
 fn where_it_goes(rows: &[Row]) -> String {
+    if rows.iter().all(|r| r.phases.is_none()) {
+        return String::new();
+    }
     let mut out = format!(
         "where SOD's frame on every core (modern nodes, as beside VTK) goes, ms of the median frame: its set-up as timed, the rest by the shares of a sampling profile of the ray-tracing threads over {:.0} s of frames after the timed ones\n{:<17} {:<14} {}\n",
-        super::scale::PROFILED.as_secs_f64(),
+        super::phases::PROFILED.as_secs_f64(),
         "size",
         "view",
         super::phases::column_heads()

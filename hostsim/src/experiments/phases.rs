@@ -162,6 +162,11 @@ pub enum ProfileError {
     Frame(String),
 }
 
+/// How long the benchmarks profile each frame they split ([`profile`]): the process's
+/// CPU-time timer fires at the system's tick (250 Hz here, for all threads together), so two
+/// seconds are 500 to 900 samples, a share to a few percent.
+pub const PROFILED: Duration = Duration::from_secs(2);
+
 /// How often the profiler asks for a sample, in the process's CPU time: the system's timer
 /// delivers at its tick at the finest, which only makes the profile coarser.
 const PERIOD: Duration = Duration::from_millis(1);

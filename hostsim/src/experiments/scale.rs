@@ -119,11 +119,6 @@ pub struct ScaleRow {
     pub phases: Option<Phases>,
 }
 
-/// How long each row's frames are profiled for [`ScaleRow::phases`] (and the bench's): the process's CPU-time
-/// timer fires at the system's tick (250 Hz here, whatever the threads), so two seconds are
-/// some 500 samples, a share to a few percent.
-pub(super) const PROFILED: Duration = Duration::from_secs(2);
-
 /// VTK's composited frame of one volume of the sweep, in the same run.
 #[derive(Clone, Debug)]
 pub struct VtkRow {
@@ -379,7 +374,7 @@ pub fn run(runs: usize, out: &mut String) -> Result<Scale, ExperimentError> {
             let mut profiles = Vec::new();
             for (config, machine) in &machines {
                 let frame = || render_on(volume, &built, machine).map(drop);
-                profiles.push(match phases::profile(PROFILED, frame) {
+                profiles.push(match phases::profile(phases::PROFILED, frame) {
                     Ok(p) => Some(p),
                     Err(e) => {
                         let _ = writeln!(out, "no profile of {} {config}: {e}", v.name);
@@ -484,7 +479,7 @@ pub fn table(scale: &Scale, runs: usize) -> String {
 fn where_it_goes(rows: &[ScaleRow]) -> String {
     let mut out = format!(
         "-- where a frame's time goes, ms of the median frame: its set-up as timed, the rest by the shares of a sampling profile of the ray-tracing threads over {:.0} s of frames after the timed ones (samples: how many)\n{:<9} {:<10} {:<6} {:<24} {}\n",
-        PROFILED.as_secs_f64(),
+        phases::PROFILED.as_secs_f64(),
         "volume",
         "image",
         "tier",

@@ -238,6 +238,60 @@ mod tests {
         assert_eq!(tf.opacity(f32::NAN), 0.0);
     }
 
+    /// What `span` finds by counting is what a binary search over the points finds (its form
+    /// before), for functions of every length and values on, beside and between the points.
+    #[test]
+    fn the_segment_counted_is_the_one_a_binary_search_finds() {
+        let searched = |tf: &TransferFunction, v: f32| {
+            let pts = tf.points();
+            let (first, last) = (pts[0].value, pts[pts.len() - 1].value);
+            if !(v > first) {
+                Span::At(0)
+            } else if v >= last {
+                Span::At(pts.len() - 1)
+            } else {
+                let i = pts.partition_point(|p| p.value <= v);
+                Span::Between(
+                    i - 1,
+                    (v - pts[i - 1].value) / (pts[i].value - pts[i - 1].value),
+                )
+            }
+        };
+        for n in 1..=MAX_POINTS {
+            // Uneven steps, so that no two segments are alike.
+            let points: Vec<ControlPoint, MAX_POINTS> = (0..n)
+                .map(|i| cp(i as f32 * 7.0 + (i * i) as f32 * 0.37 - 20.0, 0.5, 0.1))
+                .collect();
+            let tf = TransferFunction::new(&points).unwrap();
+            let mut values: Vec<f32, 512> = Vec::new();
+            for p in tf.points() {
+                let v = p.value;
+                for w in [
+                    v,
+                    v * (1.0 + f32::EPSILON),
+                    v * (1.0 - f32::EPSILON),
+                    v + 0.5,
+                    v - 0.5,
+                    v + 3.3,
+                ] {
+                    let _ = values.push(w);
+                }
+            }
+            for w in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -1e30, 1e30] {
+                let _ = values.push(w);
+            }
+            for &v in &values {
+                let (got, want) = (tf.span(v), searched(&tf, v));
+                match (got, want) {
+                    (Span::Between(i, f), Span::Between(j, g)) => {
+                        assert_eq!((i, f.to_bits()), (j, g.to_bits()), "{n} points, {v}")
+                    }
+                    _ => assert_eq!(got, want, "{n} points, {v}"),
+                }
+            }
+        }
+    }
+
     #[test]
     fn bad_functions_are_refused() {
         assert_eq!(TransferFunction::new(&[]), Err(TransferError::Empty));
