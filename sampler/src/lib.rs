@@ -16,7 +16,7 @@
 
 use std::cell::Cell;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::Once;
+use std::sync::OnceLock;
 use std::time::Duration;
 
 /// The most addresses a profile keeps; later samples are counted as lost.
@@ -25,7 +25,9 @@ pub const CAPACITY: usize = 1 << 16;
 static ADDRESSES: [AtomicUsize; CAPACITY] = [const { AtomicUsize::new(0) }; CAPACITY];
 static TAKEN: AtomicUsize = AtomicUsize::new(0);
 static RUNNING: AtomicBool = AtomicBool::new(false);
-static INSTALLED: Once = Once::new();
+/// Whether the handler is installed, decided once: a refused installation is never followed
+/// by an armed timer, whose signal would then meet its default action.
+static INSTALLED: OnceLock<Result<(), std::io::ErrorKind>> = OnceLock::new();
 
 thread_local! {
     /// Whether this thread's samples are kept. Initialised without code (`const`) and never
@@ -96,9 +98,11 @@ impl Profiler {
             a.store(0, Ordering::Relaxed);
         }
         TAKEN.store(0, Ordering::Release);
-        let mut installed = Ok(());
-        INSTALLED.call_once(|| installed = install());
-        if let Err(e) = installed.and_then(|()| arm(period)) {
+        let installed = INSTALLED.get_or_init(|| install().map_err(|e| e.kind()));
+        let armed = installed
+            .map_err(std::io::Error::from)
+            .and_then(|()| arm(period));
+        if let Err(e) = armed {
             RUNNING.store(false, Ordering::Release);
             return Err(StartError::System(e));
         }
@@ -279,6 +283,12 @@ mod tests {
     /// One profile at a time in this process: the tests that take one hold this.
     static ONE: Mutex<()> = Mutex::new(());
 
+    /// The process's profiler to this test alone, until the guard is dropped.
+    fn alone() -> std::sync::MutexGuard<'static, ()> {
+        ONE.lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
     /// Work the compiler cannot remove, for `wall`.
     #[inline(never)]
     fn busy(wall: Duration) -> u64 {
@@ -294,9 +304,7 @@ mod tests {
 
     #[test]
     fn a_sampled_thread_s_samples_resolve_to_the_code_it_ran_and_an_unsampled_one_leaves_none() {
-        let _one = ONE
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let _one = alone();
         let profiler = Profiler::start(Duration::from_millis(1)).expect("the profiler starts");
         sampled(|| busy(Duration::from_millis(400)));
         let samples = profiler.stop();
@@ -331,9 +339,7 @@ mod tests {
 
     #[test]
     fn one_profile_at_a_time() {
-        let _one = ONE
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let _one = alone();
         let first = Profiler::start(Duration::from_millis(1)).expect("the profiler starts");
         assert!(matches!(
             Profiler::start(Duration::from_millis(1)),

@@ -313,17 +313,12 @@ pub fn run(
                             middle(times, |a, b| a.0.cmp(&b.0)).unwrap_or_default();
                         // Apart from the timed frames: the profiler's signals would be in
                         // their time.
-                        let phases = (job.name == "sod" && name.ends_with(BESIDE_VTK))
-                            .then(|| {
-                                let frame = || render_on(&job.volume, &v.view, &machine).map(drop);
-                                super::phases::profile(super::phases::PROFILED, frame)
-                            })
-                            .and_then(|p| {
-                                p.map_err(|e| {
-                                    let _ = writeln!(out, "no profile of {}: {e}", v.name);
-                                })
-                                .ok()
-                            });
+                        let phases = if job.name == "sod" && name.ends_with(BESIDE_VTK) {
+                            let frame = || render_on(&job.volume, &v.view, &machine).map(drop);
+                            super::phases::noted(out, &v.name, frame)
+                        } else {
+                            None
+                        };
                         rows.push(Row {
                             dataset: job.name.clone(),
                             size,

@@ -8,8 +8,8 @@
 //! address alone ([`phase_of`]): the innermost in a kernel source file that names a phase
 //! decides (inlined ones count: a read the compiler merged into the sample loop is the
 //! sample's; the kernel's shared parts, counters or the topology, take the phase they are
-//! inlined into), else a call into `libm` is compositing (the sample loop's only calls into it are the exact
-//! tier's opacity correction and highlight), else the rest.
+//! inlined into), else a call into `libm` is compositing (the sample loop's only calls into
+//! it are the exact tier's opacity correction and highlight), else the rest.
 
 use std::time::{Duration, Instant};
 use voxcube_sampler::{Profiler, StartError};
@@ -78,7 +78,6 @@ pub fn phase_of<'a>(frames: impl IntoIterator<Item = (&'a str, Option<&'a str>)>
 /// into a phase's is that phase's. The worker's generation of primary rays (`generate`, on
 /// the fabrics; the one-node tracer's pixels are in `trace/`) is the rays'.
 fn kernel_phase(file: &str, name: &str) -> Option<Phase> {
-    let file = file.replace('\\', "/");
     if file.contains("/simd/src/") {
         return Some(Phase::Sampling);
     }
@@ -163,8 +162,8 @@ pub enum ProfileError {
 }
 
 /// How long the benchmarks profile each frame they split ([`profile`]): the process's
-/// CPU-time timer fires at the system's tick (250 Hz here, for all threads together), so two
-/// seconds are 500 to 900 samples, a share to a few percent.
+/// CPU-time timer fires at the system's tick at the finest (250 Hz on many kernels, for all
+/// threads together), so two seconds are some hundreds of samples, a share to a few percent.
 pub const PROFILED: Duration = Duration::from_secs(2);
 
 /// How often the profiler asks for a sample, in the process's CPU time: the system's timer
@@ -195,6 +194,18 @@ pub fn profile<E: std::fmt::Display>(
         phases.add(phase, n as u64);
     }
     Ok(phases)
+}
+
+/// [`profile`] for [`PROFILED`], or `None` with a line in `notes` saying why not, naming
+/// `what` was to be profiled: a benchmark goes on without its split.
+pub fn noted<E: std::fmt::Display>(
+    notes: &mut String,
+    what: &str,
+    frame: impl FnMut() -> Result<(), E>,
+) -> Option<Phases> {
+    profile(PROFILED, frame)
+        .map_err(|e| notes.push_str(&format!("no profile of {what}: {e}\n")))
+        .ok()
 }
 
 #[cfg(test)]

@@ -374,13 +374,7 @@ pub fn run(runs: usize, out: &mut String) -> Result<Scale, ExperimentError> {
             let mut profiles = Vec::new();
             for (config, machine) in &machines {
                 let frame = || render_on(volume, &built, machine).map(drop);
-                profiles.push(match phases::profile(phases::PROFILED, frame) {
-                    Ok(p) => Some(p),
-                    Err(e) => {
-                        let _ = writeln!(out, "no profile of {} {config}: {e}", v.name);
-                        None
-                    }
-                });
+                profiles.push(phases::noted(out, &format!("{} {config}", v.name), frame));
             }
             let measured = machines.iter().zip(times).zip(samples).zip(first);
             for (((((config, machine), mut t), samples), first), phases) in measured.zip(profiles) {
@@ -654,8 +648,8 @@ mod tests {
 
     /// The profile of a real frame: the molecule at 64³ composited in the fast tier on one
     /// node, profiled for a while. Its samples fall in the frame's own phases (the controls
-    /// that the classification sees the kernel's inlined source and the host's set-up are
-    /// `phases`' own tests); shares are not asserted, they move with the machine.
+    /// that the classification sees the kernel's inlined source are `phases`' own tests);
+    /// shares are not asserted, they move with the machine.
     #[test]
     fn a_profiled_frame_s_samples_fall_in_its_phases() {
         let volume = Dataset::Molecule.volume(64);
