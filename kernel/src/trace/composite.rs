@@ -467,6 +467,7 @@ fn run<T: Sample, C: Classify, R: Reading<T>, A: Ahead, E: CellTest>(
     let mut local = Counters::default();
     let counters = &mut local;
     let mut k = ray.k;
+    let mut looked = inside.look(lattice, r, k);
     let mut last_read = None;
     // Where the fast tier's table shades them, shaded samples whose gradient came with the
     // read wait for their light in a batch (the exact tier's lights, `powf` and all, gained
@@ -478,7 +479,7 @@ fn run<T: Sample, C: Classify, R: Reading<T>, A: Ahead, E: CellTest>(
             break Run::Done;
         }
         let Some(Read { q, cell, lo, index }) =
-            inside.step(slab, (ray, lattice, r), skipper, &mut k, counters)
+            inside.step(slab, (ray, lattice, r), skipper, (&mut k, &mut looked))
         else {
             continue;
         };
@@ -523,6 +524,7 @@ fn run<T: Sample, C: Classify, R: Reading<T>, A: Ahead, E: CellTest>(
     if tabled {
         waiting.light(light, color, counters);
     }
+    local.skipped += runway::passed_over(ray.k, k, local.samples);
     ray.k = k;
     if let Some(v) = last_read {
         ray.prev = v;

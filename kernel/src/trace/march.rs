@@ -182,6 +182,7 @@ fn below<T: Sample, E: CellTest>(
     // Counted here and added once at the end, in registers (as the composited run).
     let mut local = Counters::default();
     let mut k = ray.k;
+    let mut looked = inside.look(lattice, r, k);
     // The last value read, and whether samples were passed over since.
     let (mut prev, mut stale) = (ray.prev, ray.prev_stale);
     let searched = loop {
@@ -189,7 +190,7 @@ fn below<T: Sample, E: CellTest>(
             break Searched::Done;
         }
         let Some(Read { q, cell, index, .. }) =
-            inside.step(slab, (ray, lattice, r), skipper, &mut k, &mut local)
+            inside.step(slab, (ray, lattice, r), skipper, (&mut k, &mut looked))
         else {
             stale = true;
             continue;
@@ -207,6 +208,7 @@ fn below<T: Sample, E: CellTest>(
         stale = false;
         k += 1;
     };
+    local.skipped += runway::passed_over(ray.k, k, local.samples);
     ray.k = k;
     ray.prev = prev;
     ray.prev_stale = stale;

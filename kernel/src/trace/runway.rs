@@ -9,7 +9,6 @@
 //! interior sample but its cell's leap distance ([`Skipper::per_cell`]) and the storage holds
 //! every cell inside; a distance of 0 is a cell that may show.
 
-use crate::counters::Counters;
 use crate::skip::cell_leaps::HeldLeaps;
 use crate::skip::node_leaps::NodeLeaps;
 use crate::trace::interior::Interior;
@@ -118,41 +117,87 @@ pub(crate) struct Read {
     pub(crate) index: usize,
 }
 
+/// A sample of a run looked at one sample before the loop asks about it: where it lies and
+/// its cell's distance in the map. Which way the loop goes at a sample (step, leap or read)
+/// follows that map byte, a load at the end of a chain of arithmetic from the sample's
+/// index; looked at while the loop still works on the sample before, the load is under way
+/// by the time its branch is asked, and a mispredicted branch restarts the loop with the
+/// next sample's byte in hand rather than behind the chain. (The map's byte was the
+/// composited loop's costliest wait: docs/speed-log.md.) Any index may be looked at: past
+/// the run's end the look is of some place, its distance bounds-checked, and never read.
+#[derive(Clone, Copy)]
+pub(crate) struct Look {
+    q: Vec4,
+    index: usize,
+    distance: u8,
+}
+
 impl<U: Copy, E: CellTest> Inside<'_, '_, U, E> {
+    /// Sample `k` of a ray on `lattice` along `line`, looked at: where a loop over the run
+    /// starts.
+    #[inline(always)]
+    pub(crate) fn look(&self, lattice: Lattice, line: Ray, k: u32) -> Look {
+        let q = line.at4(lattice.t(k));
+        let (_, lo) = field::interior_corner(q);
+        let index = self.cells.index(lo);
+        Look {
+            q,
+            index,
+            distance: self.test.distance(lo, index),
+        }
+    }
+
     /// Sample `k` of `ray` (`lattice` and `line` its lattice and line, held by the caller's
-    /// loop), inside the run: passed over where its cell's distance in the map says the cell
-    /// is empty (stepped below the stepped distances, else a leap over the cube the map
-    /// promises, as the general step passes over the same samples), counted as skipped in
-    /// `counters`, and `k` moved on to the next sample to look at; else where to read it.
-    /// Both sample loops ask this first of every sample.
+    /// loop; `looked` that sample looked at), inside the run: passed over where
+    /// its cell's distance in the map says the cell is empty (stepped below the stepped
+    /// distances, else a leap over the cube the map promises, as the general step passes
+    /// over the same samples) and `k` moved on to the next sample to look at; else where to
+    /// read it. `looked` moves on with `k`. Both sample loops ask this first of every sample,
+    /// and count what it passed over once, when they return: every index they moved past
+    /// and did not read ([`passed_over`]).
     #[inline(always)]
     pub(crate) fn step<T: Sample>(
         &self,
         slab: &Slab<'_, T>,
         (ray, lattice, line): (&RayState, Lattice, Ray),
         skipper: &mut Skipper<'_>,
-        k: &mut u32,
-        counters: &mut Counters,
+        (k, looked): (&mut u32, &mut Look),
     ) -> Option<Read> {
         let at = *k;
-        let q = line.at4(lattice.t(at));
-        let (cell, lo) = field::interior_corner(q);
-        let index = self.cells.index(lo);
-        let distance = self.test.distance(lo, index);
-        if (1..=self.stepped).contains(&distance) {
+        let here = *looked;
+        // Looked at before `here`'s distance decides the way on.
+        *looked = self.look(lattice, line, at.wrapping_add(1));
+        if (1..=self.stepped).contains(&here.distance) {
             // The same samples as a leap, fewer instructions.
-            counters.skipped += 1;
             *k = at + 1;
             return None;
         }
-        if distance > 0 {
-            let last = skipper.leap_inside(slab, ray, (at, self.end), cell, distance);
-            counters.skipped += u64::from(last - at + 1);
+        // Found again rather than carried: registers held from sample to sample cost more
+        // than the truncation.
+        let (cell, lo) = field::interior_corner(here.q);
+        if here.distance > 0 {
+            let last = skipper.leap_inside(slab, ray, (at, self.end), cell, here.distance);
             *k = last + 1;
+            *looked = self.look(lattice, line, *k);
             return None;
         }
-        Some(Read { q, cell, lo, index })
+        Some(Read {
+            q: here.q,
+            cell,
+            lo,
+            index: here.index,
+        })
     }
+}
+
+/// The samples a loop over a run passed over, counted once when it returns rather than
+/// sample by sample: every index from `from` to `to` (where it stopped) that it did not
+/// read (`read` of them) it passed over, since [`Inside::step`] moves a loop only past
+/// samples it passes over or hands to it to read.
+#[inline(always)]
+pub(crate) fn passed_over(from: u32, to: u32, read: u64) -> u64 {
+    debug_assert!(to >= from && u64::from(to - from) >= read, "{from} {to} {read}");
+    u64::from(to.saturating_sub(from)).saturating_sub(read)
 }
 
 impl<T: Sample> Runway<'_, T> {
