@@ -189,7 +189,7 @@ fn below<T: Sample, E: CellTest>(
         if k > inside.end {
             break Searched::Done;
         }
-        let Some(Read { q, cell, index, .. }) =
+        let Some(Read { q, cell, lo, index }) =
             inside.step(slab, (ray, lattice, r), skipper, (&mut k, &mut looked))
         else {
             stale = true;
@@ -200,6 +200,12 @@ fn below<T: Sample, E: CellTest>(
         };
         let v = field::lerp_cell(nodes, (q - cell).truncate());
         if !view.below_surfaces(v) {
+            // A crossing is near: its light reads the gradient from the node field's lanes
+            // at this cell or the one before, which the search (reading the slab) has not
+            // touched. Asked for now, the field's lines come while the crossing is refined.
+            if let Some(field) = slab.nodes() {
+                field.cells().prefetch(lo);
+            }
             break Searched::Examine;
         }
         local.samples += 1;

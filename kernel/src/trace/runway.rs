@@ -196,7 +196,10 @@ impl<U: Copy, E: CellTest> Inside<'_, '_, U, E> {
 /// samples it passes over or hands to it to read.
 #[inline(always)]
 pub(crate) fn passed_over(from: u32, to: u32, read: u64) -> u64 {
-    debug_assert!(to >= from && u64::from(to - from) >= read, "{from} {to} {read}");
+    debug_assert!(
+        to >= from && u64::from(to - from) >= read,
+        "{from} {to} {read}"
+    );
     u64::from(to.saturating_sub(from)).saturating_sub(read)
 }
 
