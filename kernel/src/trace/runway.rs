@@ -148,13 +148,13 @@ impl<U: Copy, E: CellTest> Inside<'_, '_, U, E> {
     }
 
     /// Sample `k` of `ray` (`lattice` and `line` its lattice and line, held by the caller's
-    /// loop; `looked` that sample looked at), inside the run: passed over where
-    /// its cell's distance in the map says the cell is empty (stepped below the stepped
-    /// distances, else a leap over the cube the map promises, as the general step passes
-    /// over the same samples) and `k` moved on to the next sample to look at; else where to
-    /// read it. `looked` moves on with `k`. Both sample loops ask this first of every sample,
-    /// and count what it passed over once, when they return: every index they moved past
-    /// and did not read ([`passed_over`]).
+    /// loop; `looked` that sample looked at), inside the run: passed over where its cell's
+    /// distance in the map says the cell is empty (stepped below the stepped distances, else
+    /// a leap over the cube the map promises, as the general step passes over the same
+    /// samples) and `k` moved on to the next sample to look at; else where to read it.
+    /// `looked` moves on with `k`. Both sample loops ask this first of every sample, and
+    /// count what it passed over once, when they return: every index they moved past and did
+    /// not read ([`passed_over`]).
     #[inline(always)]
     pub(crate) fn step<T: Sample>(
         &self,
