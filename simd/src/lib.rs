@@ -11,10 +11,11 @@
 //! This crate holds the sample loop's `unsafe` (the workspace's only other is the benchmarks'
 //! profiler, `voxcube-sampler`), so that the kernel keeps `forbid(unsafe_code)`: an
 //! intrinsic is an `unsafe` call unless its caller declares the CPU features it needs, and a
-//! caller that declares them cannot be inlined into one that does not. Each block here calls an intrinsic that needs only a feature this build enables,
-//! which the `cfg` above it checks (the binary requires that feature of its CPU anyway), and
-//! takes no pointer, but for the prefetch, which takes a live item's address and can
-//! neither fault nor change what the program reads.
+//! caller that declares them cannot be inlined into one that does not. Each block here calls
+//! an intrinsic that needs only a feature this build enables, which the `cfg` above it
+//! checks (the binary requires that feature of its CPU anyway), and takes no pointer, but
+//! for the prefetch, which takes a live item's address and can neither fault nor change
+//! what the program reads.
 //!
 //! Invariant: on lanes in `[0, 2^23]` (every caller's: coordinates clamped into the grid,
 //! or inside it) both forms give the same bits, the truncation and the integers being exact

@@ -354,8 +354,8 @@ fn where_it_goes(rows: &[Row]) -> String {
         return String::new();
     }
     let mut out = format!(
-        "where SOD's frame on every core (modern nodes, as beside VTK) goes, ms of the median frame: its set-up as timed, the rest by the shares of a sampling profile of the ray-tracing threads over {:.0} s of frames after the timed ones\n{:<17} {:<14} {}\n",
-        super::phases::PROFILED.as_secs_f64(),
+        "where SOD's frame on every core (modern nodes, as beside VTK) goes, ms of the median frame: {}\n{:<17} {:<14} {}\n",
+        super::phases::method(),
         "size",
         "view",
         super::phases::column_heads()

@@ -166,6 +166,14 @@ pub enum ProfileError {
 /// threads together), so two seconds are some hundreds of samples, a share to a few percent.
 pub const PROFILED: Duration = Duration::from_secs(2);
 
+/// How a table of [`columns`] was made, for its heading.
+pub fn method() -> String {
+    format!(
+        "its set-up as timed, the rest by the shares of a sampling profile of the ray-tracing threads over {:.0} s of frames after the timed ones",
+        PROFILED.as_secs_f64()
+    )
+}
+
 /// How often the profiler asks for a sample, in the process's CPU time: the system's timer
 /// delivers at its tick at the finest, which only makes the profile coarser.
 const PERIOD: Duration = Duration::from_millis(1);

@@ -472,8 +472,8 @@ pub fn table(scale: &Scale, runs: usize) -> String {
 /// ([`phases`]), in the order of the growth table.
 fn where_it_goes(rows: &[ScaleRow]) -> String {
     let mut out = format!(
-        "-- where a frame's time goes, ms of the median frame: its set-up as timed, the rest by the shares of a sampling profile of the ray-tracing threads over {:.0} s of frames after the timed ones (samples: how many)\n{:<9} {:<10} {:<6} {:<24} {}\n",
-        phases::PROFILED.as_secs_f64(),
+        "-- where a frame's time goes, ms of the median frame: {} (samples: how many)\n{:<9} {:<10} {:<6} {:<24} {}\n",
+        phases::method(),
         "volume",
         "image",
         "tier",

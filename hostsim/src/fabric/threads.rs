@@ -343,7 +343,7 @@ fn run_hosted<T: Sample + Send + Sync>(
             .into_iter()
             .map(|mut crew| {
                 // The nodes' rounds are what a profile of a frame after its set-up samples
-                // (`bench --scale`); their storage was loaded before.
+                // (`bench`, `bench --scale`); their storage was loaded before.
                 scope.spawn(move || {
                     voxcube_sampler::sampled(|| {
                         while !done.load(Ordering::Acquire) {

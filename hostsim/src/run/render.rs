@@ -469,7 +469,8 @@ fn render_typed<T: Sample + Sync>(
     let n = view.pixel_count();
     let mut pixels = Vec::with_capacity(n as usize);
     let mut non_finite = 0;
-    // The rays are what a profile of the frame after its set-up samples (`bench --scale`).
+    // The rays are what a profile of the frame after its set-up samples (`bench`,
+    // `bench --scale`).
     voxcube_sampler::sampled(|| {
         for (pixel, c) in (1..).zip(Pixels::new(view, &slab, &mut counters)) {
             non_finite += u64::from(!c.is_finite());
