@@ -17,6 +17,19 @@ use glam::Vec3;
 /// Entries of a table. 512 over a byte's 256 values is half a value unit apart.
 pub const ENTRIES: usize = 512;
 
+/// The nearest of `N` entries to value `v`, entry 0 at `lo` and `per_unit` entries per
+/// value unit: clamped to the table, NaN reading entry 0. Every table over a transfer
+/// function's values finds its entries so.
+#[inline]
+pub(crate) fn nearest<const N: usize>(v: f32, lo: f32, per_unit: f32) -> usize {
+    let x = (v - lo) * per_unit + 0.5;
+    // Clamped into [0, last] first (`x > 0` is false for NaN), then truncated by one
+    // instruction where `as` would saturate again, on every sample of a composited frame;
+    // the remainder tells the compiler the index is in the table.
+    let x = if x > 0.0 { x.min((N - 1) as f32) } else { 0.0 };
+    voxcube_simd::trunc_u32(x) as usize % N
+}
+
 /// One entry: the transfer function at the entry's value.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct Entry {
@@ -77,16 +90,7 @@ impl Classified {
     /// The entry value `v` reads: the nearest, clamped to the table (NaN reads entry 0).
     #[inline]
     fn index(&self, v: f32) -> usize {
-        let x = (v - self.lo) * self.per_unit + 0.5;
-        // Clamped into [0, last] first (`x > 0` is false for NaN), then truncated by one
-        // instruction where `as` would saturate again, on every sample of a composited
-        // frame; the remainder tells the compiler the index is in the table.
-        let x = if x > 0.0 {
-            x.min((ENTRIES - 1) as f32)
-        } else {
-            0.0
-        };
-        voxcube_simd::trunc_u32(x) as usize % ENTRIES
+        nearest::<ENTRIES>(v, self.lo, self.per_unit)
     }
 
     /// Colour and corrected opacity of a full segment at value `v`.
