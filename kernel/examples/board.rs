@@ -169,6 +169,7 @@ fn main() {
         max_depth: 4,
         refine_steps: 2,
         accuracy: voxcube_kernel::trace::view::Accuracy::Exact,
+        compositing: voxcube_kernel::trace::view::Compositing::Sampled,
     };
     let view: &'static View = match View::new(spec, &grid) {
         Ok(v) => VIEW.init(v),

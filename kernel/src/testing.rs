@@ -34,6 +34,7 @@ pub fn spec(
         max_depth: 2,
         refine_steps: 2,
         accuracy: crate::trace::view::Accuracy::Exact,
+        compositing: crate::trace::view::Compositing::Sampled,
     }
 }
 

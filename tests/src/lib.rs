@@ -105,6 +105,7 @@ pub fn spec(
         max_depth: 8,
         refine_steps: 2,
         accuracy: voxcube_kernel::trace::view::Accuracy::Exact,
+        compositing: voxcube_kernel::trace::view::Compositing::Sampled,
     }
 }
 
@@ -138,7 +139,9 @@ pub fn perspective(eye: Vec3, target: Vec3, up: Vec3, fov_degrees: f32) -> Camer
 /// Every pixel's unquantised colour, and the counters.
 pub fn trace_all(volume: &Volume, view: &View) -> (Vec<Vec3>, Counters) {
     fn go<T: Sample>(grid: Grid, data: &[T], view: &View) -> (Vec<Vec3>, Counters) {
-        let slab = Slab::whole(grid, data).expect("whole slab");
+        // A pre-integrated view's table, as every host lends it.
+        let table = voxcube::memory::segments::SegmentTable::of(view);
+        let slab = table.apply(Slab::whole(grid, data).expect("whole slab"));
         let mut c = Counters::default();
         let colors = (0..view.pixel_count() as u32)
             .map(|p| trace_pixel(view, &slab, p, &mut c))

@@ -39,6 +39,7 @@ fn porting_md_slab_figure_holds() {
         depths: 0,
         node_bytes: 0,
         cell_ranges: 0,
+        segments: 0,
     };
     let slab = voxcube::memory::budget::largest_node(&grid, 1, 16, needs, 0)
         .expect("fits")

@@ -691,16 +691,22 @@ fn serve_phase<T: Sample + Sync>(
     let cells =
         crate::memory::storage::cell_range_bytes(view, cfg.skipping, volume.data.kind()) > 0;
     let hold = crate::memory::storage::holds_node_field(view, cfg.skipping);
-    let (skipping, field, values) = beating(world, beat, || {
+    let (skipping, field, values, segments) = beating(world, beat, || {
         let ranges = volume.built.ranges(&slab, cells, 1);
         let skipping =
             crate::memory::storage::Skipping::build_for(&slab, &ranges, view, cfg.skipping, rows);
         let values = volume
             .held_range()
             .unwrap_or((f64::INFINITY, f64::NEG_INFINITY));
-        (skipping, volume.built.field(&slab, hold, 1), values)
+        let segments = crate::memory::segments::SegmentTable::of(view);
+        (
+            skipping,
+            volume.built.field(&slab, hold, 1),
+            values,
+            segments,
+        )
     });
-    let slab = field.apply(skipping.apply(slab));
+    let slab = segments.apply(field.apply(skipping.apply(slab)));
     let resident = crate::memory::resident::peak().unwrap_or(0);
     let window = volume.held();
     let setup = [

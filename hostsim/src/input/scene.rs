@@ -16,7 +16,7 @@ use voxcube_kernel::optics::shade::{Light, Shading, MAX_LIGHTS};
 use voxcube_kernel::optics::surface::{IsoSurface, MAX_SURFACES};
 use voxcube_kernel::optics::transfer::{ControlPoint, TransferFunction};
 use voxcube_kernel::trace::camera::{Camera, Projection};
-use voxcube_kernel::trace::view::{Accuracy, Mode, View, ViewSpec, DEFAULT_CUTOFF};
+use voxcube_kernel::trace::view::{Accuracy, Compositing, Mode, View, ViewSpec, DEFAULT_CUTOFF};
 use voxcube_kernel::volume::grid::{Grid, Model};
 use voxcube_kernel::Vec3;
 
@@ -114,6 +114,21 @@ enum ModelToml {
     Cell,
 }
 
+/// A view's `compositing`: a way's name, read by the kernel's [`Compositing::from_name`].
+fn compositing<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Compositing, D::Error> {
+    let name = String::deserialize(d)?;
+    Compositing::from_name(&name).ok_or_else(|| {
+        let names: Vec<String> = Compositing::ALL
+            .iter()
+            .map(|c| format!("`{}`", c.name()))
+            .collect();
+        serde::de::Error::custom(format!(
+            "unknown compositing `{name}`, expected {}",
+            names.join(" or ")
+        ))
+    })
+}
+
 /// A view's `accuracy`: a tier's name, read by the kernel's [`Accuracy::from_name`].
 fn accuracy<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Accuracy, D::Error> {
     let name = String::deserialize(d)?;
@@ -186,6 +201,8 @@ struct ViewToml {
     mode: ModeToml,
     #[serde(default, deserialize_with = "accuracy")]
     accuracy: Accuracy,
+    #[serde(default, deserialize_with = "compositing")]
+    compositing: Compositing,
     #[serde(default = "d_true")]
     shading: bool,
     #[serde(default)]
@@ -1325,6 +1342,7 @@ fn build_view(v: &ViewToml, grid: &Grid, tweak: &CameraTweak) -> Result<View, (S
         max_depth: v.max_depth,
         refine_steps: v.refine_steps,
         accuracy,
+        compositing: v.compositing,
     };
     View::new(spec, grid).map_err(|e| (String::new(), e.to_string()))
 }

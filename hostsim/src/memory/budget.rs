@@ -94,8 +94,9 @@ pub fn worker_bytes() -> usize {
 /// and which blocks keep a cell (a bit each, [`voxcube_kernel::skip::blocks::kept_bits`]),
 /// its cell leap maps (a byte per cell each, [`voxcube_kernel::skip::cell_leaps`]), its depth
 /// bounds ([`voxcube_kernel::skip::depths`]), its node field
-/// ([`voxcube_kernel::volume::nodes`]) and its cells' value ranges
-/// ([`voxcube_kernel::skip::cell_ranges`]).
+/// ([`voxcube_kernel::volume::nodes`]), its cells' value ranges
+/// ([`voxcube_kernel::skip::cell_ranges`]) and its view's pre-integration table
+/// ([`voxcube_kernel::optics::segments`]).
 pub fn structure_bytes(grid: &Grid, owned: std::ops::Range<u32>, needs: ViewNeeds) -> usize {
     let stored = stored_planes(grid, owned.clone(), needs.ghost);
     needs.node_bytes * voxcube_kernel::volume::nodes::len_for(grid, owned)
@@ -107,6 +108,7 @@ pub fn structure_bytes(grid: &Grid, owned: std::ops::Range<u32>, needs: ViewNeed
                 + needs.cell_ranges)
         + voxcube_kernel::skip::blocks::kept_bytes(grid, stored)
         + needs.depths
+        + needs.segments
 }
 
 /// What a view asks of every node's memory besides its planes.
@@ -129,6 +131,9 @@ pub struct ViewNeeds {
     /// Bytes per min/max block of its cells' value ranges: none is needed, a node holds them
     /// where they fit ([`crate::run::render::node_skipping`]); 0 holds none.
     pub cell_ranges: usize,
+    /// Bytes of the view's pre-integration table ([`voxcube_kernel::optics::segments`]),
+    /// which every node of a pre-integrated view holds; 0 for any other view.
+    pub segments: usize,
 }
 
 impl ViewNeeds {
@@ -141,6 +146,10 @@ impl ViewNeeds {
             depths: 0,
             node_bytes: 0,
             cell_ranges: 0,
+            segments: match view.segments() {
+                Some(_) => voxcube_kernel::optics::segments::BYTES,
+                None => 0,
+            },
         }
     }
 
@@ -342,6 +351,7 @@ mod tests {
             depths: 0,
             node_bytes: 0,
             cell_ranges: 0,
+            segments: 0,
         };
         let cap = max_owned_planes(Profile::ncube2(), &grid, 1, needs, buffer);
         assert!(cap > 0 && cap < 208, "{cap}");
@@ -369,6 +379,7 @@ mod tests {
             depths: 0,
             node_bytes: 0,
             cell_ranges: 0,
+            segments: 0,
         };
         // Per block its range (8 bytes), a leap map's byte and a mask (8); per column of
         // blocks along Y (24 of them: one word) its which-keep word.
@@ -430,6 +441,7 @@ mod tests {
             depths: 0,
             node_bytes: 0,
             cell_ranges: 0,
+            segments: 0,
         };
         let err = check(profile, &grid, 1, 1, needs, &buffer).unwrap_err();
         let msg = err.to_string();
@@ -459,6 +471,7 @@ mod tests {
                     depths: 0,
                     node_bytes: 0,
                     cell_ranges: 0,
+                    segments: 0,
                 },
                 &buffer,
             )

@@ -2,7 +2,8 @@
 //! ([`budget`]), each view's slab and skipping structures ([`storage`]), what is built once
 //! per volume and shared by its views ([`built`]: the fast tier's node fields, [`nodes`],
 //! and the slabs' value ranges, [`ranges`]), how those builds are split over threads
-//! ([`parts`]), and what a process really held ([`resident`]).
+//! ([`parts`]), what a process really held ([`resident`]), and a pre-integrated view's table
+//! ([`segments`]).
 //!
 //! Invariant: every structure a node holds is counted by the budget before it is built.
 
@@ -13,4 +14,5 @@ pub mod nodes;
 pub mod parts;
 pub mod ranges;
 pub mod resident;
+pub mod segments;
 pub mod storage;

@@ -696,6 +696,8 @@ pub struct NodeStorage<'d, T: voxcube_kernel::volume::sample::Sample> {
     skipping: Vec<Skipping>,
     /// The node field by ring position, as `skipping`.
     fields: Vec<Arc<crate::memory::nodes::NodeField<T::Node>>>,
+    /// The view's pre-integration table, lent to every node.
+    segments: crate::memory::segments::SegmentTable,
 }
 
 impl<'d, T: voxcube_kernel::volume::sample::Sample + Sync> NodeStorage<'d, T> {
@@ -732,6 +734,7 @@ impl<'d, T: voxcube_kernel::volume::sample::Sample + Sync> NodeStorage<'d, T> {
             storage,
             skipping: Vec::new(),
             fields: Vec::new(),
+            segments: Default::default(),
         }
     }
 
@@ -771,6 +774,7 @@ impl<'d, T: voxcube_kernel::volume::sample::Sample + Sync> NodeStorage<'d, T> {
         drop(slabs);
         self.skipping = skipping;
         self.fields = fields;
+        self.segments = crate::memory::segments::SegmentTable::of(view);
         self
     }
 
@@ -782,10 +786,11 @@ impl<'d, T: voxcube_kernel::volume::sample::Sample + Sync> NodeStorage<'d, T> {
     {
         let j = usize::from(self.layout.place(node).1);
         let slab = self.skipping[j].apply(self.bare_slab(node)?);
-        Ok(match self.fields.get(j) {
+        let slab = match self.fields.get(j) {
             Some(field) => field.apply(slab),
             None => slab,
-        })
+        };
+        Ok(self.segments.apply(slab))
     }
 
     fn bare_slab(

@@ -463,7 +463,8 @@ fn render_typed<T: Sample + Sync>(
         crate::memory::storage::holds_node_field(view, mode),
         1,
     );
-    let slab = field.apply(skipping.apply(slab));
+    let segments = crate::memory::segments::SegmentTable::of(view);
+    let slab = segments.apply(field.apply(skipping.apply(slab)));
     let setup = start.elapsed();
     let mut counters = Counters::default();
     let n = view.pixel_count();

@@ -17,6 +17,7 @@ use crate::optics::transfer::{corrected_opacity, TransferFunction};
 use crate::trace::deferred::Deferred;
 use crate::trace::lattice::Lattice;
 use crate::trace::lighting::Unshadowed;
+use crate::trace::preintegrated;
 use crate::trace::ray::Ray;
 use crate::trace::runway::{self, CellTest, Inside, Read, Runway};
 use crate::trace::skipping::{skip_to, Probe, Skipper};
@@ -44,6 +45,9 @@ pub(crate) fn composite<T: Sample>(
     let lanes = view.node_gradients() && slab.nodes().is_some();
     // The exact tier reads them so wherever that is its own gradient.
     let central = view.exact_node_gradients() && slab.nodes().is_some();
+    if let Some(layout) = view.segments() {
+        return preintegrated::composite(view, slab, layout, lanes, ray, counters);
+    }
     match (view.classified(), lanes, central) {
         (Some(table), true, _) => {
             prefetching(view, slab, &Tabled::of(table, ray), Lanes, ray, counters)
@@ -181,7 +185,7 @@ impl Classify for ByFunction<'_> {
 }
 
 /// How a sample is read: its value, and the gradient where the read gives it.
-trait Reading<T: Sample>: Copy {
+pub(crate) trait Reading<T: Sample>: Copy {
     /// What the storage the read uses holds per node.
     type Node: Copy;
 
@@ -211,7 +215,7 @@ trait Reading<T: Sample>: Copy {
 
 /// The node field's lanes: value and gradient in one interpolation.
 #[derive(Clone, Copy)]
-struct Lanes;
+pub(crate) struct Lanes;
 
 impl<T: Sample> Reading<T> for Lanes {
     type Node = T::Node;
@@ -252,7 +256,7 @@ impl<T: Sample> Reading<T> for Lanes {
 
 /// The slab's value; the shading computes a gradient where it needs one.
 #[derive(Clone, Copy)]
-struct Value;
+pub(crate) struct Value;
 
 impl<T: Sample> Reading<T> for Value {
     type Node = T;
@@ -430,7 +434,7 @@ fn samples<T: Sample, C: Classify, R: Reading<T>, A: Ahead>(
 }
 
 /// Where a run through the interior stopped.
-enum Run {
+pub(crate) enum Run {
     /// Past its last sample.
     Done,
     /// At a sample the storage cannot give whole (not in an interior the storage defines:

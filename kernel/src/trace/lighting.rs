@@ -226,7 +226,7 @@ fn normal<T: Sample>(
 /// The gradient the tier shades by at `p` (whose [`Site`] and gradient are given where
 /// known), counted as the reads the tier's definition makes.
 #[inline(always)]
-fn gradient<T: Sample>(
+pub(crate) fn gradient<T: Sample>(
     view: &View,
     slab: &Slab<'_, T>,
     (p, site, known): (Vec3, Option<&Site>, Option<Vec3>),

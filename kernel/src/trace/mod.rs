@@ -13,6 +13,7 @@ pub mod lattice;
 pub mod lighting;
 pub mod march;
 pub mod pixel;
+pub(crate) mod preintegrated;
 pub mod ray;
 pub(crate) mod runway;
 pub(crate) mod skipping;

@@ -74,6 +74,7 @@ impl<'a, U: Copy> Runway<'a, U> {
 /// A run through the interior: its storage's whole cells, what says which cells are empty,
 /// its last sample, and the leap distances it steps over rather than leaps.
 pub(crate) struct Inside<'c, 'a, U, E> {
+    pub(crate) interior: &'c Interior,
     pub(crate) cells: &'c HeldCells<'a, U>,
     pub(crate) test: &'c E,
     pub(crate) end: u32,
@@ -91,6 +92,7 @@ macro_rules! through {
         macro_rules! with {
             ($test:expr) => {{
                 let $inside = &Inside {
+                    interior: &runway.interior,
                     cells: &runway.cells,
                     test: $test,
                     end: $end,
@@ -187,6 +189,25 @@ impl<U: Copy, E: CellTest> Inside<'_, '_, U, E> {
             lo,
             index: here.index,
         })
+    }
+}
+
+impl<U: Copy, E: CellTest> Inside<'_, '_, U, E> {
+    /// Sample `k` (`looked` that sample looked at), to be read whatever its cell's distance
+    /// in the map: where a loop may not pass over it (pre-integrated compositing, whose
+    /// segment ending there starts at a value that shows). `looked` moves on to `k + 1`, as
+    /// [`Inside::step`] moves it for a sample it hands to be read.
+    #[inline(always)]
+    pub(crate) fn take(&self, lattice: Lattice, line: Ray, k: u32, looked: &mut Look) -> Read {
+        let here = *looked;
+        *looked = self.look(lattice, line, k.wrapping_add(1));
+        let (cell, lo) = field::interior_corner(here.q);
+        Read {
+            q: here.q,
+            cell,
+            lo,
+            index: here.index,
+        }
     }
 }
 

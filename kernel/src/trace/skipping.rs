@@ -304,7 +304,7 @@ fn reach_of(distance: u8) -> Option<u32> {
 #[inline]
 pub(crate) fn skip_to(view: &View, ray: &mut RayState, last: u32, counters: &mut Counters) {
     counters.skipped += u64::from(last - ray.k + 1);
-    if view.effects().surfaces {
+    if view.reads_predecessor() {
         ray.primed = true;
         ray.prev_stale = true;
         ray.done_here = 0;

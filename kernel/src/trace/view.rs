@@ -8,6 +8,7 @@
 //! `[0, 1)`; depth at most [`MAX_DEPTH`]; refinement at most [`MAX_REFINE_STEPS`] steps.
 
 use crate::optics::classify::Classified;
+use crate::optics::segments::Layout;
 use crate::optics::shade::{Highlights, Light, Shading, MAX_LIGHTS};
 use crate::optics::shading_table::ShadingTable;
 use crate::optics::surface::{IsoSurface, MAX_SURFACES};
@@ -62,6 +63,37 @@ impl Accuracy {
     }
 }
 
+/// How a composited view integrates between its samples.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Compositing {
+    /// Each sample stands for the segment that follows it, at its own value (the
+    /// definition, and the fast tier's pre-classified table).
+    #[default]
+    Sampled,
+    /// Each segment between two samples is read from a table of the transfer function
+    /// integrated over a value running linearly from the one to the other
+    /// ([`crate::optics::segments`]): a fast-tier approximation.
+    PreIntegrated,
+}
+
+impl Compositing {
+    /// Every way, in the order the docs list them.
+    pub const ALL: [Compositing; 2] = [Compositing::Sampled, Compositing::PreIntegrated];
+
+    /// Its name in scene files, on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Compositing::Sampled => "sampled",
+            Compositing::PreIntegrated => "pre-integrated",
+        }
+    }
+
+    /// The way of that name, if any: [`Compositing::name`]'s inverse.
+    pub fn from_name(name: &str) -> Option<Compositing> {
+        Compositing::ALL.into_iter().find(|c| c.name() == name)
+    }
+}
+
 /// An approximation the fast tier makes, where a view calls for it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Approximation {
@@ -79,6 +111,9 @@ pub enum Approximation {
     /// A composited view with parallel rays and directional lights shades by a table over
     /// normal directions ([`crate::optics::shading_table`]), read at its gradient's cell.
     ShadingTable,
+    /// Compositing reads each segment between two samples from a pre-integrated table
+    /// ([`crate::optics::segments`]) at its two values' nearest entries.
+    PreIntegrated,
 }
 
 impl Approximation {
@@ -89,6 +124,7 @@ impl Approximation {
             Approximation::HighlightTable => "highlight by table",
             Approximation::NodeGradients => "gradient from node differences",
             Approximation::ShadingTable => "shading by table over normal directions",
+            Approximation::PreIntegrated => "pre-integrated segments",
         }
     }
 }
@@ -106,6 +142,9 @@ pub enum Emptiness {
     Table(crate::optics::classify::Shown),
     /// Composited by the transfer function's opacities (colours too, compared whole).
     Function(TransferFunction),
+    /// Pre-integrated: below the table's first entry that shows
+    /// ([`crate::optics::segments::Layout::key`]).
+    Segments((u32, u32, u32)),
 }
 
 /// What a view renders.
@@ -149,6 +188,8 @@ pub struct ViewSpec {
     pub refine_steps: u8,
     /// The accuracy tier.
     pub accuracy: Accuracy,
+    /// How a composited view integrates between samples.
+    pub compositing: Compositing,
 }
 
 /// Why a view is unusable; each names the scene key at fault.
@@ -182,6 +223,8 @@ pub enum ViewError {
     Refine(u8),
     /// A shading coefficient is negative or not finite.
     Shading,
+    /// Pre-integrated compositing asked of a view that is not composited in the fast tier.
+    PreIntegration,
 }
 
 impl fmt::Display for ViewError {
@@ -206,6 +249,10 @@ impl fmt::Display for ViewError {
             ViewError::Depth(v) => write!(f, "max_depth is {v}; it must be at most {MAX_DEPTH}"),
             ViewError::Refine(v) => write!(f, "refine_steps is {v}; it must be at most {MAX_REFINE_STEPS}"),
             ViewError::Shading => write!(f, "shading coefficients must be finite and >= 0"),
+            ViewError::PreIntegration => write!(
+                f,
+                "compositing = \"pre-integrated\" is a fast-tier approximation of mode \"composite\": it needs accuracy = \"fast\" and mode = \"composite\""
+            ),
         }
     }
 }
@@ -240,8 +287,11 @@ pub struct View {
     min_iso: f32,
     /// How far first samples move along an image row (parallel projections only).
     row_leaps: Option<RowLeaps>,
-    /// The pre-classified transfer function (fast tier, compositing).
+    /// The pre-classified transfer function (fast tier, sampled compositing).
     classified: Option<Classified>,
+    /// Where values fall in the pre-integration table (fast tier, pre-integrated
+    /// compositing); the table itself is large and a node holds it beside its slab.
+    segments: Option<Layout>,
     /// The highlight table (fast tier, shaded views with a highlight).
     highlights: Option<Highlights>,
     /// The shading by normal direction (fast tier, compositing with parallel rays and
@@ -257,6 +307,10 @@ pub struct View {
     /// instead of its table's.
     #[cfg(feature = "mutants")]
     exact_emptiness: bool,
+    /// A test-only fault: pre-integrated compositing passes over a sample whatever the
+    /// segment ending there holds.
+    #[cfg(feature = "mutants")]
+    careless_segments: bool,
 }
 
 impl View {
@@ -336,9 +390,16 @@ impl View {
             grid.inv_spacing(),
             (box_lo, box_hi),
         );
-        let classified = match (&spec.mode, spec.accuracy) {
-            (Mode::Composite(tf), Accuracy::Fast) => Some(Classified::new(tf, spec.dt)),
-            _ => None,
+        let (classified, segments) = match (&spec.mode, spec.accuracy, spec.compositing) {
+            (_, _, Compositing::Sampled) => match (&spec.mode, spec.accuracy) {
+                (Mode::Composite(tf), Accuracy::Fast) => (Some(Classified::new(tf, spec.dt)), None),
+                _ => (None, None),
+            },
+            (Mode::Composite(tf), Accuracy::Fast, Compositing::PreIntegrated) => {
+                let layout = Layout::of(tf, spec.dt).map_err(|_| ViewError::Step(spec.dt))?;
+                (None, Some(layout))
+            }
+            _ => return Err(ViewError::PreIntegration),
         };
         let shading_table = match (&spec.shading, &spec.mode, spec.camera.projection()) {
             (Some(s), Mode::Composite(_), Projection::Orthographic { .. })
@@ -361,6 +422,7 @@ impl View {
         let exact_node_gradients = by_nodes && spec.accuracy == Accuracy::Exact;
         Ok(View {
             classified,
+            segments,
             highlights,
             shading_table,
             node_gradients,
@@ -377,6 +439,8 @@ impl View {
             spec,
             #[cfg(feature = "mutants")]
             exact_emptiness: false,
+            #[cfg(feature = "mutants")]
+            careless_segments: false,
         })
     }
 
@@ -389,8 +453,9 @@ impl View {
         match &self.spec.mode {
             // Below every iso value is below the least of them (NaN is below none).
             Mode::Surfaces(_) => self.below_surfaces(r.max),
-            Mode::Composite(tf) => match &self.classified {
-                Some(table) if !self.skips_by_the_function() => table.empty(r.min, r.max),
+            Mode::Composite(tf) => match (&self.classified, &self.segments) {
+                (Some(table), _) if !self.skips_by_the_function() => table.empty(r.min, r.max),
+                (_, Some(layout)) => layout.empty(r.min, r.max),
                 _ => !(tf.max_opacity(r.min, r.max) > 0.0),
             },
         }
@@ -404,8 +469,11 @@ impl View {
     pub fn emptiness(&self) -> Emptiness {
         match &self.spec.mode {
             Mode::Surfaces(_) => Emptiness::Below(self.min_iso.to_bits()),
-            Mode::Composite(tf) => match &self.classified {
-                Some(table) if !self.skips_by_the_function() => Emptiness::Table(table.shown()),
+            Mode::Composite(tf) => match (&self.classified, &self.segments) {
+                (Some(table), _) if !self.skips_by_the_function() => {
+                    Emptiness::Table(table.shown())
+                }
+                (_, Some(layout)) => Emptiness::Segments(layout.key()),
                 _ => Emptiness::Function(tf.clone()),
             },
         }
@@ -429,6 +497,24 @@ impl View {
     pub fn with_exact_emptiness(mut self) -> View {
         self.exact_emptiness = true;
         self
+    }
+
+    /// The same view passing over samples in empty cells whatever the segment ending there
+    /// holds, where it composites pre-integrated: a test-only fault, for the negative control
+    /// that skipping changes no pixel only by asking the segment's front.
+    #[cfg(feature = "mutants")]
+    pub fn with_careless_segments(mut self) -> View {
+        self.careless_segments = true;
+        self
+    }
+
+    /// Whether the fault of [`View::with_careless_segments`] is in: never outside tests.
+    #[inline(always)]
+    fn careless(&self) -> bool {
+        #[cfg(feature = "mutants")]
+        return self.careless_segments;
+        #[cfg(not(feature = "mutants"))]
+        false
     }
 
     /// Whether the fault of [`View::with_exact_emptiness`] is in: never outside tests.
@@ -495,7 +581,7 @@ impl View {
 
     /// The approximations this view's tier makes here (none in the exact tier, and none
     /// where the view calls for nothing a fast-tier approximation replaces).
-    pub fn approximations(&self) -> Vec<Approximation, 5> {
+    pub fn approximations(&self) -> Vec<Approximation, 6> {
         let mut out = Vec::new();
         // Room for every approximation the tier knows.
         if self.classified.is_some() {
@@ -509,6 +595,9 @@ impl View {
         }
         if self.shading_table.is_some() {
             let _ = out.push(Approximation::ShadingTable);
+        }
+        if self.segments.is_some() {
+            let _ = out.push(Approximation::PreIntegrated);
         }
         out
     }
@@ -530,8 +619,37 @@ impl View {
                 ray.done_here == 0
                     && (!ray.primed || ray.prev_stale || self.below_surfaces(ray.prev))
             }
-            Mode::Composite(_) => true,
+            // A segment ends at every sample: it may be passed over only where the one
+            // ending there is transparent, between two values below the table's first
+            // entry that shows.
+            Mode::Composite(_) => self.may_pass(ray.prev, !ray.primed || ray.prev_stale),
         }
+    }
+
+    /// [`View::may_skip`] for a composited ray whose last value read is `prev`, or none
+    /// (`stale`: samples were passed over since, or none was read): pre-integrated, only
+    /// where the segment ending at the next sample may be transparent.
+    #[inline(always)]
+    pub fn may_pass(&self, prev: f32, stale: bool) -> bool {
+        match &self.segments {
+            Some(layout) => stale || layout.below(prev) || self.careless(),
+            None => true,
+        }
+    }
+
+    /// Whether a sample loop needs the value of the sample before the current one, so that a
+    /// sample passed over leaves it stale ([`RayState::prev_stale`]): surfaces, for their
+    /// crossings, and pre-integrated compositing, for its segments.
+    #[inline]
+    pub fn reads_predecessor(&self) -> bool {
+        self.effects.surfaces || self.segments.is_some()
+    }
+
+    /// Where values fall in the pre-integration table, when the view composites
+    /// pre-integrated (its table is the slab's: [`crate::volume::slab::Slab::segments`]).
+    #[inline]
+    pub fn segments(&self) -> Option<&Layout> {
+        self.segments.as_ref()
     }
 
     /// The parameters.

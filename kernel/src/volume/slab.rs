@@ -7,6 +7,7 @@
 //! A read outside the stored planes returns 0 and is counted, never a panic: the bit-identity
 //! tests assert the count stays zero, which proves `g` wide enough.
 
+use crate::optics::segments::Segments;
 use crate::skip::blocks::Blocks;
 use crate::volume::cells::{corners, Cells};
 use crate::volume::grid::Grid;
@@ -72,6 +73,8 @@ pub struct Slab<'a, T: Sample> {
     data: &'a [T],
     blocks: Option<Blocks<'a>>,
     nodes: Option<Nodes<'a, T::Node>>,
+    /// The pre-integration table of the view being traced, where it composites so.
+    segments: Option<Segments<'a>>,
     /// The least bytes of a node field from which a sample loop prefetches it ahead.
     prefetch_from: usize,
 }
@@ -141,6 +144,7 @@ impl<'a, T: Sample> Slab<'a, T> {
             data,
             blocks: None,
             nodes: None,
+            segments: None,
             prefetch_from: PREFETCH_FROM_BYTES,
         })
     }
@@ -165,6 +169,20 @@ impl<'a, T: Sample> Slab<'a, T> {
             nodes: Some(nodes),
             ..self
         }
+    }
+
+    /// The same slab, compositing pre-integrated by `segments` (built for the view traced).
+    pub fn with_segments(self, segments: Segments<'a>) -> Self {
+        Slab {
+            segments: Some(segments),
+            ..self
+        }
+    }
+
+    /// The pre-integration table the slab was given, if any.
+    #[inline]
+    pub fn segments(&self) -> Option<&Segments<'a>> {
+        self.segments.as_ref()
     }
 
     /// The same slab, prefetching node fields of `bytes` and more rather than of
