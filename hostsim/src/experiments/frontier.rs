@@ -1,7 +1,8 @@
 //! `voxcube accuracy --frontier`: for the error a user accepts, which renderer and which step
 //! is fastest. SOD's paper view at 350×250, composited and as a surface, rendered in one run
 //! by VTK's CPU ray caster ([`super::peer`]) and by voxcube's two tiers over a sweep of Δt
-//! (on surfaces also the exact tier with its crossings unrefined, to show what refining buys);
+//! (composited also the fast tier pre-integrated, to show what integrating between samples
+//! buys; on surfaces the exact tier with its crossings unrefined, to show what refining buys);
 //! each image timed on every core (the median of several frames after a first) and measured
 //! two ways: against its own renderer's converged image (Δt = 1/16; for voxcube, its tier's)
 //! and against voxcube's exact one.
@@ -18,14 +19,14 @@ use super::chart::{self, Line};
 use super::error::ExperimentError;
 use super::paper::{dataset_of, Source};
 use super::peer::{Frame, Peer, PeerMode, Request};
-use super::sod::{composite, sized, SURFACE_VIEW};
+use super::sod::{composite, sized, COMPOSITE_TRANSFER, SURFACE_VIEW};
 use crate::input::scene::DatasetJob;
 use crate::run::render::{render_on, Machine};
 use plotters::prelude::*;
 use std::fmt::Write as _;
 use std::path::Path;
 use voxcube_kernel::optics::shade::Light;
-use voxcube_kernel::trace::view::{Accuracy, View};
+use voxcube_kernel::trace::view::{Accuracy, Compositing, View};
 use voxcube_kernel::Vec3;
 
 /// The steps voxcube's tiers are rendered at, coarse to fine, in cell edges.
@@ -57,23 +58,58 @@ pub enum Mode {
     Composite,
     /// The iso-surface.
     Surface,
+    /// Composited through a thin shell ([`SHELL_TRANSFER`]): opaque within four value units
+    /// of one value, the transfer function's detail a step passes over. voxcube's only: the
+    /// peer script composites SOD's own function.
+    Shell,
 }
 
 impl Mode {
+    /// Every view of the sweep, in the order it renders and reports them.
+    pub const ALL: [Mode; 3] = [Mode::Composite, Mode::Surface, Mode::Shell];
+
     fn name(self) -> &'static str {
         match self {
             Mode::Composite => "composite",
             Mode::Surface => "surface",
+            Mode::Shell => "shell",
         }
     }
 
-    fn peer(self) -> PeerMode {
+    /// The peer's mode, where it renders this view.
+    fn peer(self) -> Option<PeerMode> {
         match self {
-            Mode::Composite => PeerMode::Composite,
-            Mode::Surface => PeerMode::Surface,
+            Mode::Composite => Some(PeerMode::Composite),
+            Mode::Surface => Some(PeerMode::Surface),
+            Mode::Shell => None,
         }
     }
 }
+
+/// The shell's transfer function: SOD's colours, opaque only within four value units of 50
+/// (its surface view's iso value), so that a step of a cell or more passes over it between
+/// two samples.
+pub const SHELL_TRANSFER: &str = r#"[[datasets.views.transfer]]
+value = 10.0
+color = [0.2, 0.3, 0.8]
+opacity = 0.0
+[[datasets.views.transfer]]
+value = 46.0
+color = [0.9, 0.7, 0.3]
+opacity = 0.0
+[[datasets.views.transfer]]
+value = 50.0
+color = [0.9, 0.7, 0.3]
+opacity = 0.6
+[[datasets.views.transfer]]
+value = 54.0
+color = [0.9, 0.7, 0.3]
+opacity = 0.0
+[[datasets.views.transfer]]
+value = 200.0
+color = [1.0, 0.2, 0.1]
+opacity = 0.0
+"#;
 
 /// Who rendered an image.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -85,6 +121,9 @@ pub enum Renderer {
     /// voxcube's exact tier with each surface crossing at its linear estimate, unrefined
     /// (`refine_steps = 0`): what the refinement buys, surfaces only.
     Unrefined,
+    /// voxcube's fast tier compositing pre-integrated (`compositing = "pre-integrated"`),
+    /// composited views only.
+    PreIntegrated,
 }
 
 impl Renderer {
@@ -93,18 +132,21 @@ impl Renderer {
             Renderer::Vtk => "VTK".into(),
             Renderer::Voxcube(tier) => format!("voxcube {}", tier.name()),
             Renderer::Unrefined => "voxcube unrefined".into(),
+            Renderer::PreIntegrated => "voxcube pre-int.".into(),
         }
     }
 
-    /// voxcube's renderers of `mode`: each tier, and on surfaces the unrefined crossing.
+    /// voxcube's renderers of `mode`: each tier, composited views also pre-integrated, and
+    /// on surfaces the unrefined crossing.
     fn voxcube(mode: Mode) -> &'static [Renderer] {
         const BOTH: [Renderer; 2] = [
             Renderer::Voxcube(Accuracy::Exact),
             Renderer::Voxcube(Accuracy::Fast),
         ];
+        const COMPOSITE: [Renderer; 3] = [BOTH[0], BOTH[1], Renderer::PreIntegrated];
         const SURFACE: [Renderer; 3] = [BOTH[0], BOTH[1], Renderer::Unrefined];
         match mode {
-            Mode::Composite => &BOTH,
+            Mode::Composite | Mode::Shell => &COMPOSITE,
             Mode::Surface => &SURFACE,
         }
     }
@@ -205,13 +247,16 @@ fn paired_rounds(
     Ok(sorted_ratios(run_paired(rounds, &mut vtk, &mut best)?))
 }
 
-/// The views: SOD's paper view as a surface and composited at 350×250, lit by a headlight.
+/// The views: SOD's paper view as a surface and composited at 350×250, with its own
+/// transfer function and through the shell, lit by a headlight.
 fn job(source: Source<'_>, notes: &mut String) -> Result<DatasetJob, ExperimentError> {
     let frame = Frame::PAPER;
     let views = |iso: &str| {
         sized(
             &(SURFACE_VIEW.replace("NAME", Mode::Surface.name())
-                + &composite(Mode::Composite.name(), "exact", true)),
+                + &composite(Mode::Composite.name(), "exact", true)
+                + &composite(Mode::Shell.name(), "exact", true)
+                    .replace(COMPOSITE_TRANSFER, SHELL_TRANSFER)),
             frame.width,
             frame.height,
             f64::from(frame.dt),
@@ -236,6 +281,10 @@ fn variant(
         Renderer::Unrefined => {
             spec.accuracy = Accuracy::Exact;
             spec.refine_steps = 0;
+        }
+        Renderer::PreIntegrated => {
+            spec.accuracy = Accuracy::Fast;
+            spec.compositing = Compositing::PreIntegrated;
         }
         Renderer::Vtk => {
             return Err(ExperimentError::Asked(
@@ -323,7 +372,7 @@ pub fn sweep_over(
             }
         );
     }
-    for mode in [Mode::Composite, Mode::Surface] {
+    for mode in Mode::ALL {
         let base = job
             .views
             .iter()
@@ -356,11 +405,11 @@ pub fn sweep_over(
                 },
             )?;
         }
-        if let Some(peer) = &peer {
+        if let (Some(peer), Some(peer_mode)) = (&peer, mode.peer()) {
             let render = |dt: f32, runs: usize| {
                 let frame = Frame { dt, ..Frame::PAPER };
                 let request = Request {
-                    mode: mode.peer(),
+                    mode: peer_mode,
                     frame,
                     runs,
                 };
@@ -457,7 +506,7 @@ fn db(psnr: f64) -> String {
 /// The tables, a mode each, then the headlines.
 pub fn table(frontier: &Frontier) -> String {
     let mut out = frontier.notes.clone();
-    for mode in [Mode::Composite, Mode::Surface] {
+    for mode in Mode::ALL {
         let _ = writeln!(
             out,
             "-- {}, 350x250\n{:<18} {:>7} {:>9} {:>10} {:>9} {:>9} {:>12}",
@@ -505,7 +554,7 @@ pub fn table(frontier: &Frontier) -> String {
             max own: the 99th percentile over pixels and the largest of a pixel's largest \
             channel difference from it, 8-bit levels; PSNR exact: against voxcube's exact \
             tier at dt 1/16. Times: median ms per frame, every core, one run.\n";
-    for mode in [Mode::Composite, Mode::Surface] {
+    for mode in Mode::ALL {
         if let Some(h) = headline(&frontier.points, mode) {
             let paired = frontier
                 .paired
@@ -544,7 +593,7 @@ fn headline_line(mode: Mode, h: &Headline, paired: Option<&[f64]>) -> String {
                 match (mode, judged <= TARGET) {
                     (Mode::Composite, true) => format!(" (target: at most {TARGET}x, met)"),
                     (Mode::Composite, false) => format!(" (target: at most {TARGET}x, not met)"),
-                    (Mode::Surface, _) => String::new(),
+                    (Mode::Surface | Mode::Shell, _) => String::new(),
                 }
             )
         }
@@ -553,7 +602,7 @@ fn headline_line(mode: Mode, h: &Headline, paired: Option<&[f64]>) -> String {
             mode.name(),
             match mode {
                 Mode::Composite => " (target not met)",
-                Mode::Surface => "",
+                Mode::Surface | Mode::Shell => "",
             }
         ),
     }
@@ -562,10 +611,10 @@ fn headline_line(mode: Mode, h: &Headline, paired: Option<&[f64]>) -> String {
 /// Time against error (PSNR against each renderer's own converged image), a panel a mode, a
 /// line per renderer and tier through its steps.
 pub fn plot(path: &Path, frontier: &Frontier) -> Result<(), String> {
-    let root = SVGBackend::new(path, (1100, 440)).into_drawing_area();
+    let root = SVGBackend::new(path, (1650, 440)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let (left, right) = root.split_horizontally(550);
-    for (area, mode) in [(&left, Mode::Composite), (&right, Mode::Surface)] {
+    let areas = root.split_evenly((1, Mode::ALL.len()));
+    for (area, mode) in areas.iter().zip(Mode::ALL) {
         let points: Vec<&Point> = frontier
             .points
             .iter()
@@ -584,6 +633,7 @@ pub fn plot(path: &Path, frontier: &Frontier) -> Result<(), String> {
             (Renderer::Voxcube(Accuracy::Exact), BLUE),
             (Renderer::Voxcube(Accuracy::Fast), GREEN),
             (Renderer::Unrefined, MAGENTA),
+            (Renderer::PreIntegrated, CYAN),
             (Renderer::Vtk, RED),
         ]
         .into_iter()
@@ -715,13 +765,19 @@ mod tests {
             "{}",
             frontier.notes
         );
-        // Two steps of each tier in each mode, and of the unrefined crossing on surfaces.
-        assert_eq!(frontier.points.len(), 2 * (2 + 3), "{:?}", frontier.points);
+        // Two steps of each tier in each mode, of the pre-integrated fast tier composited
+        // (SOD's function and the shell) and of the unrefined crossing on surfaces.
+        assert_eq!(
+            frontier.points.len(),
+            2 * (3 + 3 + 3),
+            "{:?}",
+            frontier.points
+        );
         assert!(frontier
             .points
             .iter()
             .all(|p| p.renderer != Renderer::Vtk && p.ms > 0.0));
-        for mode in [Mode::Composite, Mode::Surface] {
+        for mode in Mode::ALL {
             for &renderer in Renderer::voxcube(mode) {
                 let at = |dt: f32| {
                     *frontier
@@ -756,7 +812,19 @@ mod tests {
         let mut notes = String::new();
         let job = job(Source::Substitute, &mut notes).unwrap();
         assert!(notes.contains("--substitute"));
-        for mode in [Mode::Composite, Mode::Surface] {
+        let view_of = |mode: Mode| {
+            &job.views
+                .iter()
+                .find(|v| v.name == mode.name())
+                .unwrap()
+                .view
+        };
+        assert_ne!(
+            view_of(Mode::Composite).spec().mode,
+            view_of(Mode::Shell).spec().mode,
+            "the shell has its own transfer function"
+        );
+        for mode in Mode::ALL {
             let base = &job
                 .views
                 .iter()
@@ -787,6 +855,15 @@ mod tests {
                 (Accuracy::Exact, 0)
             );
             assert!(sa.refine_steps > 0);
+            // Pre-integration is the fast tier's, composited views' only.
+            let pre = variant(base, &job, 0.5, Renderer::PreIntegrated);
+            match mode {
+                Mode::Composite | Mode::Shell => assert_eq!(
+                    pre.map(|v| (v.spec().accuracy, v.spec().compositing)).ok(),
+                    Some((Accuracy::Fast, Compositing::PreIntegrated))
+                ),
+                Mode::Surface => assert!(pre.is_err()),
+            }
             assert!(variant(base, &job, 0.5, Renderer::Vtk).is_err());
         }
     }
