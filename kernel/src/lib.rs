@@ -27,9 +27,6 @@ pub mod counters;
 pub mod node;
 pub mod optics;
 pub mod skip;
-// Tests may allocate: a pre-integration table is a megabyte, more than a test thread's stack.
-#[cfg(test)]
-extern crate std;
 #[cfg(test)]
 mod testing;
 pub mod trace;

@@ -143,6 +143,11 @@ impl Layout {
     pub fn dt(&self) -> f32 {
         self.dt
     }
+
+    /// The first entry whose opacity is above zero ([`ENTRIES`] where none is).
+    pub fn first_shown(&self) -> u32 {
+        self.first_shown
+    }
 }
 
 /// The value of entry `m` of a table over `[lo, hi]`: from both ends, so the last entry is
@@ -338,214 +343,83 @@ impl<'a> Segments<'a> {
 
 #[cfg(test)]
 mod tests {
+    // A whole table is a megabyte, more than a test thread's stack and the kernel has no
+    // heap: the tests of whole tables are the tests crate's (`tests/tests/preintegrated.rs`).
     use super::*;
     use crate::optics::transfer::ControlPoint;
-    use std::vec;
-    use std::vec::Vec;
 
-    fn tf(points: &[(f32, f32, f32)]) -> TransferFunction {
-        let points: Vec<ControlPoint> = points
-            .iter()
-            .map(|&(value, c, opacity)| ControlPoint {
-                value,
-                color: Vec3::new(c, 1.0 - c, 0.5),
-                opacity,
-            })
-            .collect();
-        TransferFunction::new(&points).expect("valid")
-    }
-
-    fn table(tf: &TransferFunction, dt: f32) -> (Layout, Vec<Vec4>) {
-        let mut cells = vec![Vec4::ZERO; LEN];
-        let layout = Layout::of(tf, dt).expect("a step");
-        build(tf, &layout, &mut cells).expect("built");
-        (layout, cells)
-    }
-
-    /// The segment from `front` to `back` over `dt` edges of `tf` itself (its control
-    /// points, not the table's entries), integrated directly in `f64` by the midpoint rule
-    /// on `steps` pieces: emission `c·κ` and extinction `κ = −ln(1 − opacity)` per edge.
-    fn integrated(tf: &TransferFunction, front: f32, back: f32, dt: f32, steps: usize) -> Vec4 {
-        let (mut color, mut through) = ([0.0f64; 3], 1.0f64);
-        let h = f64::from(dt) / steps as f64;
-        for s in 0..steps {
-            let u = (s as f64 + 0.5) / steps as f64;
-            let v = f64::from(front) + u * (f64::from(back) - f64::from(front));
-            let (c, o) = tf.eval(v as f32);
-            let kappa = -(1.0 - f64::from(o).min(1.0 - 1e-12)).ln();
-            let piece = 1.0 - (-kappa * h).exp();
-            for (acc, ch) in color.iter_mut().zip(c.to_array()) {
-                *acc += through * piece * f64::from(ch);
-            }
-            through *= 1.0 - piece;
+    #[test]
+    fn a_piece_of_constant_opacity_has_its_extinction_and_a_piece_of_none_has_none() {
+        for a in [0.0, 1e-6, 0.3, 0.9, MAX_OPACITY] {
+            let (k, weight) = piece(a, a);
+            let exact = -libm::log1p(-a);
+            assert!(
+                (k - exact).abs() <= 1e-12 * exact.max(1.0),
+                "{a}: {k} {exact}"
+            );
+            assert!((weight - 0.5).abs() < 1e-12, "{a}: {weight}");
         }
-        let alpha = 1.0 - through;
-        let mean = |x: f64| if alpha > 0.0 { x / alpha } else { 0.0 };
-        Vec4::new(
-            mean(color[0]) as f32,
-            mean(color[1]) as f32,
-            mean(color[2]) as f32,
-            alpha as f32,
-        )
-    }
-
-    fn entry(tf: &TransferFunction, m: usize) -> f32 {
-        let (lo, hi) = tf.domain();
-        entry_value(lo, hi, m)
+        assert_eq!(piece(0.0, 0.0), (0.0, 0.5));
+        // Opacity rising across the piece: its emission lies toward the opaque end, and its
+        // extinction is the integral of −ln(1 − a − (b − a)u), closed form for a linear a.
+        let (a, b) = (0.1f64, 0.8f64);
+        let f = |y: f64| (1.0 - y) * (1.0 - y).ln() + y;
+        let (k, weight) = piece(a, b);
+        assert!((k - (f(b) - f(a)) / (b - a)).abs() < 1e-7, "{k}");
+        assert!(weight > 0.5 && weight < 1.0, "{weight}");
     }
 
     #[test]
-    fn a_constant_medium_is_beer_lambert_over_every_segment() {
-        // Opacity 0.3 per edge everywhere: any segment of length dt lets through 0.7^dt.
-        let f = tf(&[(0.0, 0.25, 0.3), (100.0, 0.25, 0.3)]);
-        for dt in [0.125, 0.5, 1.0, 2.0] {
-            let (layout, cells) = table(&f, dt);
-            let t = Segments::new(layout, &cells).expect("table");
-            let expected = 1.0 - 0.7f64.powf(f64::from(dt));
-            for (a, b) in [(0.0, 0.0), (0.0, 100.0), (100.0, 3.0), (40.0, 41.0)] {
-                let s = t.segment(a, b);
+    fn every_run_of_pieces_is_its_pieces_composited_in_turn() {
+        let mut next = crate::testing::xorshift(0x5e9_0e17);
+        let unit = |x: u32| (x >> 8) as f32 / (1u32 << 24) as f32;
+        let mut pieces = [Vec4::ZERO; ENTRIES - 1];
+        for p in pieces.iter_mut() {
+            let through = unit(next());
+            *p = (Vec3::new(unit(next()), unit(next()), unit(next())) * (1.0 - through))
+                .extend(through);
+        }
+        let mut scratch = Scratch::new();
+        for n in [1, 2, 3, 7, 64, 100, ENTRIES - 1] {
+            let mut seen = 0;
+            scratch.windows(&pieces, n, |i, run| {
+                let alone = pieces[i..i + n]
+                    .iter()
+                    .fold(Vec4::new(0.0, 0.0, 0.0, 1.0), |acc, &p| over(acc, p));
                 assert!(
-                    (f64::from(s.w) - expected).abs() < 2e-5,
-                    "{dt} {a}->{b}: {s}"
+                    (run - alone).abs().max_element() < 1e-5,
+                    "{n} at {i}: {run} {alone}"
                 );
-                assert!(
-                    (s.truncate() - Vec3::new(0.25, 0.75, 0.5))
-                        .abs()
-                        .max_element()
-                        < 2e-5
-                );
-            }
+                seen += 1;
+            });
+            assert_eq!(seen, ENTRIES - n, "{n}");
         }
     }
 
     #[test]
-    fn a_ramp_matches_direct_integration() {
-        // Opacity rising linearly from 0 to 0.6 per edge, colour from one end to the other.
-        let f = tf(&[(0.0, 0.0, 0.0), (255.0, 1.0, 0.6)]);
-        for dt in [0.25, 1.0, 2.0] {
-            let (layout, cells) = table(&f, dt);
-            let t = Segments::new(layout, &cells).expect("table");
-            for (i, j) in [
-                (0, 255),
-                (255, 0),
-                (10, 200),
-                (200, 10),
-                (100, 101),
-                (128, 128),
-            ] {
-                let (a, b) = (entry(&f, i), entry(&f, j));
-                let (got, want) = (t.segment(a, b), integrated(&f, a, b, dt, 20_000));
-                // The pieces' mean extinction against the curve's: second order in the
-                // entry spacing, and the opacity's curvature is small here.
-                assert!(
-                    (got - want).abs().max_element() < 2e-4,
-                    "{dt} {i}->{j}: {got} {want}"
-                );
-            }
-        }
-    }
-
-    #[test]
-    fn a_spike_narrower_than_the_step_is_integrated_where_sampling_misses_it() {
-        // Transparent but for a spike four value units wide at 100.
-        let f = tf(&[
-            (0.0, 0.5, 0.0),
-            (98.0, 0.5, 0.0),
-            (100.0, 0.9, 0.9),
-            (102.0, 0.5, 0.0),
-            (255.0, 0.5, 0.0),
-        ]);
-        let dt = 2.0;
-        let (layout, cells) = table(&f, dt);
-        let t = Segments::new(layout, &cells).expect("table");
-        // A segment from 50 to 150 crosses the spike in a twenty-fifth of its length; both
-        // its samples are transparent.
-        let (a, b) = (entry(&f, 50), entry(&f, 150));
-        assert_eq!((f.opacity(a), f.opacity(b)), (0.0, 0.0));
-        let (got, want) = (t.segment(a, b), integrated(&f, a, b, dt, 200_000));
-        assert!(want.w > 0.05, "{want}");
-        // The spike's control points sit on entries: the table holds its integral.
-        assert!((got.w - want.w).abs() < 1e-3 * want.w, "{got} {want}");
-        assert!(
-            (got.truncate() - want.truncate()).abs().max_element() < 1e-3,
-            "{got} {want}"
-        );
-        // Falling through it gives the same opacity.
-        assert!((t.segment(b, a).w - got.w).abs() < 1e-5);
-    }
-
-    #[test]
-    fn segments_below_the_first_entry_that_shows_are_transparent() {
-        let f = tf(&[(10.0, 0.2, 0.0), (60.0, 0.9, 0.15), (200.0, 1.0, 0.8)]);
-        let (layout, cells) = table(&f, 1.5);
-        let t = Segments::new(layout, &cells).expect("table");
-        let first = layout.first_shown as usize;
-        assert!(first > 0 && first < ENTRIES);
-        assert!(f.opacity(entry(&f, first)) > 0.0 && f.opacity(entry(&f, first - 1)) == 0.0);
-        for i in 0..first {
-            for j in 0..first {
-                assert_eq!(t.segment(entry(&f, i), entry(&f, j)).w, 0.0, "{i} {j}");
-            }
-            // A segment that reaches the first entry that shows is not.
-            assert!(t.segment(entry(&f, i), entry(&f, first)).w > 0.0, "{i}");
-        }
-        assert!(layout.empty(-1e9, entry(&f, first - 1)));
-        assert!(!layout.empty(-1e9, entry(&f, first)));
+    fn a_layout_finds_the_first_entry_that_shows_and_refuses_a_bad_step() {
+        let p = |value, opacity| ControlPoint {
+            value,
+            color: Vec3::ONE,
+            opacity,
+        };
+        let tf =
+            TransferFunction::new(&[p(0.0, 0.0), p(100.0, 0.0), p(255.0, 1.0)]).expect("valid");
+        let layout = Layout::of(&tf, 0.5).expect("a step");
+        // Entries are one value unit apart: entry 100 is the last of zero opacity.
+        assert_eq!(layout.first_shown(), 101);
+        assert!(layout.below(100.4) && !layout.below(100.6));
+        assert!(layout.empty(-1e9, 100.0) && !layout.empty(-1e9, 101.0));
         assert!(!layout.empty(f32::NAN, 0.0) && !layout.empty(0.0, f32::NAN));
         assert!(
             layout.below(f32::NAN),
             "NaN reads entry 0, as the table does"
         );
-    }
-
-    #[test]
-    fn a_table_is_the_same_bits_built_twice_and_another_for_another_step() {
-        let f = tf(&[(10.0, 0.2, 0.0), (60.0, 0.9, 0.15), (200.0, 1.0, 0.8)]);
-        let (a, b) = (table(&f, 0.5), table(&f, 0.5));
-        assert!(
-            a.0 == b.0
-                && a.1
-                    .iter()
-                    .zip(&b.1)
-                    .all(|(x, y)| x.to_array().map(f32::to_bits) == y.to_array().map(f32::to_bits))
-        );
-        let other = table(&f, 0.25);
-        assert_ne!(a.1, other.1);
-        assert_eq!(a.0.key(), other.0.key(), "the step moves no entry's place");
-    }
-
-    #[test]
-    fn every_cell_is_a_number_and_opacities_stay_in_range() {
-        let f = tf(&[
-            (0.0, 0.0, 0.0),
-            (30.0, 1.0, 1.0),
-            (31.0, 0.3, 0.0),
-            (255.0, 0.7, 1.0),
-        ]);
-        for dt in [1.0 / 64.0, 0.5, 2.0] {
-            let (_, cells) = table(&f, dt);
-            for c in &cells {
-                assert!(c.is_finite(), "{c}");
-                assert!((0.0..=1.0).contains(&c.w), "{c}");
-            }
-        }
-    }
-
-    #[test]
-    fn storage_of_another_length_and_a_bad_step_are_refused() {
-        let f = tf(&[(0.0, 0.0, 0.0), (1.0, 1.0, 1.0)]);
-        let layout = Layout::of(&f, 1.0).expect("a step");
-        let mut short = vec![Vec4::ZERO; LEN - 1];
-        assert_eq!(
-            build(&f, &layout, &mut short),
-            Err(SegmentsError::Length { got: LEN - 1 })
-        );
         for dt in [f32::NAN, 0.0, -1.0, f32::INFINITY] {
             assert!(
-                matches!(Layout::of(&f, dt), Err(SegmentsError::Step(_))),
+                matches!(Layout::of(&tf, dt), Err(SegmentsError::Step(_))),
                 "{dt}"
             );
         }
-        assert!(Segments::new(layout, &short).is_err());
     }
 }
