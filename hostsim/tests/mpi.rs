@@ -321,7 +321,37 @@ fn a_hung_or_dead_rank_s_rows_are_re_traced_by_the_other_cluster() {
 fn mpi_fast_tier_images_equal_the_simulator_s() {
     let dir = tempfile::tempdir().expect("tempdir");
     let tests = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/tests/scenes.toml");
-    let mut scenes = vec![tests.display().to_string()];
+    // A pre-integrated view: every rank needs the view's table beside its slab.
+    let shell = dir.path().join("shell.toml");
+    std::fs::write(
+        &shell,
+        r#"[[datasets]]
+name = "shell"
+builtin = "molecule"
+[[datasets.views]]
+name = "pre-integrated"
+width = 40
+height = 30
+dt = 1.5
+mode = "composite"
+accuracy = "fast"
+compositing = "pre-integrated"
+[[datasets.views.transfer]]
+value = 118.0
+color = [0.9, 0.7, 0.3]
+opacity = 0.0
+[[datasets.views.transfer]]
+value = 120.0
+color = [0.9, 0.7, 0.3]
+opacity = 0.7
+[[datasets.views.transfer]]
+value = 122.0
+color = [0.9, 0.7, 0.3]
+opacity = 0.0
+"#,
+    )
+    .expect("scene");
+    let mut scenes = vec![tests.display().to_string(), shell.display().to_string()];
     scenes.extend(scenes_with_data());
     for scene in scenes {
         let render = |fabric: &str, name: &str| {

@@ -1,8 +1,8 @@
 //! The pre-integrated composited loop (fast tier, `compositing = "pre-integrated"`): each
 //! sample closes the segment that ends at it, read from the view's table
-//! ([`crate::optics::segments`]) at the values of its two ends and lit by the light at the
-//! sample; a ray's last stretch, shorter than Δt, is its last sample's value held over it,
-//! corrected for its length, as the sampled loop takes it.
+//! ([`crate::optics::segments`]) at the values of its two ends and lit at the sample by the
+//! mean of its two ends' gradients; a ray's last stretch, shorter than Δt, is its last
+//! sample's value held over it, corrected for its length, as the sampled loop takes it.
 //!
 //! Invariants: segment `k − 1 → k` of a full Δt is composited at sample `k`, the stretch of
 //! sample `k` past the last full segment at sample `k` after it, in sample order, by the

@@ -391,10 +391,10 @@ impl View {
             (box_lo, box_hi),
         );
         let (classified, segments) = match (&spec.mode, spec.accuracy, spec.compositing) {
-            (_, _, Compositing::Sampled) => match (&spec.mode, spec.accuracy) {
-                (Mode::Composite(tf), Accuracy::Fast) => (Some(Classified::new(tf, spec.dt)), None),
-                _ => (None, None),
-            },
+            (Mode::Composite(tf), Accuracy::Fast, Compositing::Sampled) => {
+                (Some(Classified::new(tf, spec.dt)), None)
+            }
+            (_, _, Compositing::Sampled) => (None, None),
             (Mode::Composite(tf), Accuracy::Fast, Compositing::PreIntegrated) => {
                 let layout = Layout::of(tf, spec.dt).map_err(|_| ViewError::Step(spec.dt))?;
                 (None, Some(layout))
