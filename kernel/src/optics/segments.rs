@@ -17,7 +17,7 @@
 //! of operations, so its entries are the same bits wherever it is built; a segment whose two
 //! values and every entry between read zero opacity has opacity exactly zero, so every
 //! segment between two values below [`Layout::first_shown`] is transparent, and skipping by
-//! that bound ([`Segments::empty`]) stays a bound, never an approximation of the image.
+//! that bound ([`Layout::empty`]) stays a bound, never an approximation of the image.
 
 use crate::optics::classify::nearest;
 use crate::optics::transfer::{corrected_opacity, TransferFunction};

@@ -5,7 +5,7 @@
 //! is asked of `crate::trace::skipping`. How a sample is read (the node field's lanes, or the
 //! slab's value) and classified (the fast tier's table, or the transfer function) are chosen
 //! once per call: the loop is compiled once per choice, so that each holds only its own work.
-//! A view that composites pre-integrated takes its own loop, [`crate::trace::preintegrated`]:
+//! A view that composites pre-integrated takes its own loop, `crate::trace::preintegrated`:
 //! its samples close segments rather than stand for them.
 //!
 //! Invariants: the colour and transmittance follow `C += w·α·c`, `w *= 1 − α` in sample
