@@ -19,7 +19,7 @@ use super::chart::{self, Line};
 use super::error::ExperimentError;
 use super::paper::{dataset_of, Source};
 use super::peer::{Frame, Peer, PeerMode, Request};
-use super::sod::{composite, sized, COMPOSITE_TRANSFER, SURFACE_VIEW};
+use super::sod::{composite, composite_through, sized, SURFACE_VIEW};
 use crate::input::scene::DatasetJob;
 use crate::run::render::{render_on, Machine};
 use plotters::prelude::*;
@@ -255,8 +255,7 @@ fn job(source: Source<'_>, notes: &mut String) -> Result<DatasetJob, ExperimentE
         sized(
             &(SURFACE_VIEW.replace("NAME", Mode::Surface.name())
                 + &composite(Mode::Composite.name(), "exact", true)
-                + &composite(Mode::Shell.name(), "exact", true)
-                    .replace(COMPOSITE_TRANSFER, SHELL_TRANSFER)),
+                + &composite_through(Mode::Shell.name(), "exact", true, SHELL_TRANSFER)),
             frame.width,
             frame.height,
             f64::from(frame.dt),

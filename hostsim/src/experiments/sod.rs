@@ -78,11 +78,17 @@ width = SPAN
 /// The paper's view composited with [`COMPOSITE_TRANSFER`], named `name`, in accuracy tier
 /// `tier`, shaded or not, its size placeholders still to fill ([`sized`]).
 pub fn composite(name: &str, tier: &str, shading: bool) -> String {
+    composite_through(name, tier, shading, COMPOSITE_TRANSFER)
+}
+
+/// [`composite`] with the transfer function `transfer` (its `[[datasets.views.transfer]]`
+/// entries) instead of SOD's.
+pub fn composite_through(name: &str, tier: &str, shading: bool, transfer: &str) -> String {
     COMPOSITE_VIEW
         .replace("NAME", name)
         .replace("TIER", tier)
         .replace("SHADING", &shading.to_string())
-        + COMPOSITE_TRANSFER
+        + transfer
 }
 
 /// SOD's transfer function, for every composited view of it the experiments take.

@@ -2,9 +2,10 @@
 //! samples in one slab, in a single loop that reads a sample, classifies it and, where it
 //! shows, shades and composites it (in the slab's interior, the fast tier's samples that show
 //! wait in a short batch for their light: `crate::trace::deferred`). What may be passed over
-//! is asked of `crate::trace::skipping`. How a sample is read (the node field's lanes, or the
-//! slab's value) and classified (the fast tier's table, or the transfer function) are chosen
-//! once per call: the loop is compiled once per choice, so that each holds only its own work.
+//! is asked of `crate::trace::skipping`. How a sample is read (`crate::trace::reading`: the
+//! node field's lanes, or the slab's value) and classified (the fast tier's table, or the
+//! transfer function) are chosen once per call: the loop is compiled once per choice, so that
+//! each holds only its own work.
 //! A view that composites pre-integrated takes its own loop, `crate::trace::preintegrated`:
 //! its samples close segments rather than stand for them.
 //!
@@ -21,14 +22,13 @@ use crate::trace::lattice::Lattice;
 use crate::trace::lighting::Unshadowed;
 use crate::trace::preintegrated;
 use crate::trace::ray::Ray;
-use crate::trace::runway::{self, CellTest, Inside, Read, Runway};
+use crate::trace::reading::{GridLanes, Lanes, Reading, Value};
+use crate::trace::runway::{self, CellTest, Inside, Read, Run, Runway};
 use crate::trace::skipping::{skip_to, Probe, Skipper};
 use crate::trace::state::{RayState, Stop};
 use crate::trace::view::View;
 use crate::volume::cells::Cells;
 use crate::volume::field::{self, Site};
-use crate::volume::lanes::Lanes as NodeLanes;
-use crate::volume::nodes;
 use crate::volume::sample::Sample;
 use crate::volume::slab::Slab;
 use glam::Vec3;
@@ -186,159 +186,6 @@ impl Classify for ByFunction<'_> {
     }
 }
 
-/// How a sample is read: its value, and the gradient where the read gives it.
-pub(crate) trait Reading<T: Sample>: Copy {
-    /// What the storage the read uses holds per node.
-    type Node: Copy;
-
-    /// That storage as whole cells, for the runs through the slab's interior; `None` where
-    /// the slab holds none.
-    fn cells<'a>(slab: &Slab<'a, T>) -> Option<Cells<'a, Self::Node>>;
-
-    /// The sample at `at`: its index-space point, and the site where it reads the grid.
-    fn read(
-        self,
-        view: &View,
-        slab: &Slab<'_, T>,
-        at: (Vec3, &Site),
-        counters: &mut Counters,
-    ) -> (f32, Option<Vec3>);
-
-    /// The sample at fractions `frac` of a cell-model site whose cell's nodes are `cell`, in
-    /// the interior: in every bit, and counted alike, what [`Reading::read`] gives there.
-    fn read_cell(
-        self,
-        slab: &Slab<'_, T>,
-        cell: [Self::Node; 8],
-        frac: Vec3,
-        counters: &mut Counters,
-    ) -> (f32, Option<Vec3>);
-}
-
-/// The node field's lanes: value and gradient in one interpolation.
-#[derive(Clone, Copy)]
-pub(crate) struct Lanes;
-
-impl<T: Sample> Reading<T> for Lanes {
-    type Node = T::Node;
-
-    #[inline(always)]
-    fn cells<'a>(slab: &Slab<'a, T>) -> Option<Cells<'a, T::Node>> {
-        slab.nodes().map(|nodes| nodes.cells())
-    }
-
-    #[inline(always)]
-    fn read(
-        self,
-        _: &View,
-        slab: &Slab<'_, T>,
-        (_, site): (Vec3, &Site),
-        counters: &mut Counters,
-    ) -> (f32, Option<Vec3>) {
-        // Counted as the value's read; the gradient where the shading takes it.
-        counters.interpolations += 1;
-        let (v, g) = nodes::lanes_at(slab, site, counters);
-        (v, Some(g))
-    }
-
-    #[inline(always)]
-    fn read_cell(
-        self,
-        slab: &Slab<'_, T>,
-        cell: [T::Node; 8],
-        frac: Vec3,
-        counters: &mut Counters,
-    ) -> (f32, Option<Vec3>) {
-        counters.interpolations += 1;
-        let (v, g) =
-            nodes::lerp_lanes(cell.map(NodeLanes::unpack), frac, slab.grid().inv_spacing());
-        (v, Some(g))
-    }
-}
-
-/// The slab's value; the shading computes a gradient where it needs one.
-#[derive(Clone, Copy)]
-pub(crate) struct Value;
-
-impl<T: Sample> Reading<T> for Value {
-    type Node = T;
-
-    #[inline(always)]
-    fn cells<'a>(slab: &Slab<'a, T>) -> Option<Cells<'a, T>> {
-        Some(slab.cells())
-    }
-
-    #[inline(always)]
-    fn read(
-        self,
-        view: &View,
-        slab: &Slab<'_, T>,
-        (_, site): (Vec3, &Site),
-        counters: &mut Counters,
-    ) -> (f32, Option<Vec3>) {
-        (
-            field::value_at(slab, view.spec().model, site, counters),
-            None,
-        )
-    }
-
-    #[inline(always)]
-    fn read_cell(
-        self,
-        _: &Slab<'_, T>,
-        cell: [T; 8],
-        frac: Vec3,
-        counters: &mut Counters,
-    ) -> (f32, Option<Vec3>) {
-        counters.interpolations += 1;
-        (field::lerp_cell(cell, frac), None)
-    }
-}
-
-/// The exact tier's reading where the node field is held: at points in the grid
-/// ([`nodes::in_grid`]: every point of the interior), the field's lanes, value and gradient in
-/// one interpolation, as [`Lanes`]; elsewhere the slab's value, and the shading takes its six
-/// reads. The same bits either way (the value lane is the trilinear value, and in the grid the
-/// lanes' gradient is the tier's own), but one read of storage, the one a loop asks for
-/// ahead, where the value and gradient apart would read the slab and the field.
-#[derive(Clone, Copy)]
-struct GridLanes;
-
-impl<T: Sample> Reading<T> for GridLanes {
-    type Node = T::Node;
-
-    #[inline(always)]
-    fn cells<'a>(slab: &Slab<'a, T>) -> Option<Cells<'a, T::Node>> {
-        <Lanes as Reading<T>>::cells(slab)
-    }
-
-    #[inline(always)]
-    fn read(
-        self,
-        view: &View,
-        slab: &Slab<'_, T>,
-        at: (Vec3, &Site),
-        counters: &mut Counters,
-    ) -> (f32, Option<Vec3>) {
-        if nodes::in_grid(slab.grid(), at.0) {
-            Lanes.read(view, slab, at, counters)
-        } else {
-            Value.read(view, slab, at, counters)
-        }
-    }
-
-    #[inline(always)]
-    fn read_cell(
-        self,
-        slab: &Slab<'_, T>,
-        cell: [T::Node; 8],
-        frac: Vec3,
-        counters: &mut Counters,
-    ) -> (f32, Option<Vec3>) {
-        Lanes.read_cell(slab, cell, frac, counters)
-    }
-}
-
 /// The loop itself, for one way of reading and one of classifying: each sample through the
 /// general step (where it lies, whose it is, what the skipping says of it), except in the
 /// slab's interior, where [`run`] takes them.
@@ -433,17 +280,6 @@ fn samples<T: Sample, C: Classify, R: Reading<T>, A: Ahead>(
     ray.color = color;
     ray.weight = weight;
     stop
-}
-
-/// Where a run through the interior stopped.
-pub(crate) enum Run {
-    /// Past its last sample.
-    Done,
-    /// At a sample the storage cannot give whole (not in an interior the storage defines:
-    /// never, but the general step can read anything).
-    Unread,
-    /// Too little light left.
-    Terminated,
 }
 
 /// The samples from `ray.k` through `inside.end`, all in the interior: no clamp, no owner, no

@@ -15,6 +15,7 @@ pub mod march;
 pub mod pixel;
 pub(crate) mod preintegrated;
 pub mod ray;
+pub(crate) mod reading;
 pub(crate) mod runway;
 pub(crate) mod skipping;
 pub mod starts;

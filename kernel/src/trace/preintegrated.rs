@@ -17,11 +17,11 @@
 use crate::counters::Counters;
 use crate::optics::segments::{Layout, Segments};
 use crate::optics::transfer::corrected_opacity;
-use crate::trace::composite::{Lanes, Reading, Run, Value};
 use crate::trace::deferred::Deferred;
 use crate::trace::lattice::Lattice;
 use crate::trace::lighting::{self, Unshadowed};
-use crate::trace::runway::{self, CellTest, Inside, Read, Runway};
+use crate::trace::reading::{Lanes, Reading, Value};
+use crate::trace::runway::{self, CellTest, Inside, Read, Run, Runway};
 use crate::trace::skipping::{skip_to, Probe, Skipper};
 use crate::trace::state::{RayState, Stop};
 use crate::trace::view::View;
@@ -40,10 +40,10 @@ pub(crate) fn composite<T: Sample>(
     ray: &mut RayState,
     counters: &mut Counters,
 ) -> Stop {
-    // The host hands every node of a pre-integrated view its table; a slab without it (or
-    // with another view's) has nothing this view may composite by.
+    // The host hands every node of a pre-integrated view its table (its tests fail a fabric
+    // that does not); a slab without it, or with another view's, has nothing this view may
+    // composite by, and the ray passes.
     let Some(table) = slab.segments().filter(|t| t.layout() == layout) else {
-        debug_assert!(false, "a pre-integrated view traced without its table");
         ray.k = ray.lattice.last.saturating_add(1);
         return Stop::Exit;
     };
@@ -192,16 +192,18 @@ fn samples<T: Sample, R: Reading<T>>(
         let p = probe.p4.truncate();
         let (v, gradient) = read.read(view, slab, (p, &site), counters);
         let k = ray.k;
-        // The front's position: where its gradient is found, should this call not have it.
-        let front_at = ray.ray.at(ray.lattice.t(k.saturating_sub(1)));
+        // The front's position: where it is read again, or its gradient found, should this
+        // call not have them.
+        let front_at = |ray: &RayState| ray.ray.at(ray.lattice.t(k.saturating_sub(1)));
         if ray.prev_stale {
             g_front = None;
         }
         let front = front(&layout, (ray.prev, ray.prev_stale, ray.primed), v, || {
             // Read as if it had not been passed over, counted as the run counts it.
             counters.samples += 1;
-            let site = field::locate(grid, spec.model, front_at);
-            let (value, g) = read.read(view, slab, (front_at, &site), counters);
+            let p = front_at(ray);
+            let site = field::locate(grid, spec.model, p);
+            let (value, g) = read.read(view, slab, (p, &site), counters);
             g_front = g;
             value
         });
@@ -216,7 +218,11 @@ fn samples<T: Sample, R: Reading<T>>(
             &light,
             closed,
             (p, &site, gradient),
-            |c| known.unwrap_or_else(|| lighting::gradient(view, slab, (front_at, None, None), c)),
+            |c| {
+                known.unwrap_or_else(|| {
+                    lighting::gradient(view, slab, (front_at(ray), None, None), c)
+                })
+            },
             (&mut color, &mut weight),
             None,
             counters,
@@ -332,7 +338,6 @@ fn run<T: Sample, R: Reading<T>, E: CellTest>(
             hi: lo.map(|c| c + 1),
             frac,
         };
-        let front_at = r.at(lattice.t(k.saturating_sub(1)));
         let known = *g_front;
         let (ended, back) = close(
             view,
@@ -340,7 +345,12 @@ fn run<T: Sample, R: Reading<T>, E: CellTest>(
             light,
             closed,
             (q.truncate(), &site, gradient),
-            |c| known.unwrap_or_else(|| lighting::gradient(view, slab, (front_at, None, None), c)),
+            |c| {
+                known.unwrap_or_else(|| {
+                    let front_at = r.at(lattice.t(k.saturating_sub(1)));
+                    lighting::gradient(view, slab, (front_at, None, None), c)
+                })
+            },
             (color, weight),
             tabled.then_some(&mut waiting),
             counters,

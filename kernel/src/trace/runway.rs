@@ -110,6 +110,18 @@ macro_rules! through {
 }
 pub(crate) use through;
 
+/// Where a composited loop's run through the interior stopped.
+pub(crate) enum Run {
+    /// Past its last sample.
+    Done,
+    /// At a sample the general step reads: one the storage cannot give whole (never in an
+    /// interior the storage defines, but the general step can read anything), or one whose
+    /// passed-over predecessor a pre-integrated run must read again outside the interior.
+    Unread,
+    /// Too little light left.
+    Terminated,
+}
+
 /// A run's sample to be read: its index-space point, its cell's low corner as whole floats
 /// and as integers, and the cell's place in the run's storage.
 pub(crate) struct Read {
