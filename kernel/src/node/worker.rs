@@ -558,14 +558,17 @@ impl<
         let stepped = self.outbox_free() >= 3 && (self.step_pending() || self.step_received(port));
         let mut generated = false;
         if !stepped && !worked {
-            for _ in 0..self.rays_per_poll {
+            let mut budget = u32::from(self.rays_per_poll);
+            while budget > 0 {
                 let free = port.pending() == 0
                     && self.pending_up.is_empty()
                     && self.pending_down.is_empty()
                     && self.outbox_free() >= 3;
-                if !(free && self.generate()) {
+                let used = if free { self.generate(budget) } else { 0 };
+                if used == 0 {
                     break;
                 }
+                budget = budget.saturating_sub(used);
                 generated = true;
             }
         }
@@ -1089,10 +1092,12 @@ impl<
         true
     }
 
-    /// Generate primary rays up to one started (or one row scanned); whether anything was done.
-    fn generate(&mut self) -> bool {
+    /// Generate primary rays up to one started (or one row scanned; a ring of one, up to
+    /// `budget` traced along a row); how many of the poll's rays that took (0: nothing was
+    /// done).
+    fn generate(&mut self, budget: u32) -> u32 {
         if self.generation_done() {
-            return false;
+            return 0;
         }
         let generator = self.place.position == 0;
         let spec = self.view.spec();
@@ -1119,7 +1124,7 @@ impl<
                         break;
                     }
                 }
-                return true;
+                return 1;
             }
             if n >= self.set_up_through {
                 self.stats.counters.rays_set_up += 1;
@@ -1134,21 +1139,14 @@ impl<
                     self.misses_until = run_end;
                     self.cursor += 1;
                     self.emit(pixel, rgba8(spec.background));
-                    return true;
+                    return 1;
                 }
                 self.cursor = run_end;
                 continue;
             };
             if self.place.layout.size() == 1 {
-                // A ring of one holds the whole volume, so the ray is its own, and every ray
-                // of the pixel's tree starts and ends here: nothing is sent, waited for or
-                // recorded. Its pixel is traced whole, as `trace` does, and is the same
-                // colour with the same counts as on the records' path of larger rings.
-                self.cursor += 1;
-                let color = trace_primary(self.view, &self.slab, ray, &mut self.stats.counters);
-                self.stats.counters.non_finite_pixels += u64::from(!color.is_finite());
-                self.emit(pixel, rgba8(color));
-                return true;
+                let along = u32::try_from(row_end - n).unwrap_or(u32::MAX).min(budget);
+                return self.trace_along(ray, pixel, along);
             }
             let first = ray.ray.at(ray.lattice.t(0));
             let owner = self
@@ -1167,11 +1165,11 @@ impl<
             match self.generation {
                 Generation::Distributed if mine => {
                     if !self.can_start(&unadopted, false) {
-                        return false;
+                        return 0;
                     }
                     self.cursor += 1;
                     self.trace(unadopted);
-                    return true;
+                    return 1;
                 }
                 Generation::Distributed => {
                     // Not this position's ray: pass over the pixels along the row that are
@@ -1202,25 +1200,55 @@ impl<
                 }
                 Generation::Centralized if mine => {
                     if !self.can_start(&unadopted, false) {
-                        return false;
+                        return 0;
                     }
                     self.cursor += 1;
                     self.trace(unadopted);
-                    return true;
+                    return 1;
                 }
                 Generation::Centralized => {
                     let class = Class::of_ray(ray.kind, ray.ray.dir.x);
                     if self.flow.enabled
                         && self.unacked.get(owner, class).saturating_add(1) >= self.flow.i_max
                     {
-                        return false;
+                        return 0;
                     }
                     self.cursor += 1;
                     self.send(owner, Msg::Ray(unadopted));
-                    return true;
+                    return 1;
                 }
             }
         }
-        true
+        1
+    }
+
+    /// A ring of one's pixels along a row from `pixel`, whose primary ray `ray` meets the
+    /// volume, at most `along` of them: each traced whole where it is generated, until a
+    /// pixel set has gone to the outbox (at most one message a call, as for any ray) or a ray
+    /// misses (left to [`Worker::generate`], which sends the certain misses after it); how
+    /// many were traced. A ring of one holds the whole volume, so the ray is its own, and every
+    /// ray of the pixel's tree starts and ends here: nothing is sent, waited for or recorded.
+    /// Each pixel is the same colour with the same counts as on the records' path of larger
+    /// rings, and the same as one pixel a call: traced on along the row, a pixel costs none of
+    /// the call's and the poll's checks, which cost as much as its ray's set-up.
+    fn trace_along(&mut self, mut ray: RayState, pixel: u32, along: u32) -> u32 {
+        let mut traced = 0;
+        loop {
+            self.cursor += 1;
+            let color = trace_primary(self.view, &self.slab, ray, &mut self.stats.counters);
+            self.stats.counters.non_finite_pixels += u64::from(!color.is_finite());
+            self.emit(pixel + traced, rgba8(color));
+            traced += 1;
+            if self.batch.count == 0 || traced >= along {
+                return traced;
+            }
+            // Set up once, as `generate` counts it: a ray that misses is not set up again there.
+            self.stats.counters.rays_set_up += 1;
+            self.set_up_through = self.cursor + 1;
+            match self.view.primary_ray(pixel + traced) {
+                Some(next) => ray = next,
+                None => return traced,
+            }
+        }
     }
 }
