@@ -95,11 +95,12 @@ pub struct Span {
 /// definition, so the same bits; the tests keep that definition): every pixel clips its ray,
 /// and one axis at a time took half the set-up of a frame's primary rays.
 pub fn clip(ray: &Ray, lo: Vec3, hi: Vec3, t_min: f32, t_max: f32) -> Option<Span> {
-    if !(ray.origin.is_finite() && ray.dir.is_finite()) {
-        return None;
-    }
     // `w` is a zero direction inside the closed slab [0, 0]: it never clips.
     let (o, d) = (ray.origin.extend(0.0), ray.dir.extend(0.0));
+    // Every coordinate finite, in lanes: `|x| < ∞` fails for the infinities and NaN.
+    if !(o.abs().cmplt(Vec4::INFINITY) & d.abs().cmplt(Vec4::INFINITY)).all() {
+        return None;
+    }
     let (lo, hi) = (lo.extend(0.0), hi.extend(0.0));
     let parallel = d.cmpeq(Vec4::ZERO);
     // Parallel to a pair of faces: inside the closed slab or never.
@@ -109,30 +110,40 @@ pub fn clip(ray: &Ray, lo: Vec3, hi: Vec3, t_min: f32, t_max: f32) -> Option<Spa
     // Parallel lanes divide by zero here; their quotients are never read.
     let (t_lo, t_hi) = ((lo - o) / d, (hi - o) / d);
     let ordered = t_lo.cmple(t_hi);
-    let t0 = Vec4::select(ordered, t_lo, t_hi).to_array();
+    // A parallel lane bounds neither end: its entry at −∞ and its exit at +∞, which no
+    // comparison below takes.
+    let t0 = Vec4::select(
+        parallel,
+        Vec4::NEG_INFINITY,
+        Vec4::select(ordered, t_lo, t_hi),
+    );
     // Widen the far bound by the rounding error of the three operations behind it (pbrt's
     // 1 + 2γ₃), so a ray through an edge or corner is not lost to one ulp.
-    let t1 = (Vec4::select(ordered, t_hi, t_lo) * FAR_WIDENING).to_array();
-    let (moving, high) = ((!parallel).bitmask(), (!ordered).bitmask());
+    let t1 = Vec4::select(
+        parallel,
+        Vec4::INFINITY,
+        Vec4::select(ordered, t_hi, t_lo) * FAR_WIDENING,
+    );
+    let (t0, t1, high) = (t0.to_array(), t1.to_array(), (!ordered).bitmask());
     let mut t_near = t_min;
     let mut t_far = t_max;
-    let mut entry = Entry::Inside;
-    // In axis order, so that of equal entry parameters the first axis names the face.
+    // The axis whose face the ray enters through; 3: none, it starts inside.
+    let mut through = 3;
+    // In axis order, so that of equal entry parameters the first axis names the face; each
+    // step a choice of values rather than a branch, as every pixel clips its ray.
     for axis in 0..3 {
-        if moving >> axis & 1 == 0 {
-            continue;
-        }
-        if t0[axis] > t_near {
-            t_near = t0[axis];
-            entry = Entry::Face {
-                axis: axis as u8,
-                high: high >> axis & 1 == 1,
-            };
-        }
-        if t1[axis] < t_far {
-            t_far = t1[axis];
-        }
+        let nearer = t0[axis] > t_near;
+        t_near = if nearer { t0[axis] } else { t_near };
+        through = if nearer { axis } else { through };
+        t_far = if t1[axis] < t_far { t1[axis] } else { t_far };
     }
+    let entry = match through {
+        3 => Entry::Inside,
+        axis => Entry::Face {
+            axis: axis as u8,
+            high: high >> axis & 1 == 1,
+        },
+    };
     (t_near <= t_far && t_near.is_finite() && t_far.is_finite()).then_some(Span {
         t_near,
         t_far,
