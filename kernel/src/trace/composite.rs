@@ -23,8 +23,8 @@ use crate::trace::lighting::Unshadowed;
 use crate::trace::preintegrated;
 use crate::trace::ray::Ray;
 use crate::trace::reading::{GridLanes, Lanes, Reading, Value};
-use crate::trace::runway::{self, CellTest, Inside, Read, Run, Runway};
-use crate::trace::skipping::{skip_to, Probe, Skipper};
+use crate::trace::runway::{self, CellTest, Inside, Next, Read, Run, Runway};
+use crate::trace::skipping::Skipper;
 use crate::trace::state::{RayState, Stop};
 use crate::trace::view::View;
 use crate::volume::cells::Cells;
@@ -240,22 +240,15 @@ fn samples<T: Sample, C: Classify, R: Reading<T>, A: Ahead>(
                 }
             }
         }
-        let probe = Probe::of(ray, grid, spec.model, ray.k);
-        let plane = probe.corner.plane();
-        if !slab.owns(plane) {
-            break Stop::Leave { plane };
-        }
-        if let (None, Some(runway)) = (inside_to, &inner) {
-            if runway.interior.holds(probe.p4) {
-                // The run through the interior takes this sample.
-                inside_to = Some(runway.interior.last(ray, ray.k));
-                continue;
-            }
-        }
-        if let Some(last) = skipper.empty_run(view, slab, ray, &probe, true) {
-            skip_to(view, ray, last, counters);
-            continue;
-        }
+        let at = (inner.as_ref(), &mut inside_to);
+        // Compositing may always skip a sample that shows nothing.
+        let may_skip = |_: &View, _: &RayState| true;
+        let probe = match runway::before_read(view, slab, ray, at, &mut skipper, may_skip, counters)
+        {
+            Next::Leave(plane) => break Stop::Leave { plane },
+            Next::Again => continue,
+            Next::Read(probe) => probe,
+        };
         counters.samples += 1;
         ahead.ask(&ray.ray, &ray.lattice, ray.k);
         let site = probe.corner.site(grid);

@@ -16,8 +16,8 @@
 use crate::counters::Counters;
 use crate::optics::surface::{self, IsoSurface};
 use crate::trace::composite::composite;
-use crate::trace::runway::{self, CellTest, Inside, Read, Runway};
-use crate::trace::skipping::{skip_to, Probe, Skipper};
+use crate::trace::runway::{self, CellTest, Inside, Next, Read, Runway};
+use crate::trace::skipping::Skipper;
 pub use crate::trace::state::{Hit, RayKind, RayState, Stop};
 use crate::trace::view::{Mode, View};
 use crate::volume::field;
@@ -82,22 +82,14 @@ fn search<T: Sample>(
             }
         }
         // The corner decides whether the sample is read; the rest of its site only if so.
-        let probe = Probe::of(ray, grid, spec.model, ray.k);
-        let plane = probe.corner.plane();
-        if !slab.owns(plane) {
-            return Stop::Leave { plane };
-        }
-        if let (None, Some(runway)) = (inside_to, &inner) {
-            if runway.interior.holds(probe.p4) {
-                // A run through the interior may take this sample.
-                inside_to = Some(runway.interior.last(ray, ray.k));
-                continue;
-            }
-        }
-        if let Some(last) = skipper.empty_run(view, slab, ray, &probe, view.may_skip(ray)) {
-            skip_to(view, ray, last, counters);
-            continue;
-        }
+        let at = (inner.as_ref(), &mut inside_to);
+        let may_skip = View::may_skip;
+        let probe = match runway::before_read(view, slab, ray, at, &mut skipper, may_skip, counters)
+        {
+            Next::Leave(plane) => return Stop::Leave { plane },
+            Next::Again => continue,
+            Next::Read(probe) => probe,
+        };
         counters.samples += 1;
         let site = probe.corner.site(grid);
         let v = field::value_at(slab, spec.model, &site, counters);

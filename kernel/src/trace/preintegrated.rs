@@ -21,8 +21,8 @@ use crate::trace::deferred::Deferred;
 use crate::trace::lattice::Lattice;
 use crate::trace::lighting::{self, Unshadowed};
 use crate::trace::reading::{Lanes, Reading, Value};
-use crate::trace::runway::{self, CellTest, Inside, Read, Run, Runway};
-use crate::trace::skipping::{skip_to, Probe, Skipper};
+use crate::trace::runway::{self, CellTest, Inside, Next, Read, Run, Runway};
+use crate::trace::skipping::Skipper;
 use crate::trace::state::{RayState, Stop};
 use crate::trace::view::View;
 use crate::volume::field::{self, Site};
@@ -172,21 +172,14 @@ fn samples<T: Sample, R: Reading<T>>(
                 }
             }
         }
-        let probe = Probe::of(ray, grid, spec.model, ray.k);
-        let plane = probe.corner.plane();
-        if !slab.owns(plane) {
-            break Stop::Leave { plane };
-        }
-        if let (None, Some(runway)) = (inside_to, &inner) {
-            if runway.interior.holds(probe.p4) {
-                inside_to = Some(runway.interior.last(ray, ray.k));
-                continue;
-            }
-        }
-        if let Some(last) = skipper.empty_run(view, slab, ray, &probe, view.may_skip(ray)) {
-            skip_to(view, ray, last, counters);
-            continue;
-        }
+        let at = (inner.as_ref(), &mut inside_to);
+        let may_skip = View::may_skip;
+        let probe = match runway::before_read(view, slab, ray, at, &mut skipper, may_skip, counters)
+        {
+            Next::Leave(plane) => break Stop::Leave { plane },
+            Next::Again => continue,
+            Next::Read(probe) => probe,
+        };
         counters.samples += 1;
         let site = probe.corner.site(grid);
         let p = probe.p4.truncate();

@@ -1,20 +1,23 @@
 //! A ray's way through its slab's interior for one call of a sample loop: the box of samples
 //! inside ([`Interior`]), the storage's whole cells there, what tells which of them are empty
 //! (a cell leap map, read at the cell's place in the storage or by its corner), and the leap
-//! distances a loop steps over rather than leaps. The composited loop and the surface search
-//! each run their own loop over it; what may be passed over is the general step's, cell for
+//! distances a loop steps over rather than leaps; and the general step's questions of a
+//! sample before a loop reads it ([`before_read`]: its owner, the way into the interior, the
+//! skipping), asked alike by every loop. The composited loops and the surface search each run
+//! their own loop over the interior; what may be passed over is the general step's, cell for
 //! cell, so a run and the general step pass over the same samples.
 //!
 //! Invariants: a runway exists only for the cell model, where the skipping asks nothing of an
 //! interior sample but its cell's leap distance ([`Skipper::per_cell`]) and the storage holds
 //! every cell inside; a distance of 0 is a cell that may show.
 
+use crate::counters::Counters;
 use crate::skip::cell_leaps::HeldLeaps;
 use crate::skip::node_leaps::NodeLeaps;
 use crate::trace::interior::Interior;
 use crate::trace::lattice::Lattice;
 use crate::trace::ray::Ray;
-use crate::trace::skipping::Skipper;
+use crate::trace::skipping::{skip_to, Probe, Skipper};
 use crate::trace::state::RayState;
 use crate::trace::view::View;
 use crate::volume::cells::{Cells, HeldCells};
@@ -69,6 +72,55 @@ impl<'a, U: Copy> Runway<'a, U> {
             test,
         })
     }
+}
+
+/// Where the general step goes from sample `ray.k` ([`before_read`]).
+pub(crate) enum Next {
+    /// Out of the slab's owned planes, at this plane: the ray leaves the call.
+    Leave(u32),
+    /// On at the loop's top: the sample begins a run through the interior, or it and the
+    /// samples after it were passed over.
+    Again,
+    /// Read the sample, whose probe this is.
+    Read(Probe),
+}
+
+/// The general step's questions of sample `ray.k` before any loop reads it, the same in each
+/// loop: whose it is, whether it begins the run through the interior (`inner`; once found,
+/// the run's last sample in `inside_to`), and what the skipping passes over from it, where
+/// the ray may skip (`may_skip`, asked only then: a surface view's answer reads the iso
+/// values).
+#[allow(
+    clippy::too_many_arguments,
+    reason = "inlined into each loop; the arguments are the loop's state"
+)]
+#[inline(always)]
+pub(crate) fn before_read<T: Sample, U: Copy, S: Fn(&View, &RayState) -> bool>(
+    view: &View,
+    slab: &Slab<'_, T>,
+    ray: &mut RayState,
+    (inner, inside_to): (Option<&Runway<'_, U>>, &mut Option<u32>),
+    skipper: &mut Skipper<'_>,
+    may_skip: S,
+    counters: &mut Counters,
+) -> Next {
+    let probe = Probe::of(ray, slab.grid(), view.spec().model, ray.k);
+    let plane = probe.corner.plane();
+    if !slab.owns(plane) {
+        return Next::Leave(plane);
+    }
+    if let (None, Some(runway)) = (*inside_to, inner) {
+        if runway.interior.holds(probe.p4) {
+            // A run through the interior takes this sample.
+            *inside_to = Some(runway.interior.last(ray, ray.k));
+            return Next::Again;
+        }
+    }
+    if let Some(last) = skipper.empty_run(view, slab, ray, &probe, may_skip(view, ray)) {
+        skip_to(view, ray, last, counters);
+        return Next::Again;
+    }
+    Next::Read(probe)
 }
 
 /// A run through the interior: its storage's whole cells, what says which cells are empty,
