@@ -5,8 +5,9 @@
 //! glam's `trunc` (six instructions with SSE4.1, for lanes of any sign and size) and the
 //! integers by adding 2^23 (seven).
 //!
-//! Beside them, [`prefetch`]: a hint that an item is read soon, which a sample loop over a
-//! volume larger than the caches asks for a few samples ahead.
+//! Beside them, [`prefetch`] and [`prefetch_near`]: hints that an item is read soon, which a
+//! sample loop over a volume larger than the caches asks for a few samples ahead (the second
+//! for a place that may lie outside the items, at no cost of a bounds check).
 //!
 //! This crate holds the sample loop's `unsafe` (the workspace's only other is the benchmarks'
 //! profiler, `voxcube-sampler`), so that the kernel keeps `forbid(unsafe_code)`: an
@@ -14,8 +15,9 @@
 //! caller that declares them cannot be inlined into one that does not. Each block here calls
 //! an intrinsic that needs only a feature this build enables, which the `cfg` above it
 //! checks (the binary requires that feature of its CPU anyway), and takes no pointer, but
-//! for the prefetch, which takes a live item's address and can neither fault nor change
-//! what the program reads.
+//! for the prefetches, which take an address (a live item's, or one computed by wrapping
+//! arithmetic and never read through) and can neither fault nor change what the program
+//! reads.
 //!
 //! Invariant: on lanes in `[0, 2^23]` (every caller's: coordinates clamped into the grid,
 //! or inside it) both forms give the same bits, the truncation and the integers being exact
@@ -106,6 +108,25 @@ pub fn prefetch<T>(items: &[T], index: usize) {
         // SAFETY: SSE, all this needs, is enabled (the cfg). The address is a live item's;
         // the instruction changes no register, flag or memory and never faults.
         unsafe { _mm_prefetch::<_MM_HINT_T0>(core::ptr::from_ref(item).cast::<i8>()) }
+    }
+    #[cfg(not(all(target_arch = "x86_64", target_feature = "sse")))]
+    let _ = (items, index);
+}
+
+/// A hint that the item `index` places past the start of `items` is read soon, where
+/// `index` may lie outside `items`: no bounds are checked, so that a loop may ask every
+/// sample ahead for a few instructions. The address is computed with wrapping arithmetic
+/// and never read by the program.
+#[inline(always)]
+pub fn prefetch_near<T>(items: &[T], index: usize) {
+    #[cfg(all(target_arch = "x86_64", target_feature = "sse"))]
+    {
+        use core::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let at = items.as_ptr().wrapping_add(index);
+        // SAFETY: SSE, all this needs, is enabled (the cfg). A prefetch changes no register,
+        // flag or memory, raises no fault whatever its address (one outside every mapping is
+        // dropped), and the program never reads through `at`.
+        unsafe { _mm_prefetch::<_MM_HINT_T0>(at.cast::<i8>()) }
     }
     #[cfg(not(all(target_arch = "x86_64", target_feature = "sse")))]
     let _ = (items, index);
@@ -238,5 +259,28 @@ mod tests {
         assert_eq!(portable::trunc(v).x, 3.0e9);
         assert_eq!(trunc(v).x, i32::MIN as f32);
         assert_ne!(trunc_u32(3.0e9), portable::trunc_u32(3.0e9));
+    }
+
+    #[test]
+    fn a_hint_near_any_place_reads_and_changes_nothing() {
+        let items: [u64; 64] = core::array::from_fn(|i| i as u64 * 0x9e37_79b9);
+        // Inside, just past, far past and, wrapping, before the items: never a fault.
+        for index in [
+            0,
+            63,
+            64,
+            4096,
+            1 << 40,
+            usize::MAX,
+            usize::MAX - 7,
+            usize::MAX / 2,
+        ] {
+            prefetch_near(&items, index);
+            prefetch(&items, index);
+        }
+        assert!(items
+            .iter()
+            .enumerate()
+            .all(|(i, &v)| v == i as u64 * 0x9e37_79b9));
     }
 }

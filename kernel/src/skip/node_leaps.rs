@@ -36,6 +36,13 @@ impl<'a> NodeLeaps<'a> {
         self.first
     }
 
+    /// A hint that place `i` is read soon; `i` may be any place, in the map or not
+    /// ([`voxcube_simd::prefetch_near`]).
+    #[inline(always)]
+    pub fn prefetch(&self, i: usize) {
+        voxcube_simd::prefetch_near(self.map, i);
+    }
+
     /// The distance at place `i` (0 past the map).
     #[inline(always)]
     pub fn at(&self, i: usize) -> u8 {

@@ -63,11 +63,13 @@ pub(crate) fn composite<T: Sample>(
     }
 }
 
-/// [`samples`], asking for each evaluated sample's cell of the node field ahead where the
-/// slab holds a field larger than the caches ([`Slab::prefetched_field`]): then memory's latency
-/// passes while the loop works on the samples before it. Both tiers read the field where it
-/// is held (the fast tier its values and gradients, the exact tier its gradients), and it is
-/// eight times the slab's bytes, so its misses are the ones that count.
+/// [`samples`], asking for cells ahead of the samples where the slab holds a node field
+/// larger than the caches ([`Slab::prefetched_field`]): then memory's latency passes while
+/// the loop works on the samples before. A run through the interior asks, as it looks at each
+/// sample, for the cell and map byte some samples on ([`Inside::step`]); the general step,
+/// for the cell of the sample four on from each it evaluates. Both tiers read the field
+/// where it is held (the fast tier its values and gradients, the exact tier its gradients),
+/// and it is eight times the slab's bytes, so its misses are the ones that count.
 #[inline(always)]
 fn prefetching<T: Sample, C: Classify, R: Reading<T>>(
     view: &View,
@@ -88,8 +90,12 @@ fn prefetching<T: Sample, C: Classify, R: Reading<T>>(
 trait Ahead: Copy {
     /// Ask for the cell of sample `k + PREFETCH_AHEAD` of `ray` on `lattice`, at its lattice
     /// position (computed, not stepped); outside the grid some cell, which a prefetch
-    /// passes over or asks for harmlessly.
+    /// passes over or asks for harmlessly. The general step's samples.
     fn ask(self, ray: &Ray, lattice: &Lattice, k: u32);
+
+    /// In a run through the interior, the storage offset of the cell to ask for ahead of
+    /// each sample looked at (`offset` finds it, [`Inside::hint_offset`]), or none.
+    fn hint(self, offset: impl FnOnce() -> usize) -> Option<usize>;
 }
 
 /// Samples read from storage that stays in the caches: nothing asked.
@@ -99,6 +105,11 @@ struct NotAhead;
 impl Ahead for NotAhead {
     #[inline(always)]
     fn ask(self, _: &Ray, _: &Lattice, _: u32) {}
+
+    #[inline(always)]
+    fn hint(self, _: impl FnOnce() -> usize) -> Option<usize> {
+        None
+    }
 }
 
 /// Samples read from `Cells` larger than the caches.
@@ -115,6 +126,11 @@ impl<U: Copy> Ahead for Asking<'_, U> {
     fn ask(self, ray: &Ray, lattice: &Lattice, k: u32) {
         let q = ray.at4(lattice.t(k.saturating_add(PREFETCH_AHEAD)));
         self.0.prefetch(field::interior_corner(q).1);
+    }
+
+    #[inline(always)]
+    fn hint(self, offset: impl FnOnce() -> usize) -> Option<usize> {
+        Some(offset())
     }
 }
 
@@ -303,6 +319,7 @@ fn run<T: Sample, C: Classify, R: Reading<T>, A: Ahead, E: CellTest>(
     let counters = &mut local;
     let mut k = ray.k;
     let mut looked = inside.look(lattice, r, k);
+    let hint = ahead.hint(|| inside.hint_offset(&r, lattice.dt));
     let mut last_read = None;
     // Where the fast tier's table shades them, shaded samples whose gradient came with the
     // read wait for their light in a batch (the exact tier's lights, `powf` and all, gained
@@ -313,9 +330,13 @@ fn run<T: Sample, C: Classify, R: Reading<T>, A: Ahead, E: CellTest>(
         if k > inside.end {
             break Run::Done;
         }
-        let Some(Read { q, cell, lo, index }) =
-            inside.step(slab, (ray, lattice, r), skipper, (&mut k, &mut looked))
-        else {
+        let Some(Read { q, cell, lo, index }) = inside.step(
+            slab,
+            (ray, lattice, r),
+            skipper,
+            (&mut k, &mut looked),
+            hint,
+        ) else {
             continue;
         };
         let Some(nodes) = inside.cells.at_index(index) else {
@@ -323,7 +344,6 @@ fn run<T: Sample, C: Classify, R: Reading<T>, A: Ahead, E: CellTest>(
         };
         let frac = (q - cell).truncate();
         counters.samples += 1;
-        ahead.ask(&r, &lattice, k);
         let (v, gradient) = read.read_cell(slab, nodes, frac, counters);
         let (alpha, base) = classify.classify(view, &lattice, k, v);
         last_read = Some(v);

@@ -181,9 +181,13 @@ fn below<T: Sample, E: CellTest>(
         if k > inside.end {
             break Searched::Done;
         }
-        let Some(Read { q, cell, lo, index }) =
-            inside.step(slab, (ray, lattice, r), skipper, (&mut k, &mut looked))
-        else {
+        let Some(Read { q, cell, lo, index }) = inside.step(
+            slab,
+            (ray, lattice, r),
+            skipper,
+            (&mut k, &mut looked),
+            None,
+        ) else {
             stale = true;
             continue;
         };

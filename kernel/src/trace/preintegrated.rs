@@ -275,8 +275,13 @@ fn run<T: Sample, R: Reading<T>, E: CellTest>(
             break Run::Done;
         }
         let at = if view.may_pass(prev, stale) {
-            let Some(at) = inside.step(slab, (ray, lattice, r), skipper, (&mut k, &mut looked))
-            else {
+            let Some(at) = inside.step(
+                slab,
+                (ray, lattice, r),
+                skipper,
+                (&mut k, &mut looked),
+                None,
+            ) else {
                 stale = true;
                 *g_front = None;
                 continue;

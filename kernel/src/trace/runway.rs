@@ -174,6 +174,11 @@ pub(crate) enum Run {
     Terminated,
 }
 
+/// How many samples ahead of the one it looks at a run asks for a cell, where it asks
+/// ([`Inside::step`]): on SOD's composited view four was faster than eight and sixteen
+/// (docs/speed-log.md).
+const HINT_SAMPLES: f32 = 4.0;
+
 /// A run's sample to be read: its index-space point, its cell's low corner as whole floats
 /// and as integers, and the cell's place in the run's storage.
 pub(crate) struct Read {
@@ -201,6 +206,18 @@ pub(crate) struct Look {
 impl<U: Copy, E: CellTest> Inside<'_, '_, U, E> {
     /// Sample `k` of a ray on `lattice` along `line`, looked at: where a loop over the run
     /// starts.
+    /// The offset in the run's storage of a cell [`HINT_SAMPLES`] samples `dt` apart on
+    /// along `line`, each axis's share rounded to whole nodes: what [`Inside::step`] asks for
+    /// ahead of each sample it looks at. A hint, so only near: the place it names is within a
+    /// node or so of the cell the ray reaches there.
+    #[inline]
+    pub(crate) fn hint_offset(&self, line: &Ray, dt: f32) -> usize {
+        // Saturating: a NaN or enormous step names some place, which a hint may.
+        let steps = (line.dir * (dt * HINT_SAMPLES)).round();
+        self.cells
+            .offset([steps.x as i64, steps.y as i64, steps.z as i64])
+    }
+
     #[inline(always)]
     pub(crate) fn look(&self, lattice: Lattice, line: Ray, k: u32) -> Look {
         let q = line.at4(lattice.t(k));
@@ -221,6 +238,9 @@ impl<U: Copy, E: CellTest> Inside<'_, '_, U, E> {
     /// `looked` moves on with `k`. Both sample loops ask this first of every sample, and
     /// count what it passed over once, when they return: every index they moved past and did
     /// not read ([`passed_over`]).
+    /// Where `hint` is the storage offset of a cell some samples on ([`Inside::hint_offset`]),
+    /// that cell's rows and map byte are asked for as each sample is looked at: in storage
+    /// larger than the caches a run waited on those two loads (docs/speed-log.md).
     #[inline(always)]
     pub(crate) fn step<T: Sample>(
         &self,
@@ -228,11 +248,17 @@ impl<U: Copy, E: CellTest> Inside<'_, '_, U, E> {
         (ray, lattice, line): (&RayState, Lattice, Ray),
         skipper: &mut Skipper<'_>,
         (k, looked): (&mut u32, &mut Look),
+        hint: Option<usize>,
     ) -> Option<Read> {
         let at = *k;
         let here = *looked;
         // Looked at before `here`'s distance decides the way on.
         *looked = self.look(lattice, line, at.wrapping_add(1));
+        if let Some(offset) = hint {
+            let place = looked.index.wrapping_add(offset);
+            self.test.prefetch(place);
+            self.cells.prefetch(place);
+        }
         if (1..=self.stepped).contains(&here.distance) {
             // The same samples as a leap, fewer instructions.
             *k = at + 1;
@@ -320,6 +346,11 @@ pub(crate) fn stepped_distances(dt: f32) -> u8 {
 pub(crate) trait CellTest {
     /// The distance of the cell whose low node is `lo`, at `index` in the run's storage.
     fn distance(&self, lo: [u32; 3], index: usize) -> u8;
+
+    /// A hint that the distance at `index` (any place) is asked soon; nothing where the
+    /// test's layout is not the storage's.
+    #[inline(always)]
+    fn prefetch(&self, _index: usize) {}
 }
 
 /// How a run through the interior tells empty cells.
@@ -357,6 +388,11 @@ impl CellTest for AtIndex<'_> {
     #[inline(always)]
     fn distance(&self, _: [u32; 3], index: usize) -> u8 {
         self.map.at(index.wrapping_add(self.offset))
+    }
+
+    #[inline(always)]
+    fn prefetch(&self, index: usize) {
+        self.map.prefetch(index.wrapping_add(self.offset));
     }
 }
 

@@ -79,13 +79,15 @@ pub struct Slab<'a, T: Sample> {
     prefetch_from: usize,
 }
 
-/// The least bytes of a node field from which a composited ray asks for each evaluated
-/// sample's cell of it a few samples ahead ([`Slab::prefetched_field`]). Below it the field stays
-/// in the caches between rays and the request costs its instructions for nothing: on the
-/// molecule resampled to 128³ (a field of 16 MiB) and on SOD (8.7 MiB) it gained nothing
-/// measurable; at 256³ (128 MiB) it took a fifth off the fast tier's frame, at 512³ (1 GiB)
-/// a quarter off the fast tier's and a tenth off the exact tier's (docs/speed-log.md).
-pub const PREFETCH_FROM_BYTES: usize = 32 << 20;
+/// The least bytes of a node field from which a composited ray asks for cells of it a few
+/// samples ahead ([`Slab::prefetched_field`]), well above a core's second-level cache (1–2 MiB
+/// on current x86-64 processors), below which the field stays in the caches between rays.
+/// Asked for each sample a run through the interior looks at, with the cell's map byte, SOD's
+/// 8.7 MiB field took 6% off the fast tier's composited frame on two threads (asked only for
+/// each evaluated sample, from its lattice position, it gained nothing there); at 256³
+/// (128 MiB) and 512³ (1 GiB) asking took a fifth to a quarter off the fast tier's frame
+/// (docs/speed-log.md).
+pub const PREFETCH_FROM_BYTES: usize = 4 << 20;
 
 /// A neighbourhood of a slab's nodes checked once by [`Slab::window`]: rows addressed from its
 /// first node, plane by plane and row by row.
