@@ -204,12 +204,10 @@ pub(crate) struct Look {
 }
 
 impl<U: Copy, E: CellTest> Inside<'_, '_, U, E> {
-    /// Sample `k` of a ray on `lattice` along `line`, looked at: where a loop over the run
-    /// starts.
-    /// The offset in the run's storage of a cell [`HINT_SAMPLES`] samples `dt` apart on
-    /// along `line`, each axis's share rounded to whole nodes: what [`Inside::step`] asks for
-    /// ahead of each sample it looks at. A hint, so only near: the place it names is within a
-    /// node or so of the cell the ray reaches there.
+    /// The offset in the run's storage from a sample's place to the place [`HINT_SAMPLES`]
+    /// samples (`dt` apart) on along `line`, each axis's share rounded to whole nodes: what
+    /// [`Inside::step`] asks for ahead of each sample it looks at. A hint, so only near: the
+    /// place it names is within a node or so of the cell the ray reaches there.
     #[inline]
     pub(crate) fn hint_offset(&self, line: &Ray, dt: f32) -> usize {
         // Saturating: a NaN or enormous step names some place, which a hint may.
@@ -218,6 +216,8 @@ impl<U: Copy, E: CellTest> Inside<'_, '_, U, E> {
             .offset([steps.x as i64, steps.y as i64, steps.z as i64])
     }
 
+    /// Sample `k` of a ray on `lattice` along `line`, looked at: where a loop over the run
+    /// starts.
     #[inline(always)]
     pub(crate) fn look(&self, lattice: Lattice, line: Ray, k: u32) -> Look {
         let q = line.at4(lattice.t(k));
@@ -238,6 +238,7 @@ impl<U: Copy, E: CellTest> Inside<'_, '_, U, E> {
     /// `looked` moves on with `k`. Both sample loops ask this first of every sample, and
     /// count what it passed over once, when they return: every index they moved past and did
     /// not read ([`passed_over`]).
+    ///
     /// Where `hint` is the storage offset of a cell some samples on ([`Inside::hint_offset`]),
     /// that cell's rows and map byte are asked for as each sample is looked at: in storage
     /// larger than the caches a run waited on those two loads (docs/speed-log.md).

@@ -83,10 +83,10 @@ pub struct Slab<'a, T: Sample> {
 /// samples ahead ([`Slab::prefetched_field`]), well above a core's second-level cache (1–2 MiB
 /// on current x86-64 processors), below which the field stays in the caches between rays.
 /// Asked for each sample a run through the interior looks at, with the cell's map byte, SOD's
-/// 8.7 MiB field took 6% off the fast tier's composited frame on two threads (asked only for
-/// each evaluated sample, from its lattice position, it gained nothing there); at 256³
-/// (128 MiB) and 512³ (1 GiB) asking took a fifth to a quarter off the fast tier's frame
-/// (docs/speed-log.md).
+/// 8.7 MiB field took 6% off the fast tier's composited frame on two threads; asked for each
+/// evaluated sample from its lattice position (what the general step still does), it gained
+/// nothing on SOD and took a fifth to a quarter off the fast tier's frame at 256³ (128 MiB)
+/// and 512³ (1 GiB), where the runs' asking timed alike (docs/speed-log.md).
 pub const PREFETCH_FROM_BYTES: usize = 4 << 20;
 
 /// A neighbourhood of a slab's nodes checked once by [`Slab::window`]: rows addressed from its
