@@ -5,9 +5,9 @@
 //! glam's `trunc` (six instructions with SSE4.1, for lanes of any sign and size) and the
 //! integers by adding 2^23 (seven).
 //!
-//! Beside them, [`prefetch`] and [`prefetch_near`]: hints that an item is read soon, which a
-//! sample loop over a volume larger than the caches asks for a few samples ahead (the second
-//! for a place that may lie outside the items, at no cost of a bounds check).
+//! Beside them, [`prefetch`]: a hint that an item is read soon, which a sample loop over a
+//! volume larger than the caches asks for a few samples ahead, at any place, in the items or
+//! not, without the cost of a bounds check.
 //!
 //! This crate holds the sample loop's `unsafe` (the workspace's only other is the benchmarks'
 //! profiler, `voxcube-sampler`), so that the kernel keeps `forbid(unsafe_code)`: an
@@ -15,8 +15,8 @@
 //! caller that declares them cannot be inlined into one that does not. Each block here calls
 //! an intrinsic that needs only a feature this build enables, which the `cfg` above it
 //! checks (the binary requires that feature of its CPU anyway), and takes no pointer, but
-//! for the prefetches, which take an address (a live item's, or one computed by wrapping
-//! arithmetic and never read through) and can neither fault nor change what the program
+//! for the prefetch, which takes an address (computed by wrapping arithmetic and never read
+//! through) and can neither fault nor change what the program
 //! reads.
 //!
 //! Invariant: on lanes in `[0, 2^23]` (every caller's: coordinates clamped into the grid,
@@ -96,29 +96,14 @@ pub fn trunc_u32(x: f32) -> u32 {
     portable::trunc_u32(x)
 }
 
-/// A hint that `items[index]` is read soon: on x86-64 a `prefetcht0` of the cache line that
-/// holds it, so that a read some samples later finds it in the caches rather than waiting
-/// on memory; nothing where `index` lies past `items`, and nothing on other targets. The
-/// program's values are the same either way: a prefetch reads nothing the program sees.
+/// A hint that the item `index` places past the start of `items` is read soon: on x86-64 a
+/// `prefetcht0` of the cache line that holds it, so that a read some samples later finds it
+/// in the caches rather than waiting on memory; nothing on other targets. `index` may lie
+/// outside `items`: no bounds are checked, so that a loop may ask at every sample for a few
+/// instructions. The address is computed with wrapping arithmetic and never read through;
+/// the program's values are the same either way.
 #[inline(always)]
 pub fn prefetch<T>(items: &[T], index: usize) {
-    #[cfg(all(target_arch = "x86_64", target_feature = "sse"))]
-    if let Some(item) = items.get(index) {
-        use core::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        // SAFETY: SSE, all this needs, is enabled (the cfg). The address is a live item's;
-        // the instruction changes no register, flag or memory and never faults.
-        unsafe { _mm_prefetch::<_MM_HINT_T0>(core::ptr::from_ref(item).cast::<i8>()) }
-    }
-    #[cfg(not(all(target_arch = "x86_64", target_feature = "sse")))]
-    let _ = (items, index);
-}
-
-/// A hint that the item `index` places past the start of `items` is read soon, where
-/// `index` may lie outside `items`: no bounds are checked, so that a loop may ask every
-/// sample ahead for a few instructions. The address is computed with wrapping arithmetic
-/// and never read by the program.
-#[inline(always)]
-pub fn prefetch_near<T>(items: &[T], index: usize) {
     #[cfg(all(target_arch = "x86_64", target_feature = "sse"))]
     {
         use core::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
@@ -275,7 +260,6 @@ mod tests {
             usize::MAX - 7,
             usize::MAX / 2,
         ] {
-            prefetch_near(&items, index);
             prefetch(&items, index);
         }
         assert!(items

@@ -37,10 +37,10 @@ impl<'a> NodeLeaps<'a> {
     }
 
     /// A hint that place `i` is read soon; `i` may be any place, in the map or not
-    /// ([`voxcube_simd::prefetch_near`]).
+    /// ([`voxcube_simd::prefetch`]).
     #[inline(always)]
     pub fn prefetch(&self, i: usize) {
-        voxcube_simd::prefetch_near(self.map, i);
+        voxcube_simd::prefetch(self.map, i);
     }
 
     /// The distance at place `i` (0 past the map).

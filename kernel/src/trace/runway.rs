@@ -241,7 +241,10 @@ impl<U: Copy, E: CellTest> Inside<'_, '_, U, E> {
     ///
     /// Where `hint` is the storage offset of a cell some samples on ([`Inside::hint_offset`]),
     /// that cell's rows and map byte are asked for as each sample is looked at: in storage
-    /// larger than the caches a run waited on those two loads (docs/speed-log.md).
+    /// larger than the caches a run waited on those two loads (docs/speed-log.md). A
+    /// parameter, not a field of the run: held in the run, the compiler kept it in memory
+    /// and the loop around the hints spilled its registers (843 M instructions a fast frame
+    /// against 763 M).
     #[inline(always)]
     pub(crate) fn step<T: Sample>(
         &self,

@@ -51,16 +51,22 @@ impl<'a, U: Copy> Cells<'a, U> {
         size_of_val(self.data)
     }
 
-    /// A hint that the cell from `lo` is read soon: the four rows of its eight items, from
-    /// where the cell starts in each (a row's two items are mostly in one cache line).
-    /// Nothing for a row outside the storage; no value changes
-    /// ([`voxcube_simd::prefetch`]).
+    /// A hint that the cell from `lo` is read soon ([`Cells::prefetch_at`] of its place).
     #[inline(always)]
     pub fn prefetch(&self, [x, y, z]: [u32; 3]) {
         let base = (x.wrapping_sub(self.first) as usize)
             .wrapping_mul(self.plane)
             .wrapping_add((z as usize).wrapping_mul(self.row))
             .wrapping_add(y as usize);
+        self.prefetch_at(base);
+    }
+
+    /// A hint that the cell whose low corner is at place `base` is read soon: the four rows
+    /// of its eight items, from where the cell starts in each (a row's two items are mostly
+    /// in one cache line). `base` may be any place, in the storage or not; no value changes
+    /// ([`voxcube_simd::prefetch`]).
+    #[inline(always)]
+    pub fn prefetch_at(&self, base: usize) {
         for offset in [0, self.row, self.plane, self.plane + self.row] {
             voxcube_simd::prefetch(self.data, base.wrapping_add(offset));
         }
@@ -139,14 +145,14 @@ impl<U: Copy> HeldCells<'_, U> {
             .wrapping_add(dy) as usize
     }
 
-    /// A hint that the cell whose low corner is at `base` ([`HeldCells::index`]) is read
-    /// soon: the four rows of its eight items. `base` may be any place, inside the storage
-    /// or not; no value changes ([`voxcube_simd::prefetch_near`]).
+    /// A hint that the cell whose low corner is at `base` ([`HeldCells::index`], any place)
+    /// is read soon, as [`Cells::prefetch_at`] asks, by the strides this view holds (the
+    /// run's loop keeps them in registers).
     #[inline(always)]
     pub fn prefetch(&self, base: usize) {
         let (row, plane) = (self.row as usize, self.plane as usize);
         for offset in [0, row, plane, plane + row] {
-            voxcube_simd::prefetch_near(self.cells.data, base.wrapping_add(offset));
+            voxcube_simd::prefetch(self.cells.data, base.wrapping_add(offset));
         }
     }
 
