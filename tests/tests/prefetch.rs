@@ -1,8 +1,8 @@
 //! A prefetch is a hint: slabs whose composited rays ask for every evaluated sample's cell of
 //! the node field a few samples ahead, and slabs whose rays never do, give every pixel the
 //! same bits and count the same work, in both tiers (the fast tier reads the field's values
-//! and gradients, the exact tier its gradients), through the interior's runs and the general
-//! step, skipping or not, on the whole volume and on slabs of it.
+//! and gradients, the exact tier its gradients) and pre-integrated, through the interior's
+//! runs and the general step, skipping or not, on the whole volume and on slabs of it.
 //!
 //! No negative control is possible: a prefetch takes its storage by shared reference and
 //! returns nothing, so it has no way to change a value; the test shows that the loops that
@@ -10,10 +10,11 @@
 
 use voxcube::input::dataset::{Volume, VolumeData};
 use voxcube::memory::ranges::SlabRanges;
+use voxcube::memory::segments::SegmentTable;
 use voxcube::memory::storage::{holds_node_field, SkipMode, Skipping};
 use voxcube_kernel::counters::Counters;
 use voxcube_kernel::optics::shade::Light;
-use voxcube_kernel::trace::view::{Accuracy, View};
+use voxcube_kernel::trace::view::{Accuracy, Compositing, View};
 use voxcube_kernel::volume::grid::Model;
 use voxcube_kernel::volume::slab::{stored_planes, Slab};
 use voxcube_kernel::Vec3;
@@ -33,9 +34,9 @@ fn blobs() -> Volume {
     })
 }
 
-/// The composited view of `volume` in `tier`, parallel (with depth bounds and cell leap
+/// The composited view of `volume` in `tier`, composited `compositing`, parallel (with depth bounds and cell leap
 /// maps where the mode builds them), lit by a directional light.
-fn view(volume: &Volume, tier: Accuracy) -> View {
+fn view(volume: &Volume, tier: Accuracy, compositing: Compositing) -> View {
     let [nx, ny, nz] = volume.grid.dims().map(|n| n as f32);
     let centre = Vec3::new(nx * 0.5, ny * 0.45, nz * 0.55);
     let light = Light::directional(Vec3::new(0.3, -0.6, -1.0), Vec3::ONE, false).expect("light");
@@ -45,6 +46,7 @@ fn view(volume: &Volume, tier: Accuracy) -> View {
         &[light],
     );
     s.accuracy = tier;
+    s.compositing = compositing;
     View::new(s, &volume.grid).expect("valid view")
 }
 
@@ -68,8 +70,15 @@ fn rays_that_prefetch_and_rays_that_do_not_give_every_colour_in_the_same_bits() 
         ..SkipMode::ALL
     };
     let mut compared = 0;
-    for tier in [Accuracy::Fast, Accuracy::Exact] {
-        let view = view(&volume, tier);
+    let ways = [
+        (Accuracy::Fast, Compositing::Sampled),
+        (Accuracy::Exact, Compositing::Sampled),
+        (Accuracy::Fast, Compositing::PreIntegrated),
+    ];
+    for (tier, compositing) in ways {
+        let view = view(&volume, tier, compositing);
+        // Empty for a sampled view; a pre-integrated one composites by nothing else.
+        let table = SegmentTable::of(&view);
         for owned in [0..nx, 3..nx / 2, nx / 3..nx] {
             // Two ghost planes: a node field reads one plane past the planes it holds.
             let stored = stored_planes(&grid, owned.clone(), 2);
@@ -79,12 +88,15 @@ fn rays_that_prefetch_and_rays_that_do_not_give_every_colour_in_the_same_bits() 
                 let field = volume.built.field(&slab, holds_node_field(&view, mode), 1);
                 let ranges = SlabRanges::build(&slab, mode.ranges, 1);
                 let skipping = Skipping::build(&slab, &ranges, &view, mode);
-                let ready = skipping.apply(field.apply(slab));
+                let ready = table.apply(skipping.apply(field.apply(slab)));
                 // The field the rays ask for is held, in either tier.
-                assert!(ready.nodes().is_some(), "{tier:?} {owned:?} {mode:?}");
+                assert!(
+                    ready.nodes().is_some(),
+                    "{tier:?} {compositing:?} {owned:?} {mode:?}"
+                );
                 let (asked, counted) = traced(&view, ready, 0);
                 let (never, also) = traced(&view, ready, usize::MAX);
-                let what = format!("{tier:?} {owned:?} {mode:?}");
+                let what = format!("{tier:?} {compositing:?} {owned:?} {mode:?}");
                 assert_eq!(counted, also, "{what}");
                 assert!(asked == never, "{what}: a colour differs");
                 // Not a blank image: the comparison sees composited, shaded samples.
@@ -95,5 +107,5 @@ fn rays_that_prefetch_and_rays_that_do_not_give_every_colour_in_the_same_bits() 
             }
         }
     }
-    assert_eq!(compared, 2 * 3 * 4);
+    assert_eq!(compared, 3 * 3 * 4);
 }

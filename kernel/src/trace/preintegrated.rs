@@ -263,6 +263,11 @@ fn run<T: Sample, R: Reading<T>, E: CellTest>(
     let counters = &mut local;
     let mut k = ray.k;
     let mut looked = inside.look(lattice, r, k);
+    // Where the slab holds a node field larger than the caches (read here: a shaded view
+    // reads its lanes wherever it is held), ask for cells ahead as the sampled loop does.
+    let hint = slab
+        .prefetched_field()
+        .map(|_| inside.hint_offset(&r, lattice.dt));
     let (mut prev, mut stale) = (ray.prev, ray.prev_stale);
     if stale {
         *g_front = None;
@@ -280,7 +285,7 @@ fn run<T: Sample, R: Reading<T>, E: CellTest>(
                 (ray, lattice, r),
                 skipper,
                 (&mut k, &mut looked),
-                None,
+                hint,
             ) else {
                 stale = true;
                 *g_front = None;
@@ -288,7 +293,7 @@ fn run<T: Sample, R: Reading<T>, E: CellTest>(
             };
             at
         } else {
-            inside.take(lattice, r, k, &mut looked)
+            inside.take(lattice, r, k, &mut looked, hint)
         };
         let Read { q, cell, lo, index } = at;
         // Where the front was passed over, its cell, should the segment show: in the

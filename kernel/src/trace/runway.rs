@@ -258,11 +258,7 @@ impl<U: Copy, E: CellTest> Inside<'_, '_, U, E> {
         let here = *looked;
         // Looked at before `here`'s distance decides the way on.
         *looked = self.look(lattice, line, at.wrapping_add(1));
-        if let Some(offset) = hint {
-            let place = looked.index.wrapping_add(offset);
-            self.test.prefetch(place);
-            self.cells.prefetch(place);
-        }
+        self.ask_ahead(looked, hint);
         if (1..=self.stepped).contains(&here.distance) {
             // The same samples as a leap, fewer instructions.
             *k = at + 1;
@@ -290,17 +286,37 @@ impl<U: Copy, E: CellTest> Inside<'_, '_, U, E> {
     /// Sample `k` (`looked` that sample looked at), to be read whatever its cell's distance
     /// in the map: where a loop may not pass over it (pre-integrated compositing, whose
     /// segment ending there starts at a value that shows). `looked` moves on to `k + 1`, as
-    /// [`Inside::step`] moves it for a sample it hands to be read.
+    /// [`Inside::step`] moves it for a sample it hands to be read, and asks ahead of it as
+    /// that does where `hint` is an offset.
     #[inline(always)]
-    pub(crate) fn take(&self, lattice: Lattice, line: Ray, k: u32, looked: &mut Look) -> Read {
+    pub(crate) fn take(
+        &self,
+        lattice: Lattice,
+        line: Ray,
+        k: u32,
+        looked: &mut Look,
+        hint: Option<usize>,
+    ) -> Read {
         let here = *looked;
         *looked = self.look(lattice, line, k.wrapping_add(1));
+        self.ask_ahead(looked, hint);
         let (cell, lo) = field::interior_corner(here.q);
         Read {
             q: here.q,
             cell,
             lo,
             index: here.index,
+        }
+    }
+
+    /// Where `hint` is the storage offset of a cell some samples on ([`Inside::hint_offset`]),
+    /// ask for that cell's rows and map byte from the sample just `looked` at.
+    #[inline(always)]
+    fn ask_ahead(&self, looked: &Look, hint: Option<usize>) {
+        if let Some(offset) = hint {
+            let place = looked.index.wrapping_add(offset);
+            self.test.prefetch(place);
+            self.cells.prefetch(place);
         }
     }
 }
