@@ -34,8 +34,8 @@ fn blobs() -> Volume {
     })
 }
 
-/// The composited view of `volume` in `tier`, composited `compositing`, parallel (with depth bounds and cell leap
-/// maps where the mode builds them), lit by a directional light.
+/// The view of `volume` in `tier`, composited `compositing`, parallel (with depth bounds and
+/// cell leap maps where the mode builds them), lit by a directional light.
 fn view(volume: &Volume, tier: Accuracy, compositing: Compositing) -> View {
     let [nx, ny, nz] = volume.grid.dims().map(|n| n as f32);
     let centre = Vec3::new(nx * 0.5, ny * 0.45, nz * 0.55);
