@@ -16,8 +16,7 @@
 //! an intrinsic that needs only a feature this build enables, which the `cfg` above it
 //! checks (the binary requires that feature of its CPU anyway), and takes no pointer, but
 //! for the prefetch, which takes an address (computed by wrapping arithmetic and never read
-//! through) and can neither fault nor change what the program
-//! reads.
+//! through) and can neither fault nor change what the program reads.
 //!
 //! Invariant: on lanes in `[0, 2^23]` (every caller's: coordinates clamped into the grid,
 //! or inside it) both forms give the same bits, the truncation and the integers being exact

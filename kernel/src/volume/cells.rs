@@ -51,25 +51,14 @@ impl<'a, U: Copy> Cells<'a, U> {
         size_of_val(self.data)
     }
 
-    /// A hint that the cell from `lo` is read soon ([`Cells::prefetch_at`] of its place).
+    /// A hint that the cell from `lo` is read soon ([`prefetch_rows`] at its place).
     #[inline(always)]
     pub fn prefetch(&self, [x, y, z]: [u32; 3]) {
         let base = (x.wrapping_sub(self.first) as usize)
             .wrapping_mul(self.plane)
             .wrapping_add((z as usize).wrapping_mul(self.row))
             .wrapping_add(y as usize);
-        self.prefetch_at(base);
-    }
-
-    /// A hint that the cell whose low corner is at place `base` is read soon: the four rows
-    /// of its eight items, from where the cell starts in each (a row's two items are mostly
-    /// in one cache line). `base` may be any place, in the storage or not; no value changes
-    /// ([`voxcube_simd::prefetch`]).
-    #[inline(always)]
-    pub fn prefetch_at(&self, base: usize) {
-        for offset in [0, self.row, self.plane, self.plane + self.row] {
-            voxcube_simd::prefetch(self.data, base.wrapping_add(offset));
-        }
+        prefetch_rows(self.data, base, self.row, self.plane);
     }
 
     /// The low X planes of the whole cells stored: both their planes are.
@@ -130,11 +119,6 @@ impl<U: Copy> HeldCells<'_, U> {
             .wrapping_add(y as usize)
     }
 
-    /// Bytes of the storage.
-    pub fn bytes(&self) -> usize {
-        self.cells.bytes()
-    }
-
     /// How far apart in the storage two nodes `[dx, dy, dz]` apart are (wrapping: added to a
     /// place, a negative offset moves back).
     #[inline]
@@ -146,14 +130,16 @@ impl<U: Copy> HeldCells<'_, U> {
     }
 
     /// A hint that the cell whose low corner is at `base` ([`HeldCells::index`], any place)
-    /// is read soon, as [`Cells::prefetch_at`] asks, by the strides this view holds (the
-    /// run's loop keeps them in registers).
+    /// is read soon ([`prefetch_rows`]), by the strides this view holds (the run's loop
+    /// keeps them in registers).
     #[inline(always)]
     pub fn prefetch(&self, base: usize) {
-        let (row, plane) = (self.row as usize, self.plane as usize);
-        for offset in [0, row, plane, plane + row] {
-            voxcube_simd::prefetch(self.cells.data, base.wrapping_add(offset));
-        }
+        prefetch_rows(
+            self.cells.data,
+            base,
+            self.row as usize,
+            self.plane as usize,
+        );
     }
 
     /// The storage's first X plane, and the items from one plane to the next.
@@ -178,6 +164,17 @@ impl<U: Copy> HeldCells<'_, U> {
             cell[row + 1],
             cell[far],
         ])
+    }
+}
+
+/// A hint that the cell whose low corner is at place `base` of plane-major storage `data`
+/// (strides `row` and `plane`) is read soon: the four rows of its eight items, from where
+/// the cell starts in each (a row's two items are mostly in one cache line). `base` may be
+/// any place, in the storage or not; no value changes ([`voxcube_simd::prefetch`]).
+#[inline(always)]
+fn prefetch_rows<U>(data: &[U], base: usize, row: usize, plane: usize) {
+    for offset in [0, row, plane, plane + row] {
+        voxcube_simd::prefetch(data, base.wrapping_add(offset));
     }
 }
 
