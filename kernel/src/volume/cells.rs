@@ -51,7 +51,7 @@ impl<'a, U: Copy> Cells<'a, U> {
         size_of_val(self.data)
     }
 
-    /// A hint that the cell from `lo` is read soon ([`prefetch_rows`] at its place).
+    /// A hint that the cell from `lo` is read soon (`prefetch_rows` at its place).
     #[inline(always)]
     pub fn prefetch(&self, [x, y, z]: [u32; 3]) {
         let base = (x.wrapping_sub(self.first) as usize)
@@ -130,7 +130,7 @@ impl<U: Copy> HeldCells<'_, U> {
     }
 
     /// A hint that the cell whose low corner is at `base` ([`HeldCells::index`], any place)
-    /// is read soon ([`prefetch_rows`]), by the strides this view holds (the run's loop
+    /// is read soon (`prefetch_rows`), by the strides this view holds (the run's loop
     /// keeps them in registers).
     #[inline(always)]
     pub fn prefetch(&self, base: usize) {
