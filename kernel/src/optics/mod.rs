@@ -5,7 +5,6 @@
 //! order, so the same sample gives the same bits on every node.
 
 pub mod classify;
-pub mod correction;
 pub mod segments;
 pub mod shade;
 pub mod shading_table;

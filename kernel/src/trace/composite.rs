@@ -1,8 +1,7 @@
 //! The composited sample loop: front-to-back emission and absorption over a ray's lattice
 //! samples in one slab, in a single loop that reads a sample, classifies it and, where it
 //! shows, shades and composites it (in the slab's interior, the fast tier's samples that show
-//! wait in a short batch for their light, `crate::trace::deferred`, and the exact tier's for
-//! their opacity's correction, `crate::trace::pending`). What may be passed over
+//! wait in a short batch for their light: `crate::trace::deferred`). What may be passed over
 //! is asked of `crate::trace::skipping`. How a sample is read (`crate::trace::reading`: the
 //! node field's lanes, or the slab's value) and classified (the fast tier's table, or the
 //! transfer function) are chosen once per call: the loop is compiled once per choice, so that
@@ -17,11 +16,10 @@
 
 use crate::counters::Counters;
 use crate::optics::classify::Classified;
-use crate::optics::transfer::{corrected_opacity, Span, TransferFunction};
+use crate::optics::transfer::{corrected_opacity, TransferFunction};
 use crate::trace::deferred::Deferred;
 use crate::trace::lattice::Lattice;
 use crate::trace::lighting::Unshadowed;
-use crate::trace::pending::{Compositing, Pending, Waiting};
 use crate::trace::preintegrated;
 use crate::trace::ray::Ray;
 use crate::trace::reading::{GridLanes, Lanes, Reading, Value};
@@ -146,14 +144,6 @@ trait Classify {
     /// the opacity is zero: most samples of a composited view are transparent, and their
     /// colour is not looked at).
     fn classify(&self, view: &View, lattice: &Lattice, k: u32, v: f32) -> (f32, Vec3);
-
-    /// The transfer function, where a run's samples wait for their opacity's correction to
-    /// be made four at a time ([`Pending`]): the exact tier's. The fast tier's table holds
-    /// its corrections.
-    #[inline(always)]
-    fn waits(&self) -> Option<&TransferFunction> {
-        None
-    }
 }
 
 /// The fast tier: the pre-classified table's entry for a whole Δt segment, or its opacity
@@ -197,8 +187,11 @@ impl Classify for ByFunction<'_> {
 
     #[inline(always)]
     fn classify(&self, view: &View, lattice: &Lattice, k: u32, v: f32) -> (f32, Vec3) {
-        let (opacity, length, span) = uncorrected(self.0, view, lattice, k, v);
-        let alpha = corrected_opacity(opacity, length);
+        let span = self.0.span(v);
+        let alpha = corrected_opacity(
+            self.0.opacity_at(span),
+            lattice.segment(k) / view.cell_edge(),
+        );
         // Looked up only where it shows.
         let color = if alpha > 0.0 {
             self.0.color_at(span)
@@ -207,30 +200,6 @@ impl Classify for ByFunction<'_> {
         };
         (alpha, color)
     }
-
-    #[inline(always)]
-    fn waits(&self) -> Option<&TransferFunction> {
-        Some(self.0)
-    }
-}
-
-/// Sample `k`'s opacity for one cell edge by `tf`, its segment of `lattice` in cell edges,
-/// and where its value falls among `tf`'s points (its colour's): what the exact tier corrects
-/// and looks up.
-#[inline(always)]
-fn uncorrected(
-    tf: &TransferFunction,
-    view: &View,
-    lattice: &Lattice,
-    k: u32,
-    v: f32,
-) -> (f32, f32, Span) {
-    let span = tf.span(v);
-    (
-        tf.opacity_at(span),
-        lattice.segment(k) / view.cell_edge(),
-        span,
-    )
 }
 
 /// The loop itself, for one way of reading and one of classifying: each sample through the
@@ -357,8 +326,6 @@ fn run<T: Sample, C: Classify, R: Reading<T>, A: Ahead, E: CellTest>(
     // nothing from the wait: docs/speed-log.md).
     let mut waiting = Deferred::new();
     let tabled = C::TABLED && light.table().is_some();
-    // The exact tier's samples that may show wait for their opacity's correction.
-    let mut pending = Pending::new();
     let end = loop {
         if k > inside.end {
             break Run::Done;
@@ -378,31 +345,8 @@ fn run<T: Sample, C: Classify, R: Reading<T>, A: Ahead, E: CellTest>(
         let frac = (q - cell).truncate();
         counters.samples += 1;
         let (v, gradient) = read.read_cell(slab, nodes, frac, counters);
-        last_read = Some(v);
-        if let Some(tf) = classify.waits() {
-            let (opacity, length, span) = uncorrected(tf, view, &lattice, k, v);
-            if opacity > 0.0 {
-                let sample = Waiting {
-                    k,
-                    v,
-                    base: tf.color_at(span),
-                    gradient: gradient.unwrap_or(Vec3::ZERO),
-                    q,
-                    lo,
-                    frac,
-                    counted: (counters.samples, counters.interpolations),
-                };
-                let into = Compositing::new(light, R::GRADIENTS, slab, (color, weight), cutoff);
-                if let Some(ended) = pending.push((sample, opacity, length), into, counters) {
-                    (k, last_read) = (ended.k + 1, Some(ended.v));
-                    counters.early_terminations += 1;
-                    break Run::Terminated;
-                }
-            }
-            k += 1;
-            continue;
-        }
         let (alpha, base) = classify.classify(view, &lattice, k, v);
+        last_read = Some(v);
         k += 1;
         if alpha > 0.0 {
             if let (true, Some(g)) = (tabled, gradient) {
@@ -435,21 +379,6 @@ fn run<T: Sample, C: Classify, R: Reading<T>, A: Ahead, E: CellTest>(
     if tabled {
         waiting.light(light, color, counters);
     }
-    let ended = match classify.waits() {
-        Some(_) => pending.settle(
-            Compositing::new(light, R::GRADIENTS, slab, (color, weight), cutoff),
-            counters,
-        ),
-        None => None,
-    };
-    let end = match ended {
-        Some(ended) => {
-            (k, last_read) = (ended.k + 1, Some(ended.v));
-            counters.early_terminations += 1;
-            Run::Terminated
-        }
-        None => end,
-    };
     local.skipped += runway::passed_over(ray.k, k, local.samples);
     ray.k = k;
     if let Some(v) = last_read {

@@ -12,7 +12,6 @@ pub(crate) mod interior;
 pub mod lattice;
 pub mod lighting;
 pub mod march;
-pub(crate) mod pending;
 pub mod pixel;
 pub(crate) mod preintegrated;
 pub mod ray;

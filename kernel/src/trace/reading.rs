@@ -20,9 +20,6 @@ pub(crate) trait Reading<T: Sample>: Copy {
     /// What the storage the read uses holds per node.
     type Node: Copy;
 
-    /// Whether [`Reading::read_cell`] gives a gradient with every value (else never).
-    const GRADIENTS: bool;
-
     /// That storage as whole cells, for the runs through the slab's interior; `None` where
     /// the slab holds none.
     fn cells<'a>(slab: &Slab<'a, T>) -> Option<Cells<'a, Self::Node>>;
@@ -53,7 +50,6 @@ pub(crate) struct Lanes;
 
 impl<T: Sample> Reading<T> for Lanes {
     type Node = T::Node;
-    const GRADIENTS: bool = true;
 
     #[inline(always)]
     fn cells<'a>(slab: &Slab<'a, T>) -> Option<Cells<'a, T::Node>> {
@@ -95,7 +91,6 @@ pub(crate) struct Value;
 
 impl<T: Sample> Reading<T> for Value {
     type Node = T;
-    const GRADIENTS: bool = false;
 
     #[inline(always)]
     fn cells<'a>(slab: &Slab<'a, T>) -> Option<Cells<'a, T>> {
@@ -140,7 +135,6 @@ pub(crate) struct GridLanes;
 
 impl<T: Sample> Reading<T> for GridLanes {
     type Node = T::Node;
-    const GRADIENTS: bool = true;
 
     #[inline(always)]
     fn cells<'a>(slab: &Slab<'a, T>) -> Option<Cells<'a, T::Node>> {
